@@ -1,0 +1,176 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Exact transfer of a core Surface to FreeCAD's OCCT, its exports, and the paper's route.
+
+The exact route hands OCCT the very poles, knots and multiplicities the matrix evaluator uses,
+so both evaluate the same polynomial pieces.  The paper's route (sampled points → curves
+through points → surface through curves) is built too, only to measure what it loses.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..core import Surface
+from ..core.netio import atomic_write
+from ..core.typing import FloatArray
+from .compat import ensure_freecad
+
+FreeCAD = ensure_freecad()
+import Part  # noqa: E402  (needs FreeCAD on sys.path first)
+
+
+def to_part_surface(surface: Surface) -> Part.BSplineSurface:
+    """A Part.BSplineSurface with the same poles, knots and multiplicities as ``surface``."""
+    knots = surface.occt_knots()
+    poles = [[FreeCAD.Vector(*map(float, p)) for p in row] for row in surface.control_points]
+    part = Part.BSplineSurface()
+    part.buildFromPolesMultsKnots(
+        poles,
+        [int(m) for m in knots["u_mults"]],
+        [int(m) for m in knots["w_mults"]],
+        [float(k) for k in knots["u_knots"]],
+        [float(k) for k in knots["w_knots"]],
+        False,
+        False,
+        surface.degree,
+        surface.degree,
+    )
+    return part
+
+
+def to_face(surface: Surface) -> Part.Face:
+    return Part.Face(to_part_surface(surface))
+
+
+def to_solid(surface: Surface, base_z: float | None = None, margin: float = 5.0) -> Part.Solid:
+    """The surface closed down to the plane z = base_z: the model a CAM job machines.
+
+    ``base_z`` defaults to ``margin`` mm below the lowest point of the surface's boundary and
+    interior (estimated on a dense grid).  The sides are ruled faces between each boundary
+    edge and its projection onto the base plane, which is exact because projection is affine.
+    """
+    face = to_face(surface)
+    if base_z is None:
+        base_z = float(surface.grid(65, 65)[..., 2].min()) - margin
+    top_edges = face.OuterWire.OrderedEdges
+    bottom_edges = []
+    sides = []
+    for edge in top_edges:
+        curve = edge.Curve
+        if not isinstance(curve, Part.BSplineCurve):
+            curve = edge.Curve.toBSpline(edge.FirstParameter, edge.LastParameter)
+        flat = curve.copy()
+        for index, pole in enumerate(curve.getPoles(), start=1):
+            flat.setPole(index, FreeCAD.Vector(pole.x, pole.y, base_z))
+        bottom = Part.Edge(flat, edge.FirstParameter, edge.LastParameter)
+        bottom_edges.append(bottom)
+        sides.append(Part.makeRuledSurface(edge, bottom))
+    base = Part.Face(Part.Wire(bottom_edges))
+    shell = Part.Shell([face, *[s.Faces[0] for s in sides], base])
+    solid = Part.Solid(shell)
+    if solid.Volume < 0:
+        solid.complement()
+    return solid
+
+
+def evaluate(surface: Surface, u: FloatArray, w: FloatArray) -> FloatArray:
+    """OCCT's own evaluation (Geom_BSplineSurface::D0 through Part) at scattered (u, w)."""
+    part = to_part_surface(surface)
+    return np.array([tuple(part.value(float(a), float(b))) for a, b in zip(np.ravel(u), np.ravel(w))])
+
+
+def export_shape(shape: Part.Shape, path: str | os.PathLike) -> None:
+    """STEP or BREP by extension, written beside and renamed into place when complete."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    tmp = path.with_name(f".{path.stem}.part{path.suffix}")
+    try:
+        if suffix in (".step", ".stp"):
+            shape.exportStep(str(tmp))
+        elif suffix in (".brep", ".brp"):
+            shape.exportBrep(str(tmp))
+        else:
+            raise ValueError(f"{path}: unknown export format {suffix!r}: expected .step or .brep")
+        if not tmp.exists() or tmp.stat().st_size == 0:
+            raise OSError(f"{path}: OCCT wrote nothing")
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def paper_route(points: FloatArray) -> Part.Face:
+    """The paper's import route: a spline through each row of points, then a surface through
+    those curves (UGS "through curves"; here FreeCAD's interpolation and loft)."""
+    curves = []
+    for row in np.asarray(points, dtype=float):
+        curve = Part.BSplineCurve()
+        curve.interpolate([FreeCAD.Vector(*map(float, p)) for p in row])
+        curves.append(Part.Wire([curve.toShape()]))
+    loft = Part.makeLoft(curves, False, False, False)
+    return loft.Faces[0]
+
+
+def deviation_between(face: Part.Face, surface: Surface, samples: int = 41, reverse_samples: int = 11) -> dict:
+    """Largest distance (mm) between a face and the exact surface, measured both ways.
+
+    Face → design: ``samples``² points of the face projected onto the exact Part surface.
+    Design → face: ``reverse_samples``² points of the exact surface projected onto the face
+    (projection onto a loft is ~40x slower, hence the coarser grid).  Both by OCCT.
+    """
+    exact = to_part_surface(surface)
+    design = surface.grid(reverse_samples, reverse_samples).reshape(-1, 3)
+    other = face.Surface
+    worst_to_face = 0.0
+    for p in design:
+        v = FreeCAD.Vector(*map(float, p))
+        a, b = other.parameter(v)
+        worst_to_face = max(worst_to_face, (other.value(a, b) - v).Length)
+    u0, u1, w0, w1 = face.ParameterRange
+    worst_to_design = 0.0
+    for a in np.linspace(u0, u1, samples):
+        for b in np.linspace(w0, w1, samples):
+            v = other.value(float(a), float(b))
+            s, t = exact.parameter(v)
+            worst_to_design = max(worst_to_design, (exact.value(s, t) - v).Length)
+    return {
+        "design_to_result_mm": worst_to_face,
+        "result_to_design_mm": worst_to_design,
+        "max_deviation_mm": max(worst_to_face, worst_to_design),
+        "samples": [samples, samples],
+        "reverse_samples": [reverse_samples, reverse_samples],
+    }
+
+
+def save_document(surface: Surface, path: str | os.PathLike, solid: bool = True) -> None:
+    """A FreeCAD document holding the surface as a parametric object, saved atomically."""
+    from .surface_feature import make_surface
+
+    path = Path(path)
+    doc = FreeCAD.newDocument(_unique_doc_name(path.stem))
+    try:
+        make_surface(surface, doc=doc, solid=solid)
+        doc.recompute()
+        tmp = path.with_name(f".{path.stem}.part.FCStd")
+        doc.saveAs(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        FreeCAD.closeDocument(doc.Name)
+
+
+def _unique_doc_name(stem: str) -> str:
+    base = "".join(ch if ch.isalnum() else "_" for ch in stem) or "BSplineCAM"
+    name, n = base, 1
+    while name in FreeCAD.listDocuments():
+        n += 1
+        name = f"{base}{n}"
+    return name
+
+
+__all__ = [
+    "atomic_write", "deviation_between", "evaluate", "export_shape", "paper_route",
+    "save_document", "to_face", "to_part_surface", "to_solid",
+]

@@ -1,0 +1,196 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The paper's matrix evaluator: P(u, w) = [U][MB][P][MB]^T[W] (appendix A, eq. A.2).
+
+Each patch is written in the power basis [s^3, s^2, s, 1] of its local parameter s in [0, 1].
+For the paper's uniform knots every patch uses the same matrix MB; for clamped (open uniform)
+knots the patches near the ends have their own 4x4 matrices, found here by expanding the
+Cox–de Boor basis of each span in the power basis.  Derivatives come from differentiating [U].
+
+Evaluation never loops over points.  A grid is evaluated as two matrix products over whole
+rows of patches: the sparse u-basis rows (4 non-zeros each, from [U][MB]) meet the net, then
+one BLAS product with the w-basis gives all three coordinate planes at once.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from .basis import DEGREE, KnotLayout, cox_de_boor, knot_vector
+from .typing import ArrayLike, FloatArray, IntArray
+
+#: The paper's uniform cubic B-spline basis matrix, appendix A (A.2).
+MB: FloatArray = np.array(
+    [[-1.0, 3.0, -3.0, 1.0], [3.0, -6.0, 3.0, 0.0], [-3.0, 0.0, 3.0, 0.0], [1.0, 4.0, 1.0, 0.0]]
+) / 6.0
+MB.setflags(write=False)
+
+#: Chunk of scattered points evaluated at once: bounds the (m, 4, 4, 3) gather temporary.
+SCATTER_CHUNK = 1 << 15
+
+
+def span_matrices(count: int, layout: str | KnotLayout) -> FloatArray:
+    """Per-patch basis matrices, shape (count - 3, 4, 4), rows indexed like MB's.
+
+    Row k of a matrix holds the power-basis coefficients of s^(3-k); column l the weight of
+    control point j + l.  For the uniform layout every matrix equals MB exactly (the paper's
+    derivation); for the clamped layout each span's Cox–de Boor cubics are expanded in the
+    power basis by solving a 4x4 Vandermonde system at four interior sample points.
+    """
+    layout = KnotLayout.parse(layout)
+    spans = count - DEGREE
+    if layout is KnotLayout.UNIFORM:
+        return np.broadcast_to(MB, (spans, 4, 4)).copy()
+    return _clamped_span_matrices(count).copy()
+
+
+@lru_cache(maxsize=64)
+def _clamped_span_matrices(count: int) -> FloatArray:
+    knots = knot_vector(count, KnotLayout.CLAMPED)
+    spans = count - DEGREE
+    samples = np.array([0.125, 0.375, 0.625, 0.875])
+    vandermonde = np.vander(samples, 4)  # rows [s^3, s^2, s, 1]
+    out = np.empty((spans, 4, 4))
+    for j in range(spans):
+        u = (j + samples) / spans
+        values = cox_de_boor(knots, DEGREE, u)[:, j : j + 4]
+        out[j] = np.linalg.solve(vandermonde, values)
+    out.setflags(write=False)
+    return out
+
+
+def locate(t: ArrayLike, count: int) -> tuple[IntArray, FloatArray]:
+    """Patch index and local parameter s in [0, 1] for normalised parameters t in [0, 1]."""
+    spans = count - DEGREE
+    scaled = np.asarray(t, dtype=float) * spans
+    index = np.clip(np.floor(scaled).astype(np.intp), 0, spans - 1)
+    return index, scaled - index
+
+
+def power_rows(s: FloatArray, derivative: int, spans: int) -> FloatArray:
+    """[U] = [s^3, s^2, s, 1] or its derivative with respect to the normalised parameter.
+
+    d/dt = spans * d/ds, because t = (j + s) / spans.
+    """
+    s = np.asarray(s, dtype=float)
+    one = np.ones_like(s)
+    zero = np.zeros_like(s)
+    if derivative == 0:
+        rows = (s * s * s, s * s, s, one)
+    elif derivative == 1:
+        rows = (3.0 * s * s, 2.0 * s, one, zero)
+    elif derivative == 2:
+        rows = (6.0 * s, 2.0 * one, zero, zero)
+    elif derivative == 3:
+        rows = (6.0 * one, zero, zero, zero)
+    else:
+        rows = (zero, zero, zero, zero)
+    return np.stack(rows, axis=-1) * float(spans) ** derivative
+
+
+def local_weights(
+    t: ArrayLike, count: int, layout: str | KnotLayout, derivative: int = 0
+) -> tuple[IntArray, FloatArray]:
+    """[U][M_j] for each parameter: first control index j and the 4 weights, shape (m, 4)."""
+    index, s = locate(np.atleast_1d(t), count)
+    matrices = span_matrices_cached(count, KnotLayout.parse(layout))
+    rows = power_rows(s, derivative, count - DEGREE)
+    if KnotLayout.parse(layout) is KnotLayout.UNIFORM:
+        return index, rows @ MB
+    return index, np.einsum("mk,mkl->ml", rows, matrices[index])
+
+
+@lru_cache(maxsize=64)
+def span_matrices_cached(count: int, layout: KnotLayout) -> FloatArray:
+    mats = span_matrices(count, layout)
+    mats.setflags(write=False)
+    return mats
+
+
+def basis_rows(
+    t: ArrayLike, count: int, layout: str | KnotLayout, derivative: int = 0
+) -> FloatArray:
+    """Dense basis matrix (m, count) whose row holds [U][M_j] at columns j .. j+3."""
+    index, weights = local_weights(t, count, layout, derivative)
+    dense = np.zeros((len(index), count))
+    rows = np.arange(len(index))[:, None]
+    dense[rows, index[:, None] + np.arange(4)] = weights
+    return dense
+
+
+def _contract_rows(index: IntArray, weights: FloatArray, net: FloatArray) -> FloatArray:
+    """Sum_k weights[a, k] * net[index[a] + k]: the u-basis applied row block by row block."""
+    out = weights[:, 0, None, None] * net[index]
+    for k in range(1, 4):
+        out += weights[:, k, None, None] * net[index + k]
+    return out
+
+
+def evaluate_grid(
+    net: FloatArray,
+    layout: str | KnotLayout,
+    u: ArrayLike,
+    w: ArrayLike,
+    du: int = 0,
+    dw: int = 0,
+) -> FloatArray:
+    """Points (or partial derivatives) on the tensor grid u x w: shape (len(u), len(w), 3).
+
+    Stage 1 applies [U][MB] along u (4 rows of the net per sample); stage 2 is one BLAS product
+    (3·len(u) x n_w) @ (n_w x len(w)) that yields the x, y and z planes together.  The result
+    is returned as a transposed view of those planes, so no (nu, nw, 3) copy is made.
+    """
+    net = np.asarray(net, dtype=float)
+    n_u, n_w = net.shape[:2]
+    u = np.atleast_1d(np.asarray(u, dtype=float))
+    w = np.atleast_1d(np.asarray(w, dtype=float))
+    iu, wu = local_weights(u, n_u, layout, du)
+    # stage 1: (len(u), n_w, 3) laid out as planes (3, len(u), n_w)
+    planes_net = np.ascontiguousarray(net.transpose(2, 0, 1))  # (3, n_u, n_w)
+    stage1 = np.empty((3, len(u), n_w))
+    for c in range(3):
+        stage1[c] = _contract_rows(iu, wu, planes_net[c][:, :, None])[:, :, 0]
+    basis_w = basis_rows(w, n_w, layout, dw)  # (len(w), n_w)
+    planes = stage1.reshape(3 * len(u), n_w) @ basis_w.T
+    return planes.reshape(3, len(u), len(w)).transpose(1, 2, 0)
+
+
+def evaluate_points(
+    net: FloatArray,
+    layout: str | KnotLayout,
+    u: ArrayLike,
+    w: ArrayLike,
+    du: int = 0,
+    dw: int = 0,
+) -> FloatArray:
+    """Points (or partial derivatives) at scattered parameter pairs: shape broadcast(u, w) + (3,).
+
+    Per point: [U][M_i] · P[i:i+4, j:j+4] · ([W][M_j])^T, done in chunks so the gathered
+    4x4 control blocks never exceed ``SCATTER_CHUNK`` points at once.
+    """
+    net = np.asarray(net, dtype=float)
+    n_u, n_w = net.shape[:2]
+    u, w = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(w, dtype=float))
+    shape = u.shape
+    u = u.ravel()
+    w = w.ravel()
+    out = np.empty((len(u), 3))
+    offsets = np.arange(4)
+    for start in range(0, len(u), SCATTER_CHUNK):
+        sl = slice(start, start + SCATTER_CHUNK)
+        iu, wu = local_weights(u[sl], n_u, layout, du)
+        iw, ww = local_weights(w[sl], n_w, layout, dw)
+        blocks = net[(iu[:, None] + offsets)[:, :, None], (iw[:, None] + offsets)[:, None, :]]
+        out[sl] = np.einsum("mk,mklc,ml->mc", wu, blocks, ww, optimize=True)
+    return out.reshape(shape + (3,))
+
+
+def evaluate_curve(
+    points: FloatArray, layout: str | KnotLayout, t: ArrayLike, derivative: int = 0
+) -> FloatArray:
+    """A cubic B-spline curve P(t) = [T][MB][P] for control points of shape (n, dim)."""
+    points = np.asarray(points, dtype=float)
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    index, weights = local_weights(t, len(points), layout, derivative)
+    return _contract_rows(index, weights, points)
