@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
+import importlib.util
 import json
 import os
 import shutil
@@ -111,13 +113,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dat-samples", type=int, default=DAT_SAMPLES, help="points per side in NAME.dat")
     p.set_defaults(func=cmd_surface)
 
-    for register in _EXTRA_COMMANDS:
-        register(sub)
+    for module in STAGE_COMMANDS:
+        importlib.import_module(module).register(sub)
     return parser
 
 
-#: Commands contributed by later stages (toolpath, verify) register themselves here.
-_EXTRA_COMMANDS: list = []
+#: Modules of later stages; each has ``register(subparsers)`` adding its subcommand.
+STAGE_COMMANDS = [m for m in ("BSplineCAM.cli_toolpath", "BSplineCAM.cli_verify")
+                  if importlib.util.find_spec(m) is not None]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -48,32 +48,23 @@ def to_face(surface: Surface) -> Part.Face:
 def to_solid(surface: Surface, base_z: float | None = None, margin: float = 5.0) -> Part.Solid:
     """The surface closed down to the plane z = base_z: the model a CAM job machines.
 
-    ``base_z`` defaults to ``margin`` mm below the lowest point of the surface's boundary and
-    interior (estimated on a dense grid).  The sides are ruled faces between each boundary
-    edge and its projection onto the base plane, which is exact because projection is affine.
+    ``base_z`` defaults to ``margin`` mm below the surface's lowest point.  The face is swept
+    straight down past the base plane and cut there by a box (one OCCT boolean), which gives
+    vertical side walls and a flat base sharing their edges with the exact top face.
     """
     face = to_face(surface)
+    box = face.BoundBox
     if base_z is None:
-        base_z = float(surface.grid(65, 65)[..., 2].min()) - margin
-    top_edges = face.OuterWire.OrderedEdges
-    bottom_edges = []
-    sides = []
-    for edge in top_edges:
-        curve = edge.Curve
-        if not isinstance(curve, Part.BSplineCurve):
-            curve = edge.Curve.toBSpline(edge.FirstParameter, edge.LastParameter)
-        flat = curve.copy()
-        for index, pole in enumerate(curve.getPoles(), start=1):
-            flat.setPole(index, FreeCAD.Vector(pole.x, pole.y, base_z))
-        bottom = Part.Edge(flat, edge.FirstParameter, edge.LastParameter)
-        bottom_edges.append(bottom)
-        sides.append(Part.makeRuledSurface(edge, bottom))
-    base = Part.Face(Part.Wire(bottom_edges))
-    shell = Part.Shell([face, *[s.Faces[0] for s in sides], base])
-    solid = Part.Solid(shell)
-    if solid.Volume < 0:
-        solid.complement()
-    return solid
+        base_z = float(box.ZMin) - margin
+    if base_z >= box.ZMin:
+        raise ValueError(f"base plane z = {base_z} mm must lie below the surface's lowest point {box.ZMin:.3f} mm")
+    depth = box.ZMax - base_z + 10.0
+    prism = face.extrude(FreeCAD.Vector(0, 0, -depth))
+    keep = Part.makeBox(box.XLength + 2, box.YLength + 2, depth, FreeCAD.Vector(box.XMin - 1, box.YMin - 1, base_z))
+    solids = prism.common(keep).Solids
+    if len(solids) != 1 or not solids[0].isValid():
+        raise ValueError(f"{surface.name}: the surface does not close to a valid solid (is it a height field over z?)")
+    return solids[0]
 
 
 def evaluate(surface: Surface, u: FloatArray, w: FloatArray) -> FloatArray:

@@ -8,69 +8,92 @@ the proxy keeps nothing, so documents pickle as plain data and reopen identicall
 
 from __future__ import annotations
 
+import json
 import os
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
 from ..core import Surface
 from ..core.basis import KnotLayout
+from ..core.errors import NetError
 from .compat import ensure_freecad
 
 FreeCAD = ensure_freecad()
 
+#: Stored in the read-only ``Version`` property; bump it when properties change meaning.
 OBJECT_VERSION = "1"
+#: Marks our objects (Proxy.Type), so commands can recognise them without isinstance checks.
+TYPE_NAME = "BSplineCAM::Surface"
 KNOT_LAYOUTS = [layout.value for layout in KnotLayout]
+#: Property type flags (App::PropertyType): ReadOnly in the editor, Output (no recompute).
+PROP_READONLY = 1
+PROP_OUTPUT = 8
+
+#: (type, name, group, tooltip, flags, default) of every property the object carries.
+PROPERTIES: tuple[tuple[str, str, str, str, int, object], ...] = (
+    ("App::PropertyVectorList", "ControlPoints", "Control net",
+     "Control points (mm), row by row (rows follow u)", 0, None),
+    ("App::PropertyInteger", "Rows", "Control net",
+     "Number of control-point rows (u direction)", 0, None),
+    ("App::PropertyInteger", "Columns", "Control net",
+     "Number of control-point columns (w direction)", 0, None),
+    ("App::PropertyEnumeration", "Knots", "Control net",
+     "uniform: the paper's unclamped knots; clamped: the surface reaches the corner points",
+     0, None),
+    ("App::PropertyBool", "MakeSolid", "Shape",
+     "Close the surface down to a base plane (the model of a CAM job)", 0, False),
+    ("App::PropertyDistance", "BaseOffset", "Shape",
+     "Depth of the base plane below the surface's lowest point (mm)", 0, 5.0),
+    ("App::PropertyString", "CrossCheck", "Verification",
+     "Deviation of OCCT's evaluation from the matrix form (JSON report)",
+     PROP_READONLY | PROP_OUTPUT, ""),
+    ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM object",
+     PROP_READONLY | PROP_OUTPUT, None),
+)
 
 
 class SurfaceFeature:
     """Proxy of the B-spline surface object: properties in, exact Part shape out."""
 
-    def __init__(self, obj):
+    Type = TYPE_NAME
+
+    def __init__(self, obj) -> None:
         obj.Proxy = self
         self.ensure_properties(obj)
 
     @staticmethod
     def ensure_properties(obj) -> None:
         """Add any property missing (new objects, and documents from older versions)."""
-        spec = [
-            ("App::PropertyVectorList", "ControlPoints", "Control net", "Control points, row by row (rows follow u)"),
-            ("App::PropertyInteger", "Rows", "Control net", "Number of control-point rows (u direction)"),
-            ("App::PropertyInteger", "Columns", "Control net", "Number of control-point columns (w direction)"),
-            ("App::PropertyEnumeration", "Knots", "Control net", "uniform: the paper's unclamped knots; clamped: the surface reaches the corner points"),
-            ("App::PropertyBool", "MakeSolid", "Shape", "Close the surface down to a base plane (the model of a CAM job)"),
-            ("App::PropertyDistance", "BaseOffset", "Shape", "Depth of the base plane below the surface's lowest point"),
-            ("App::PropertyString", "CrossCheck", "Verification", "Deviation of OCCT's evaluation from the matrix form (JSON)"),
-            ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM object"),
-        ]
-        for kind, name, group, tip in spec:
-            if not hasattr(obj, name):
-                obj.addProperty(kind, name, group, tip)
-                if name == "Knots":
-                    obj.Knots = KNOT_LAYOUTS
-                elif name == "BaseOffset":
-                    obj.BaseOffset = 5.0
+        for kind, name, group, tip, flags, default in PROPERTIES:
+            if hasattr(obj, name):
+                continue
+            obj.addProperty(kind, name, group, tip, flags)
+            if name == "Knots":
+                obj.Knots = KNOT_LAYOUTS
+            elif default is not None:
+                setattr(obj, name, default)
         for name in ("Version", "CrossCheck"):
-            obj.setEditorMode(name, 1)  # read-only
-        obj.Version = OBJECT_VERSION
+            obj.setEditorMode(name, 1)  # read-only in the property editor
+        if obj.Version != OBJECT_VERSION:
+            obj.Version = OBJECT_VERSION
 
-    def surface(self, obj) -> Surface:
+    @staticmethod
+    def surface(obj) -> Surface:
         """The core Surface the properties describe (raises NetError on an invalid net)."""
-        rows, cols = int(obj.Rows), int(obj.Columns)
-        flat = np.array([tuple(v) for v in obj.ControlPoints], dtype=float).reshape(-1, 3)
-        if rows * cols != len(flat):
-            from ..core.errors import NetError
-
-            raise NetError(f"{obj.Label}: Rows x Columns = {rows}x{cols} but {len(flat)} control points")
-        return Surface(flat.reshape(rows, cols, 3), obj.Knots, obj.Label)
+        return surface_of(obj)
 
     def execute(self, obj) -> None:
+        """Read properties, evaluate by core, assign the exact shape (placement kept)."""
         from . import part
 
-        surface = self.surface(obj)
+        surface = surface_of(obj)
         if obj.MakeSolid:
-            obj.Shape = part.to_solid(surface, margin=float(obj.BaseOffset))
+            shape = part.to_solid(surface, margin=float(obj.BaseOffset))
         else:
-            obj.Shape = part.to_face(surface)
+            shape = part.to_face(surface)
+        shape.Placement = obj.Placement
+        obj.Shape = shape
 
     def onDocumentRestored(self, obj) -> None:  # noqa: N802 - FreeCAD API
         self.ensure_properties(obj)
@@ -79,14 +102,30 @@ class SurfaceFeature:
     def __getstate__(self):
         return None
 
-    def __setstate__(self, state):
+    def __setstate__(self, state) -> None:
         return None
 
     def dumps(self):
         return None
 
-    def loads(self, state):
+    def loads(self, state) -> None:
         return None
+
+
+def is_surface(obj) -> bool:
+    """True for a BSplineCAM surface object (cheap: used by commands' IsActive)."""
+    return getattr(getattr(obj, "Proxy", None), "Type", None) == TYPE_NAME
+
+
+def surface_of(obj) -> Surface:
+    """The core Surface of a surface object's properties (NetError names the object)."""
+    rows, cols = int(obj.Rows), int(obj.Columns)
+    flat = np.array([tuple(v) for v in obj.ControlPoints], dtype=float).reshape(-1, 3)
+    if rows * cols != len(flat):
+        raise NetError(
+            f"{obj.Label}: Rows x Columns = {rows}x{cols} but {len(flat)} control points"
+        )
+    return Surface(flat.reshape(rows, cols, 3), obj.Knots, obj.Label)
 
 
 def set_net(obj, surface: Surface) -> None:
@@ -94,15 +133,34 @@ def set_net(obj, surface: Surface) -> None:
     rows, cols = surface.shape
     obj.Rows = rows
     obj.Columns = cols
-    obj.ControlPoints = [FreeCAD.Vector(*map(float, p)) for p in surface.control_points.reshape(-1, 3)]
+    points = surface.control_points.reshape(-1, 3)
+    obj.ControlPoints = [FreeCAD.Vector(*map(float, p)) for p in points]
     obj.Knots = surface.knots.value
 
 
-def make_surface(source, doc=None, name: str | None = None, knots: str | None = None, solid: bool = False):
+def set_control_point(obj, row: int, col: int, point: Sequence[float]) -> None:
+    """Move one control point (mm); the one-liner the net editor records in macros."""
+    rows, cols = int(obj.Rows), int(obj.Columns)
+    if not (0 <= row < rows and 0 <= col < cols):
+        raise IndexError(f"{obj.Label}: control point [{row}][{col}] outside {rows}x{cols} net")
+    points = list(obj.ControlPoints)
+    points[row * cols + col] = FreeCAD.Vector(*map(float, point))
+    obj.ControlPoints = points
+
+
+def make_surface(
+    source,
+    doc=None,
+    name: str | None = None,
+    knots: str | None = None,
+    solid: bool = False,
+):
     """Create a parametric B-spline surface object in ``doc`` (default: the active document).
 
     ``source`` is a control-net file (.json, .csv, .dat), a core Surface, or a (rows, cols, 3)
     array of control points.  Works headless; the view provider is attached when the GUI is up.
+    The file is read and validated before the document is touched, and the object is removed
+    again if building it fails, so a bad input leaves the document as it was.
     """
     if isinstance(source, Surface):
         surface = source if knots is None else Surface(source.control_points, knots, source.name)
@@ -113,16 +171,62 @@ def make_surface(source, doc=None, name: str | None = None, knots: str | None = 
     if doc is None:
         doc = FreeCAD.ActiveDocument or FreeCAD.newDocument()
     obj = doc.addObject("Part::FeaturePython", name or _object_name(surface.name))
-    SurfaceFeature(obj)
-    obj.Label = name or surface.name
-    set_net(obj, surface)
-    obj.MakeSolid = bool(solid)
-    if FreeCAD.GuiUp:
-        from ..gui.surface_view import attach_view_provider
+    try:
+        SurfaceFeature(obj)
+        obj.Label = name or surface.name
+        set_net(obj, surface)
+        obj.MakeSolid = bool(solid)
+        if FreeCAD.GuiUp:
+            from ..gui.surface_view import attach_view_provider
 
-        attach_view_provider(obj)
-    obj.recompute()
+            attach_view_provider(obj)
+        obj.recompute()
+        if not obj.isValid():
+            raise NetError(f"{obj.Label}: the shape could not be built: {obj.getStatusString()}")
+    except BaseException:
+        doc.removeObject(obj.Name)
+        raise
     return obj
+
+
+def surfaces_in(objects: Iterable) -> list:
+    """The BSplineCAM surface objects among ``objects``."""
+    return [obj for obj in objects if is_surface(obj)]
+
+
+def run_crosscheck(obj, **options) -> dict:
+    """Cross-check a surface object against OCCT; store the report in ``obj.CrossCheck``.
+
+    The report (max deviations in mm, see :func:`BSplineCAM.crosscheck.crosscheck`) is also
+    printed to the report view, a warning when the exact route misses its tolerance.
+    """
+    from ..crosscheck import crosscheck
+
+    report = crosscheck(surface_of(obj), **options)
+    obj.CrossCheck = json.dumps(report, sort_keys=True)
+    FreeCAD.Console.PrintMessage(format_crosscheck(obj.Label, report))
+    if not report.get("exact_route_ok", False):
+        FreeCAD.Console.PrintWarning(
+            f"{obj.Label}: exact route outside tolerance or a backend was unavailable\n"
+        )
+    return report
+
+
+def format_crosscheck(label: str, report: dict) -> str:
+    """Human-readable lines of a cross-check report for the report view."""
+    lines = [f"BSplineCAM cross-check of {label} ({report['control_net'][0]}x"
+             f"{report['control_net'][1]} net, {report['knots']} knots, "
+             f"size {report['size_mm']:.3f} mm, {report['samples'][0]}^2 samples):"]
+    for key, value in report["max_deviation_mm"].items():
+        shown = "unavailable" if value is None else f"{value:.3e} mm"
+        lines.append(f"  {key:<14} {shown}")
+    paper = report.get("paper_route")
+    if paper:
+        lines.append(f"  paper route    {paper['max_deviation_mm']:.3e} mm "
+                     f"(from {paper['points'][0]}x{paper['points'][1]} .dat points)")
+    verdict = "OK" if report.get("exact_route_ok") else "NOT OK"
+    lines.append(f"  exact route {verdict} (tolerance {report['tolerance_relative']:g} x size)")
+    return "\n".join(lines) + "\n"
 
 
 def _object_name(label: str) -> str:

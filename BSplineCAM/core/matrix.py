@@ -121,9 +121,10 @@ def basis_rows(
 
 def _contract_rows(index: IntArray, weights: FloatArray, net: FloatArray) -> FloatArray:
     """Sum_k weights[a, k] * net[index[a] + k]: the u-basis applied row block by row block."""
-    out = weights[:, 0, None, None] * net[index]
+    expand = (slice(None),) + (None,) * (net.ndim - 1)
+    out = weights[:, 0][expand] * net[index]
     for k in range(1, 4):
-        out += weights[:, k, None, None] * net[index + k]
+        out += weights[:, k][expand] * net[index + k]
     return out
 
 

@@ -1,0 +1,241 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The matrix evaluator against independent references: SciPy's B-splines and Cox–de Boor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import CASE_STUDY, random_net
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.interpolate import BSpline, bisplev
+
+from BSplineCAM import Surface
+from BSplineCAM.core import matrix
+from BSplineCAM.core.basis import cox_de_boor, cox_de_boor_surface, knot_vector, unique_knots
+from BSplineCAM.core.errors import NetError, ParameterError
+
+LAYOUTS = ["uniform", "clamped"]
+
+
+# --- the paper's matrix --------------------------------------------------------------------
+def test_mb_is_the_papers_matrix():
+    expected = np.array([[-1, 3, -3, 1], [3, -6, 3, 0], [-3, 0, 3, 0], [1, 4, 1, 0]]) / 6
+    np.testing.assert_array_equal(matrix.MB, expected)
+
+
+def test_mb_derived_from_cox_de_boor():
+    """Expanding the Cox–de Boor cubics of a uniform central span in [s^3, s^2, s, 1] gives MB."""
+    knots = np.arange(-3.0, 5.0)  # t_i = i - (k - 1), appendix A (A.1), 8 knots, 4 functions
+    s = np.linspace(0.05, 0.95, 9)
+    values = cox_de_boor(knots, 3, s)  # central span [0, 1)
+    fitted, *_ = np.linalg.lstsq(np.vander(s, 4), values, rcond=None)
+    np.testing.assert_allclose(fitted, matrix.MB, atol=1e-13)
+
+
+@pytest.mark.parametrize("count", [4, 5, 6, 7, 12])
+def test_clamped_span_matrices_reproduce_cox_de_boor(count, rng):
+    mats = matrix.span_matrices(count, "clamped")
+    knots = knot_vector(count, "clamped")
+    spans = count - 3
+    for j, m in enumerate(mats):
+        s = rng.random(20)
+        expected = cox_de_boor(knots, 3, (j + s) / spans)[:, j : j + 4]
+        np.testing.assert_allclose(np.vander(s, 4) @ m, expected, atol=1e-13)
+    if count >= 10:  # the central spans of an open uniform vector are uniform: MB again
+        np.testing.assert_allclose(mats[3], matrix.MB, atol=1e-13)
+
+
+# --- Cox–de Boor against SciPy ----------------------------------------------------------------
+@pytest.mark.parametrize("degree", [0, 1, 2, 3, 4, 5])
+@pytest.mark.parametrize("derivative", [0, 1, 2])
+def test_cox_de_boor_matches_scipy(degree, derivative, rng):
+    count = degree + 6
+    inner = np.sort(rng.random(count - degree - 1))
+    knots = np.concatenate([np.zeros(degree + 1), inner, np.ones(degree + 1)])
+    u = np.concatenate([rng.random(50), [0.0, 1.0]])
+    ours = cox_de_boor(knots, degree, u, derivative)
+    if derivative > degree:
+        assert not ours.any()
+        return
+    for i in range(count):
+        c = np.zeros(count)
+        c[i] = 1
+        spline = BSpline(knots, c, degree)
+        ref = spline.derivative(derivative)(u) if derivative else spline(u)
+        np.testing.assert_allclose(ours[:, i], ref, atol=1e-9 * max(1, np.abs(ref).max()))
+
+
+# --- surfaces against SciPy FITPACK and Cox–de Boor -------------------------------------------
+@pytest.mark.parametrize("layout", LAYOUTS)
+@pytest.mark.parametrize("du,dw", [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)])
+def test_grid_matches_fitpack(layout, du, dw, rng):
+    net = random_net(rng, 8, 11)
+    surface = Surface(net, layout)
+    u = np.linspace(0, 1, 23)
+    w = np.concatenate([[0.0], np.sort(rng.random(15)), [1.0]])
+    ours = surface.evaluate_grid(u, w, du, dw)
+    ku, kw = surface.knot_vectors()
+    for c in range(3):
+        tck = (ku, kw, net[:, :, c].ravel(), 3, 3)
+        ref = bisplev(u, w, tck, dx=du, dy=dw)
+        scale = max(1.0, np.abs(ref).max())
+        np.testing.assert_allclose(ours[:, :, c], ref, atol=1e-10 * scale)
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+@pytest.mark.parametrize("du,dw", [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2)])
+def test_scattered_matches_grid(layout, du, dw, rng):
+    surface = Surface(random_net(rng), layout)
+    u, w = rng.random(300), rng.random(300)
+    scattered = surface.evaluate(u, w, du, dw)
+    diagonal = np.array([surface.evaluate_grid(a, b, du, dw)[0, 0] for a, b in zip(u, w)])
+    np.testing.assert_allclose(scattered, diagonal, atol=1e-9)
+
+
+def test_scattered_chunks_agree(rng, monkeypatch):
+    surface = Surface(random_net(rng), "clamped")
+    u, w = rng.random(1000), rng.random(1000)
+    whole = surface.evaluate(u, w)
+    monkeypatch.setattr(matrix, "SCATTER_CHUNK", 37)
+    np.testing.assert_array_equal(surface.evaluate(u, w), whole)
+
+
+def test_clamped_interpolates_corners_uniform_does_not(rng):
+    net = random_net(rng)
+    clamped = Surface(net, "clamped")
+    corners = clamped.evaluate([0, 0, 1, 1], [0, 1, 0, 1])
+    np.testing.assert_allclose(corners, net[[0, 0, -1, -1], [0, -1, 0, -1]], atol=1e-12)
+    uniform = Surface(net, "uniform")
+    # the paper's form at u = w = 0: ([1 4 1 0]/6) P ([1 4 1 0]/6)^T over the first 4x4 block
+    b = np.array([1, 4, 1, 0]) / 6
+    expected = np.einsum("i,ijc,j->c", b, net[:4, :4], b)
+    np.testing.assert_allclose(uniform.evaluate(0, 0), expected, atol=1e-12)
+    assert np.linalg.norm(uniform.evaluate(0, 0) - net[0, 0]) > 1e-3
+
+
+def test_curve_matches_scipy(rng):
+    points = rng.normal(size=(9, 3))
+    t = np.linspace(0, 1, 41)
+    for layout in LAYOUTS:
+        spline = BSpline(knot_vector(9, layout), points, 3)
+        for d in (0, 1, 2):
+            ref = spline.derivative(d)(t) if d else spline(t)
+            np.testing.assert_allclose(matrix.evaluate_curve(points, layout, t, d), ref, atol=1e-9 * max(1, np.abs(ref).max()))
+
+
+def test_unique_knots_and_multiplicities():
+    values, mults = unique_knots(knot_vector(7, "clamped"))
+    np.testing.assert_allclose(values, [0, 0.25, 0.5, 0.75, 1])
+    assert mults.tolist() == [4, 1, 1, 1, 4]
+    values, mults = unique_knots(knot_vector(5, "uniform"))
+    assert len(values) == 9 and mults.tolist() == [1] * 9
+
+
+# --- normals ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_normals_are_unit_and_perpendicular(layout, rng):
+    surface = Surface(random_net(rng), layout)
+    u, w = rng.random(200), rng.random(200)
+    n = surface.normals(u, w)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=-1), 1, atol=1e-12)
+    for d in ((1, 0), (0, 1)):
+        tangent = surface.evaluate(u, w, *d)
+        assert np.abs(np.einsum("mc,mc->m", n, tangent)).max() < 1e-9 * np.abs(tangent).max()
+    # height field laid out along +x (rows) and +y (columns): normals point up
+    assert (n[:, 2] > 0).all()
+    grid_n = surface.normals(u[:5], w[:7], grid=True)
+    np.testing.assert_allclose(grid_n[2, 3], surface.normals(u[2], w[3]), atol=1e-12)
+
+
+def test_normals_on_degenerate_edge_are_finite():
+    x, y = np.meshgrid(np.linspace(0, 30, 5), np.linspace(0, 30, 5), indexing="ij")
+    net = np.stack([x, y, np.zeros_like(x)], -1)
+    net[0, :] = net[0, 0]  # collapse the u = 0 edge to a point
+    n = Surface(net, "clamped").normals(np.zeros(5), np.linspace(0, 1, 5))
+    assert np.isfinite(n).all()
+    np.testing.assert_allclose(np.abs(n[:, 2]), 1, atol=1e-6)
+
+
+def test_grid_with_normals_shapes():
+    surface = Surface.from_json(CASE_STUDY)
+    points, normals = surface.grid_with_normals(31, 17)
+    assert points.shape == normals.shape == (31, 17, 3)
+
+
+# --- properties (hypothesis) ------------------------------------------------------------------
+finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
+params = st.floats(0.0, 1.0, allow_nan=False)
+
+
+@st.composite
+def nets(draw):
+    rows = draw(st.integers(4, 8))
+    cols = draw(st.integers(4, 8))
+    return draw(arrays(np.float64, (rows, cols, 3), elements=finite))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(4, 12), st.sampled_from(LAYOUTS), st.lists(params, min_size=1, max_size=20))
+def test_partition_of_unity(count, layout, ts):
+    ts = np.array(ts)
+    weights = matrix.basis_rows(ts, count, layout)
+    np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-12)
+    assert (weights >= -1e-14).all()
+    np.testing.assert_allclose(cox_de_boor(knot_vector(count, layout), 3, ts).sum(axis=1), 1.0, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(nets(), st.sampled_from(LAYOUTS), params, params)
+def test_matrix_form_equals_cox_de_boor(net, layout, u, w):
+    s = Surface(net, layout)
+    ku, kw = s.knot_vectors()
+    ref = cox_de_boor_surface(net, ku, kw, [u], [w])[0]
+    scale = max(1.0, np.abs(net).max())
+    np.testing.assert_allclose(s.evaluate(u, w), ref, atol=1e-11 * scale)
+
+
+@settings(max_examples=60, deadline=None)
+@given(nets(), st.sampled_from(LAYOUTS), params, params,
+       arrays(np.float64, (3, 3), elements=st.floats(-3, 3)), arrays(np.float64, 3, elements=finite))
+def test_affine_invariance(net, layout, u, w, linear, shift):
+    moved = net @ linear.T + shift
+    lhs = Surface(moved, layout).evaluate(u, w)
+    rhs = Surface(net, layout).evaluate(u, w) @ linear.T + shift
+    scale = max(1.0, np.abs(moved).max(), np.abs(net).max() * 3)
+    np.testing.assert_allclose(lhs, rhs, atol=1e-10 * scale)
+
+
+@settings(max_examples=60, deadline=None)
+@given(nets(), st.sampled_from(LAYOUTS), params, params)
+def test_convex_hull(net, layout, u, w):
+    """A point lies in the convex hull of the 4x4 control points of its patch (weights ≥ 0)."""
+    s = Surface(net, layout)
+    iu, wu = matrix.local_weights([u], s.shape[0], layout)
+    iw, ww = matrix.local_weights([w], s.shape[1], layout)
+    weights = np.outer(wu[0], ww[0])
+    assert weights.min() >= -1e-14
+    assert abs(weights.sum() - 1) < 1e-12
+    block = net[iu[0] : iu[0] + 4, iw[0] : iw[0] + 4]
+    point = s.evaluate(u, w)
+    np.testing.assert_allclose(point, np.einsum("kl,klc->c", weights, block), atol=1e-9 * max(1, np.abs(net).max()))
+    tol = 1e-9 * max(1, np.abs(net).max())
+    assert (point >= block.reshape(-1, 3).min(0) - tol).all()
+    assert (point <= block.reshape(-1, 3).max(0) + tol).all()
+
+
+# --- parameters ------------------------------------------------------------------------------
+def test_parameters_outside_domain_are_rejected(rng):
+    s = Surface(random_net(rng))
+    with pytest.raises(ParameterError, match="parameter u"):
+        s.evaluate(1.5, 0.2)
+    with pytest.raises(ParameterError, match="parameter w"):
+        s.evaluate(0.5, np.nan)
+    with pytest.raises(ParameterError, match="at least 2"):
+        s.grid(1, 5)
+
+
+def test_unknown_layout_is_named(rng):
+    with pytest.raises(NetError, match="unknown knot layout 'periodic'"):
+        Surface(random_net(rng), "periodic")
