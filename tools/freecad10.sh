@@ -185,7 +185,7 @@ ensure() {
     stamp_current && return 0
     mkdir -p "$(dirname "$ROOT")"
     exec 8>>"$LOCK"
-    msg "waiting for the chroot lock $LOCK"
+    msg "chroot incomplete or outdated; taking the build lock $LOCK"
     flock -x 8
     build_locked
     exec 8>&-
@@ -282,6 +282,15 @@ inner_run() {
     bind /tmp /tmp --bind
     if [[ ! "$REPO_ROOT" -ef "$ROOT$REPO_ROOT" ]]; then
         bind "$REPO_ROOT" "$REPO_ROOT" --bind
+    fi
+    # The project venv (cadquery's OCCT) runs on the host's Python: mount that Python's prefix
+    # read-only at the same path so cross-checks inside the chroot reach the second OCCT too.
+    local venv_py="$REPO_ROOT/.venv/bin/python" prefix
+    if [[ -x "$venv_py" ]]; then
+        prefix="$(dirname "$(dirname "$(readlink -f "$venv_py")")")"
+        if [[ "$prefix" != /usr && "$prefix" != /usr/local && -d "$prefix" ]]; then
+            bind "$prefix" "$prefix" --bind -o ro
+        fi
     fi
     local rc=0
     chroot_env "$@" 8>&- || rc=$?

@@ -110,10 +110,12 @@ def deviation_between(face: Part.Face, surface: Surface, samples: int = 41, reve
 
     Face → design: ``samples``² points of the face projected onto the exact Part surface.
     Design → face: ``reverse_samples``² points of the exact surface projected onto the face
-    (projection onto a loft is ~40x slower, hence the coarser grid).  Both by OCCT.
+    (projection onto a loft is ~40x slower, hence the coarser grid).  Both by OCCT.  Samples
+    sit at cell midpoints, so they never coincide with the points a fitted face interpolates.
     """
     exact = to_part_surface(surface)
-    design = surface.grid(reverse_samples, reverse_samples).reshape(-1, 3)
+    mid = (np.arange(reverse_samples) + 0.5) / reverse_samples
+    design = surface.evaluate_grid(mid, mid).reshape(-1, 3)
     other = face.Surface
     worst_to_face = 0.0
     for p in design:
@@ -122,8 +124,9 @@ def deviation_between(face: Part.Face, surface: Surface, samples: int = 41, reve
         worst_to_face = max(worst_to_face, (other.value(a, b) - v).Length)
     u0, u1, w0, w1 = face.ParameterRange
     worst_to_design = 0.0
-    for a in np.linspace(u0, u1, samples):
-        for b in np.linspace(w0, w1, samples):
+    mid = (np.arange(samples) + 0.5) / samples
+    for a in u0 + (u1 - u0) * mid:
+        for b in w0 + (w1 - w0) * mid:
             v = other.value(float(a), float(b))
             s, t = exact.parameter(v)
             worst_to_design = max(worst_to_design, (exact.value(s, t) - v).Length)
