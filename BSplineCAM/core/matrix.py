@@ -128,6 +128,42 @@ def _contract_rows(index: IntArray, weights: FloatArray, net: FloatArray) -> Flo
     return out
 
 
+def grid_planes(
+    net: FloatArray,
+    layout: str | KnotLayout,
+    u: ArrayLike,
+    w: ArrayLike,
+    du: int = 0,
+    dw: int = 0,
+) -> FloatArray:
+    """The grid u x w as coordinate planes laid out (len(w), 3, len(u)), C-contiguous.
+
+    Stage 1 applies [U][M_i] along u: four net rows per sample, giving a (n_w, 3·len(u)) block.
+    Stage 2 applies ([W][M_j])^T patch column by patch column: the samples of w-span j need only
+    net columns j..j+3, so each span is one small BLAS product writing a contiguous block of
+    output rows.  That is a quarter of the work of a dense product and no temporary as large
+    as the result.
+    """
+    net = np.asarray(net, dtype=float)
+    n_u, n_w = net.shape[:2]
+    u = np.atleast_1d(np.asarray(u, dtype=float))
+    w = np.atleast_1d(np.asarray(w, dtype=float))
+    iu, wu = local_weights(u, n_u, layout, du)
+    stage1 = _contract_rows(iu, wu, net)  # (len(u), n_w, 3)
+    stage1 = np.ascontiguousarray(stage1.transpose(1, 2, 0)).reshape(n_w, 3 * len(u))
+    iw, ww = local_weights(w, n_w, layout, dw)
+    out = np.empty((len(w), 3 * len(u)))
+    if len(w) > 1 and np.any(np.diff(iw) < 0):  # unsorted w: one dense product
+        np.matmul(basis_rows(w, n_w, layout, dw), stage1, out=out)
+    else:
+        bounds = np.searchsorted(iw, np.arange(n_w - DEGREE + 1))
+        for j in range(n_w - DEGREE):
+            lo, hi = bounds[j], bounds[j + 1]
+            if hi > lo:
+                np.matmul(ww[lo:hi], stage1[j : j + 4], out=out[lo:hi])
+    return out.reshape(len(w), 3, len(u))
+
+
 def evaluate_grid(
     net: FloatArray,
     layout: str | KnotLayout,
@@ -138,23 +174,62 @@ def evaluate_grid(
 ) -> FloatArray:
     """Points (or partial derivatives) on the tensor grid u x w: shape (len(u), len(w), 3).
 
-    Stage 1 applies [U][MB] along u (4 rows of the net per sample); stage 2 is one BLAS product
-    (3·len(u) x n_w) @ (n_w x len(w)) that yields the x, y and z planes together.  The result
-    is returned as a transposed view of those planes, so no (nu, nw, 3) copy is made.
+    Returned as a transposed view of :func:`grid_planes`, so no (nu, nw, 3) copy is made.
+    """
+    return grid_planes(net, layout, u, w, du, dw).transpose(2, 0, 1)
+
+
+#: Rows of w per block in :func:`grid_normals`: small enough that a block's tangents stay in cache.
+NORMAL_BLOCK_ROWS = 16
+
+
+def _stage1(net: FloatArray, layout: str | KnotLayout, u: FloatArray, du: int) -> FloatArray:
+    """[U][M_i] applied along u: shape (n_w, 3·len(u)), coordinate-major within a row."""
+    iu, wu = local_weights(u, net.shape[0], layout, du)
+    stage1 = _contract_rows(iu, wu, net)  # (len(u), n_w, 3)
+    return np.ascontiguousarray(stage1.transpose(1, 2, 0)).reshape(net.shape[1], 3 * len(u))
+
+
+def grid_normals(
+    net: FloatArray, layout: str | KnotLayout, u: ArrayLike, w: ArrayLike
+) -> tuple[FloatArray, np.ndarray]:
+    """Unit normals Su x Sw / |Su x Sw| on the grid, and the mask of degenerate ones.
+
+    Tangents are made and crossed a few w-rows at a time, so they never leave the cache and
+    the only large array written is the result.  Degenerate normals (zero cross product) are
+    left as zero for the caller to replace.
     """
     net = np.asarray(net, dtype=float)
-    n_u, n_w = net.shape[:2]
+    n_w = net.shape[1]
     u = np.atleast_1d(np.asarray(u, dtype=float))
     w = np.atleast_1d(np.asarray(w, dtype=float))
-    iu, wu = local_weights(u, n_u, layout, du)
-    # stage 1: (len(u), n_w, 3) laid out as planes (3, len(u), n_w)
-    planes_net = np.ascontiguousarray(net.transpose(2, 0, 1))  # (3, n_u, n_w)
-    stage1 = np.empty((3, len(u), n_w))
-    for c in range(3):
-        stage1[c] = _contract_rows(iu, wu, planes_net[c][:, :, None])[:, :, 0]
-    basis_w = basis_rows(w, n_w, layout, dw)  # (len(w), n_w)
-    planes = stage1.reshape(3 * len(u), n_w) @ basis_w.T
-    return planes.reshape(3, len(u), len(w)).transpose(1, 2, 0)
+    nu = len(u)
+    stage_du = _stage1(net, layout, u, 1)
+    stage_0 = _stage1(net, layout, u, 0)
+    iw, w0 = local_weights(w, n_w, layout, 0)
+    _, w1 = local_weights(w, n_w, layout, 1)
+    out = np.empty((len(w), 3, nu))
+    length = np.empty((len(w), nu))
+    start = 0
+    while start < len(w):
+        j = iw[start]
+        stop = start + 1
+        while stop < len(w) and stop - start < NORMAL_BLOCK_ROWS and iw[stop] == j:
+            stop += 1
+        su = (w0[start:stop] @ stage_du[j : j + 4]).reshape(-1, 3, nu)
+        sw = (w1[start:stop] @ stage_0[j : j + 4]).reshape(-1, 3, nu)
+        block = out[start:stop]
+        for c, (a, b) in enumerate(((1, 2), (2, 0), (0, 1))):
+            np.multiply(su[:, a], sw[:, b], out=block[:, c])
+            block[:, c] -= su[:, b] * sw[:, a]
+        lengths = np.sqrt(np.einsum("mcn,mcn->mn", block, block))
+        length[start:stop] = lengths
+        lengths[lengths == 0] = np.inf
+        block /= lengths[:, None, :]
+        start = stop
+    degenerate = length <= 1e-14 * max(1.0, float(length.max(initial=0.0)))
+    out.transpose(0, 2, 1)[degenerate] = 0.0
+    return out.transpose(2, 0, 1), degenerate.T
 
 
 def evaluate_points(

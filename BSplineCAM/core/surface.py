@@ -137,8 +137,14 @@ class Surface:
         Where that cross product vanishes (a degenerate edge or a collapsed net), the normal is
         taken from a nearby interior parameter, so no NaN reaches a toolpath.
         """
-        ev = self.evaluate_grid if grid else self.evaluate
-        return unit_normals(ev(u, w, 1, 0), ev(u, w, 0, 1), lambda: self._nudged_normals(u, w, grid))
+        fallback = lambda: self._nudged_normals(u, w, grid)  # noqa: E731
+        if grid:
+            u, w = self._check_params(np.atleast_1d(u), np.atleast_1d(w))
+            normal, degenerate = matrix.grid_normals(self.control_points, self.knots, u, w)
+            if np.any(degenerate):
+                normal[degenerate] = fallback()[degenerate]
+            return normal
+        return unit_normals(self.evaluate(u, w, 1, 0), self.evaluate(u, w, 0, 1), fallback)
 
     def _nudged_normals(self, u: ArrayLike, w: ArrayLike, grid: bool) -> FloatArray:
         u, w = self._check_params(u, w)
@@ -156,7 +162,7 @@ class Surface:
 
 
 def unit_normals(su: FloatArray, sw: FloatArray, fallback) -> FloatArray:
-    """Normalised cross product, in place; degenerate entries replaced by ``fallback()``."""
+    """Normalised cross product; degenerate entries replaced by ``fallback()``."""
     normal = np.cross(su, sw)
     length = np.sqrt(np.einsum("...c,...c->...", normal, normal))
     degenerate = length <= 1e-14 * max(1.0, float(length.max(initial=0.0)))
