@@ -105,7 +105,8 @@ class TestExactTransfer(unittest.TestCase):
         volume = wt @ ((p[..., 2] - base) * jacobian) @ wt
         # Shape.Volume uses OCCT's default (coarse) Gauss integration, good to about 1e-4
         self.assertAlmostEqual(solid.Volume / volume, 1.0, delta=5e-4)
-        self.assertAlmostEqual(solid.BoundBox.ZMin, base, places=9)
+        self.assertAlmostEqual(min(v.Z for v in solid.Vertexes), base, places=9)
+        self.assertEqual(len(solid.Faces), 6)
 
     def test_paper_route_is_measurably_worse_than_exact(self):
         surface = Surface.from_json(CASE_STUDY)

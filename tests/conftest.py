@@ -28,3 +28,7 @@ def random_net(rng: np.random.Generator, rows: int = 7, cols: int = 9) -> np.nda
     net = np.stack([x, y, z], axis=-1)
     net[..., :2] += rng.normal(scale=0.5, size=net[..., :2].shape)
     return net
+
+#: Modules that run inside FreeCAD (``tools/test.sh`` hands them to freecadcmd), not in pytest.
+FREECAD_MODULES = ["TestBSplineCAMExact.py", "TestBSplineCAMFeature.py", "TestBSplineCAMGui.py", "TestBSplineCAMJob.py"]
+collect_ignore = FREECAD_MODULES

@@ -60,5 +60,7 @@ fi
 
 if [ "$want_test" = 1 ]; then
   "$root/tools/freecad10.sh" ensure
+  # the same install inside the FreeCAD 1.0 chroot (the repo is mounted there at the same path)
+  "$root/tools/freecad10.sh" run sh -c 'mkdir -p "$HOME/.local/share/FreeCAD/Mod" && ln -sfn "$1" "$HOME/.local/share/FreeCAD/Mod/BSplineCAM"' sh "$root"
 fi
 say "ready"

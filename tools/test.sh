@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: LGPL-2.1-or-later
+# Every test suite, in order; exits non-zero if any test failed.  Assumes tools/setup.sh --test.
+#   lint         ruff on the whole tree
+#   core-venv    pytest in the project venv (numpy 2.x, cadquery's OCCT, SciPy/geomdl references)
+#   core-debian  pytest in Debian's python3 (numpy 1.24, the Python FreeCAD 0.20 runs)
+#   freecad-0.20 unittest modules inside freecadcmd 0.20
+#   freecad-1.0  the same modules inside freecadcmd 1.0 (Debian trixie chroot)
+#   gui          the real FreeCAD GUI under Xvfb
+# The last line reads "N passed, N failed" over all tests run.
+set -uo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+logs="$root/build/test-logs"
+mkdir -p "$logs"
+export PYTHONDONTWRITEBYTECODE=1
+FREECAD_MODULES=(TestBSplineCAMExact)
+for m in TestBSplineCAMFeature TestBSplineCAMJob; do
+  [ -f "tests/$m.py" ] && FREECAD_MODULES+=("$m")
+done
+
+total_pass=0
+total_fail=0
+failed_suites=()
+
+# count_pytest LOG -> "passed failed"
+count_pytest() {
+  local line p f e
+  line=$(grep -E '^[=]* ?[0-9]+ (passed|failed)|^[0-9]+ (passed|failed|error)' "$1" | tail -n 1)
+  p=$(grep -oE '[0-9]+ passed' <<<"$line" | grep -oE '[0-9]+' || true)
+  f=$(grep -oE '[0-9]+ failed' <<<"$line" | grep -oE '[0-9]+' || true)
+  e=$(grep -oE '[0-9]+ error' <<<"$line" | grep -oE '[0-9]+' || true)
+  echo "${p:-0} $(( ${f:-0} + ${e:-0} ))"
+}
+
+# count_unittest LOG -> "passed failed"
+count_unittest() {
+  local ran f e s
+  ran=$(grep -oE '^Ran [0-9]+ test' "$1" | grep -oE '[0-9]+' | awk '{s+=$1} END {print s+0}')
+  f=$(grep -oE 'failures=[0-9]+' "$1" | grep -oE '[0-9]+' | awk '{s+=$1} END {print s+0}')
+  e=$(grep -oE 'errors=[0-9]+' "$1" | grep -oE '[0-9]+' | awk '{s+=$1} END {print s+0}')
+  s=$(grep -oE 'skipped=[0-9]+' "$1" | grep -oE '[0-9]+' | awk '{s+=$1} END {print s+0}')
+  echo "$(( ran - f - e - s )) $(( f + e ))"
+}
+
+# suite NAME KIND(pytest|unittest|plain) CMD...
+suite() {
+  local name="$1" kind="$2"
+  shift 2
+  local log="$logs/$name.log" rc p f start
+  start=$(date +%s)
+  printf '== %-13s ' "$name"
+  "$@" >"$log" 2>&1
+  rc=$?
+  case "$kind" in
+    pytest) read -r p f < <(count_pytest "$log") ;;
+    unittest) read -r p f < <(count_unittest "$log") ;;
+    *) if [ "$rc" = 0 ]; then p=1; f=0; else p=0; f=1; fi ;;
+  esac
+  if [ "$rc" != 0 ] && [ "$f" = 0 ]; then f=1; fi  # a crash that ran no test still fails
+  total_pass=$((total_pass + p))
+  total_fail=$((total_fail + f))
+  printf '%4d passed, %d failed  (exit %d, %ds)  log: %s\n' "$p" "$f" "$rc" "$(( $(date +%s) - start ))" "${log#"$root"/}"
+  if [ "$rc" != 0 ]; then
+    failed_suites+=("$name")
+    tail -n 40 "$log" | sed 's/^/   | /'
+  fi
+}
+
+suite lint plain .venv/bin/ruff check .
+BSPLINECAM_REQUIRE_ALL=1 suite core-venv pytest .venv/bin/python -m pytest -p no:cacheprovider tests
+BSPLINECAM_REQUIRE_ALL=0 suite core-debian pytest /usr/bin/python3 -m pytest -p no:cacheprovider tests
+suite freecad-0.20 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
+FREECADCMD="$root/tools/freecad10.sh freecadcmd" suite freecad-1.0 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
+if [ -x tools/run_gui_test.sh ]; then
+  suite gui unittest tools/run_gui_test.sh
+fi
+
+if [ "${#failed_suites[@]}" -gt 0 ]; then
+  echo "failed suites: ${failed_suites[*]}"
+fi
+echo "${total_pass} passed, ${total_fail} failed"
+[ "$total_fail" = 0 ]
