@@ -183,6 +183,7 @@ def make_surface(
         obj.recompute()
         if not obj.isValid():
             raise NetError(f"{obj.Label}: the shape could not be built: {obj.getStatusString()}")
+        obj.purgeTouched()  # the shape is current: a document recompute need not redo it
     except BaseException:
         doc.removeObject(obj.Name)
         raise
@@ -214,9 +215,12 @@ def run_crosscheck(obj, **options) -> dict:
 
 def format_crosscheck(label: str, report: dict) -> str:
     """Human-readable lines of a cross-check report for the report view."""
-    lines = [f"BSplineCAM cross-check of {label} ({report['control_net'][0]}x"
-             f"{report['control_net'][1]} net, {report['knots']} knots, "
-             f"size {report['size_mm']:.3f} mm, {report['samples'][0]}^2 samples):"]
+    rows, cols = report["control_net"]
+    head = (
+        f"BSplineCAM cross-check of {label} ({rows}x{cols} net, {report['knots']} knots, "
+        f"size {report['size_mm']:.3f} mm, {report['samples'][0]}^2 samples):"
+    )
+    lines = [head]
     for key, value in report["max_deviation_mm"].items():
         shown = "unavailable" if value is None else f"{value:.3e} mm"
         lines.append(f"  {key:<14} {shown}")

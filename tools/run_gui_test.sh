@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Run the GUI tests in a real FreeCAD GUI under Xvfb; exit non-zero on failure.
+#
+# Usage: tools/run_gui_test.sh [MODULE...]      default: TestBSplineCAMGui
+# Environment:
+#   FREECAD             GUI binary (default: freecad)
+#   BSPLINECAM_TIMEOUT  seconds before FreeCAD is killed (default: 600)
+#   BSPLINECAM_DOCS     where screenshots go (default: docs/)
+#
+# FreeCAD runs with a throw-away HOME whose Mod folder links to this repository, so the test
+# neither depends on nor changes the user's FreeCAD settings.  Writes docs/view3d.png and
+# docs/workbench.png.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+FREECAD="${FREECAD:-freecad}"
+TIMEOUT="${BSPLINECAM_TIMEOUT:-600}"
+WORK="$(mktemp -d -t bsplinecam-gui.XXXXXX)"
+trap 'rm -rf "$WORK"' EXIT
+
+mkdir -p "$WORK/home/.local/share/FreeCAD/Mod"
+ln -s "$ROOT" "$WORK/home/.local/share/FreeCAD/Mod/BSplineCAM"
+export HOME="$WORK/home"
+export XDG_CONFIG_HOME="$HOME/.config" XDG_DATA_HOME="$HOME/.local/share"
+export BSPLINECAM_GUI_OUT="$WORK/result.json"
+export BSPLINECAM_GUI_TESTS="${*:-TestBSplineCAMGui}"
+export BSPLINECAM_DOCS="${BSPLINECAM_DOCS:-$ROOT/docs}"
+[[ $EUID -eq 0 ]] && export QTWEBENGINE_DISABLE_SANDBOX=1
+
+cd "$ROOT"
+rc=0
+timeout --kill-after=15 "$TIMEOUT" \
+    xvfb-run -a -s "-screen 0 1920x1200x24" "$FREECAD" "$ROOT/tests/gui_run_tests.py" \
+    >"$WORK/freecad.log" 2>&1 || rc=$?
+
+[[ -f "$WORK/result.log" ]] && cat "$WORK/result.log"
+cp "$WORK/freecad.log" "${TMPDIR:-/tmp}/bsplinecam-gui-freecad.log" 2>/dev/null || true
+if [[ ! -f "$BSPLINECAM_GUI_OUT" ]]; then
+    echo "run_gui_test: FreeCAD wrote no result (exit $rc; 124 = timeout). Its output:" >&2
+    tail -n 60 "$WORK/freecad.log" >&2
+    exit 1
+fi
+if ! python3 -c 'import json, sys; sys.exit(0 if json.load(open(sys.argv[1]))["ok"] else 1)' \
+    "$BSPLINECAM_GUI_OUT"; then
+    echo "run_gui_test: FAILED (FreeCAD exit $rc); result: $BSPLINECAM_GUI_OUT" >&2
+    python3 -m json.tool "$BSPLINECAM_GUI_OUT" >&2 || true
+    exit 1
+fi
+[[ $rc -eq 0 ]] || { echo "run_gui_test: tests passed but FreeCAD exited $rc" >&2; exit "$rc"; }
+echo "run_gui_test: OK; screenshots in $BSPLINECAM_DOCS"
