@@ -42,6 +42,18 @@ def staged_output(out_dir: Path) -> Iterator[Path]:
         shutil.rmtree(stage, ignore_errors=True)
 
 
+def emit(result: dict) -> None:
+    """Print a command's JSON result on stdout (descriptor BSPLINECAM_RESULT_FD when set, so
+    FreeCAD's own console output cannot mix into it)."""
+    text = json.dumps(result, indent=1) + "\n"
+    fd = os.environ.get("BSPLINECAM_RESULT_FD")
+    if fd:
+        os.write(int(fd), text.encode())
+    else:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+
+
 def _load(path: str, knots: str | None) -> Surface:
     return Surface.from_file(path, knots)
 
@@ -51,7 +63,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     surface = _load(args.net, args.knots)
     report = crosscheck(surface, samples=args.samples, paper_route=not args.no_paper_route)
-    print(json.dumps(report, indent=1))
+    emit(report)
     return 0 if report["exact_route_ok"] else EXIT_CHECK_FAILED
 
 
@@ -70,11 +82,11 @@ def cmd_surface(args: argparse.Namespace) -> int:
         _freecad_call({"op": "save_document", "path": str(stage / f"{name}.FCStd"), "solid": True, **request}, surface)
         report = crosscheck(surface, samples=args.samples)
         (stage / "crosscheck.json").write_text(json.dumps(report, indent=1) + "\n")
-    print(json.dumps({"out": str(Path(args.out).resolve()), "files": sorted(
+    emit({"out": str(Path(args.out).resolve()), "files": sorted(
         f"{name}.{s}" for s in ("dat", "step", "brep", "FCStd")) + ["crosscheck.json"],
         "exact_route_ok": report["exact_route_ok"],
         "max_deviation_mm": report["max_deviation_mm"],
-        "paper_route_max_deviation_mm": report.get("paper_route", {}).get("max_deviation_mm")}, indent=1))
+        "paper_route_max_deviation_mm": report.get("paper_route", {}).get("max_deviation_mm")})
     return 0 if report["exact_route_ok"] else EXIT_CHECK_FAILED
 
 

@@ -31,11 +31,26 @@ def ensure_freecad() -> object:
         if folder and glob.glob(os.path.join(folder, "FreeCAD*.so")):
             if folder not in sys.path:
                 sys.path.append(folder)
-            return importlib.import_module("FreeCAD")
+            freecad = importlib.import_module("FreeCAD")
+            _add_module_folders(freecad)
+            return freecad
     raise ImportError(
         "FreeCAD is not importable: install Debian's 'freecad' package "
         "(or set BSPLINECAM_FREECAD_LIB to the folder holding FreeCAD.so)"
     )
+
+
+def _add_module_folders(freecad) -> None:
+    """FreeCAD imported as a library (not by freecadcmd) leaves its Mod folders off sys.path:
+    add them, as freecadcmd does, so Path/CAM's Python modules import."""
+    roots = [freecad.getResourceDir(), freecad.getHomePath()]
+    folders = []
+    for root in roots:
+        folders += sorted(glob.glob(os.path.join(root, "Mod", "*")))
+        folders += [os.path.join(root, "Mod"), os.path.join(root, "Ext")]  # Ext: the PySide shim
+    for folder in folders:
+        if os.path.isdir(folder) and folder not in sys.path:
+            sys.path.append(folder)
 
 
 def freecad_version() -> tuple[int, int, int]:
@@ -51,3 +66,69 @@ def freecad_version() -> tuple[int, int, int]:
 
 def is_freecad_1() -> bool:
     return freecad_version() >= (0, 22, 0)
+
+
+# --- Path (0.20) / CAM (1.0) ----------------------------------------------------------------
+#: Module names of the machining workbench's pieces: (FreeCAD 0.20, FreeCAD 1.0).
+_CAM_MODULES = {
+    "job": ("PathScripts.PathJob", "Path.Main.Job"),
+    "op": ("PathScripts.PathOp", "Path.Op.Base"),
+    "toolbit": ("PathScripts.PathToolBit", "Path.Tool.Bit"),
+    "controller": ("PathScripts.PathToolController", "Path.Tool.Controller"),
+    "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface"),
+    "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils"),
+}
+#: Where post-processor scripts live: (FreeCAD 0.20, FreeCAD 1.0).
+_POST_PACKAGES = ("PathScripts.post", "Path.Post.scripts")
+#: The post-processors BSplineCAM supports and tests.
+POST_PROCESSORS = ("linuxcnc", "grbl", "fanuc", "mach3_mach4")
+
+
+def cam_module(role: str):
+    """The machining module playing ``role`` (job, op, toolbit, controller, surface_op)."""
+    ensure_freecad()
+    if role not in _CAM_MODULES:
+        raise KeyError(f"unknown CAM module role {role!r}")
+    old, new = _CAM_MODULES[role]
+    return importlib.import_module(new if is_freecad_1() else old)
+
+
+def post_module(name: str):
+    """The post-processor script module ``NAME_post`` (a ValueError names the known ones)."""
+    ensure_freecad()
+    package = _POST_PACKAGES[1] if is_freecad_1() else _POST_PACKAGES[0]
+    known = available_posts()
+    if name not in known:
+        raise ValueError(f"unknown post-processor {name!r}: available are {', '.join(sorted(known))}")
+    return importlib.import_module(f"{package}.{name}_post")
+
+
+def available_posts() -> list[str]:
+    """Names of the post-processors installed with this FreeCAD."""
+    ensure_freecad()
+    package = importlib.import_module(_POST_PACKAGES[1] if is_freecad_1() else _POST_PACKAGES[0])
+    names = []
+    for folder in package.__path__:
+        for path in glob.glob(os.path.join(folder, "*_post.py")):
+            names.append(os.path.basename(path)[: -len("_post.py")])
+    return sorted(set(names))
+
+
+def ballend_shape_file() -> str:
+    """The ball-end ToolBit shape shipped with FreeCAD (Tools/Shape/ballend.fcstd)."""
+    path = cam_module("toolbit").findToolShape("ballend.fcstd")
+    if not path:
+        raise FileNotFoundError("FreeCAD's ballend.fcstd tool shape was not found")
+    return path
+
+
+def opencamlib_available() -> bool:
+    """FreeCAD's own 3D Surface op needs OpenCAMLib, imported as ``ocl`` (0.20) or
+    ``opencamlib.ocl``; on Debian's FreeCAD 1.0 (Python 3.13) there is none."""
+    for name in ("ocl", "opencamlib.ocl"):
+        try:
+            importlib.import_module(name)
+            return True
+        except ImportError:
+            continue
+    return False

@@ -1,0 +1,210 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The "B-spline surface finish" operation: a Path/CAM op computed on the exact surface.
+
+A subclass of FreeCAD's own ObjectOp (0.20 ``PathScripts.PathOp``, 1.0 ``Path.Op.Base``), so it
+lives in a standard Job, takes its tool from a ToolController and its heights from the job's
+setup sheet.  ``opExecute`` reads the properties, calls the numeric core
+(:func:`BSplineCAM.core.toolpath.generate`) and turns the plain moves into Path commands.
+
+Linking: lateral rapids run at the clearance height; a rapid descends only to the safe height
+(above the stock), the rest of the approach is a feed at the vertical feed rate.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..core import Surface
+from ..core.toolpath import common as toolpath_common
+from . import compat
+
+FreeCAD = compat.ensure_freecad()
+import Path  # noqa: E402  (FreeCAD's Path module, 0.20 and 1.0)
+
+OpBase = compat.cam_module("op")
+OBJECT_VERSION = "1"
+STRATEGIES = [s.value for s in toolpath_common.Strategy]
+DIRECTIONS = [d.value for d in toolpath_common.Direction]
+ISO_DIRECTIONS = [d.value for d in toolpath_common.IsoDirection]
+
+
+class ObjectSurfaceFinish(OpBase.ObjectOp):
+    """Ball-end finishing of a BSplineCAM surface: raster, waterline or iso-parametric."""
+
+    def opFeatures(self, obj):  # noqa: N802 - FreeCAD API
+        return OpBase.FeatureTool | OpBase.FeatureDepths | OpBase.FeatureHeights | OpBase.FeatureCoolant
+
+    def initOperation(self, obj):  # noqa: N802 - FreeCAD API
+        self.ensure_properties(obj)
+
+    @staticmethod
+    def ensure_properties(obj) -> None:
+        spec = [
+            ("App::PropertyLink", "Surface", "Surface", "BSplineCAM surface to machine (default: the job's model)"),
+            ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z) or isoparametric"),
+            ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature"),
+            ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass"),
+            ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane"),
+            ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes"),
+            ("App::PropertyEnumeration", "IsoDirection", "Surface", "Parameter followed by iso-parametric passes"),
+            ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)"),
+            ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation"),
+        ]
+        for kind, name, group, tip in spec:
+            if not hasattr(obj, name):
+                obj.addProperty(kind, name, group, tip)
+                if name == "Strategy":
+                    obj.Strategy = STRATEGIES
+                elif name == "Direction":
+                    obj.Direction = DIRECTIONS
+                elif name == "IsoDirection":
+                    obj.IsoDirection = ISO_DIRECTIONS
+                elif name == "ScallopHeight":
+                    obj.ScallopHeight = 0.01
+                elif name == "Tolerance":
+                    obj.Tolerance = 0.002
+        for name in ("Report", "Version"):
+            obj.setEditorMode(name, 1)
+        obj.Version = OBJECT_VERSION
+
+    def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
+        self.ensure_properties(obj)
+
+    def opSetDefaultValues(self, obj, job):  # noqa: N802 - FreeCAD API
+        if obj.Surface is None:
+            obj.Surface = find_surface_object(job)
+
+    def surface(self, obj) -> Surface:
+        """The exact surface in job coordinates (the model clone's placement applied)."""
+        source = obj.Surface or find_surface_object(self.job)
+        if source is None:
+            raise ValueError(f"{obj.Label}: the job has no BSplineCAM surface to machine")
+        surface = source.Proxy.surface(source)
+        matrix = source.getGlobalPlacement().toMatrix()
+        clone = _model_clone_of(self.job, source)
+        if clone is not None:
+            matrix = clone.Placement.toMatrix().multiply(matrix)
+        affine = np.array([[matrix.A[4 * r + c] for c in range(4)] for r in range(3)])
+        if not np.allclose(affine, np.eye(4)[:3]):
+            points = surface.control_points @ affine[:, :3].T + affine[:, 3]
+            surface = Surface(points, surface.knots, surface.name)
+        return surface
+
+    def opExecute(self, obj):  # noqa: N802 - FreeCAD API
+        """Record a failure in ``Report`` (for headless callers) before FreeCAD marks the op."""
+        try:
+            self._execute(obj)
+        except (ValueError, RuntimeError) as exc:
+            obj.Report = json.dumps({"error": str(exc)})
+            FreeCAD.Console.PrintError(f"{obj.Label}: {exc}\n")
+            raise
+
+    def _execute(self, obj) -> None:
+        from ..core.toolpath import generate
+
+        if not self.horizFeed > 0 or not self.vertFeed > 0:
+            raise ValueError(
+                f"{obj.ToolController.Label}: feeds must be > 0 mm/min (horizontal {self.horizFeed}, "
+                f"vertical {self.vertFeed}); a controller refuses a zero feed")
+        if not float(obj.ToolController.SpindleSpeed) > 0:
+            raise ValueError(f"{obj.ToolController.Label}: spindle speed must be > 0 rpm")
+        shape_name = str(getattr(self.tool, "ShapeName", "") or getattr(self.tool, "BitShape", ""))
+        if "ball" not in shape_name.lower():
+            raise ValueError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
+        surface = self.surface(obj)
+        toolpath = generate(
+            surface,
+            strategy=obj.Strategy,
+            tool_diameter=2.0 * self.radius,
+            scallop=obj.ScallopHeight.Value,
+            tolerance=obj.Tolerance.Value,
+            angle=obj.Angle.Value,
+            direction=obj.Direction,
+            iso_direction=obj.IsoDirection,
+            clearance_height=obj.ClearanceHeight.Value,
+            progress=progress_reporter(obj),
+        )
+        if not toolpath.passes:
+            raise ValueError(f"{obj.Label}: the strategy produced no pass")
+        lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
+        moves = toolpath_common.to_moves(toolpath, obj.ClearanceHeight.Value, max(obj.SafeHeight.Value, lowest))
+        self.commandlist.extend(moves_to_commands(moves, self.horizFeed, self.vertFeed))
+        obj.Report = json.dumps(report(toolpath), sort_keys=True)
+        for region in toolpath.unreachable:
+            FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
+
+
+def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float) -> list:
+    """Path commands for core moves; plunges (pure -Z feeds) use the vertical feed (mm/min).
+
+    FreeCAD's Path stores feeds in mm/s; post-processors convert to the machine's units.
+    """
+    commands = []
+    last = None
+    for move in moves:
+        target = {"X": move.x, "Y": move.y, "Z": move.z}
+        if move.kind == "rapid":
+            commands.append(Path.Command("G0", target))
+        else:
+            vertical = last is not None and abs(move.x - last[0]) < 1e-9 and abs(move.y - last[1]) < 1e-9
+            feed = vertical_feed if vertical else horizontal_feed
+            commands.append(Path.Command("G1", {**target, "F": feed}))
+        last = (move.x, move.y, move.z)
+    return commands
+
+
+def report(toolpath) -> dict:
+    stats = toolpath.stats
+    return {
+        "strategy": toolpath.strategy,
+        "passes": stats.passes,
+        "moves": stats.moves,
+        "cutting_length_mm": round(stats.cutting_length_mm, 6),
+        "seconds": round(stats.seconds, 4),
+        "unreachable": [getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
+    }
+
+
+def progress_reporter(obj):
+    """Progress shown in the GUI (when up) as FreeCAD's progress indicator; None headless."""
+    if not FreeCAD.GuiUp:
+        return None
+    from ..gui.progress import op_progress
+
+    return op_progress(obj)
+
+
+def find_surface_object(job):
+    """The BSplineCAM surface behind the job's model (its clone's original), or None."""
+    if job is None:
+        return None
+    for model in job.Model.Group:
+        for candidate in [model, *getattr(model, "Objects", []), *getattr(model, "OutList", [])]:
+            if _is_surface(candidate):
+                return candidate
+    return None
+
+
+def _model_clone_of(job, source):
+    if job is None:
+        return None
+    for model in job.Model.Group:
+        if model is not source and source in [*getattr(model, "Objects", []), *getattr(model, "OutList", [])]:
+            return model
+    return None
+
+
+def _is_surface(obj) -> bool:
+    from .surface_feature import is_surface
+
+    return is_surface(obj)
+
+
+def Create(name: str = "SurfaceFinish", obj=None, parentJob=None):  # noqa: N802, N803 - FreeCAD factory convention
+    """A new finishing op in ``parentJob`` (default: the active job), like CAM's ops' Create."""
+    if obj is None:
+        obj = FreeCAD.ActiveDocument.addObject("Path::FeaturePython", name)
+    obj.Proxy = ObjectSurfaceFinish(obj, name, parentJob)
+    return obj

@@ -1,0 +1,91 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""``bsplinecam toolpath``: surface → FreeCAD job → finishing op → post-processed G-code.
+
+Writes DIR/NAME.ngc (checked by LinuxCNC's rs274 when installed), DIR/toolpath.json and
+DIR/NAME-job.FCStd.  Every argument is validated before any work, and the output folder
+receives nothing unless all steps succeed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from . import rs274
+from .core import BSplineCAMError, Surface
+from .core.errors import ParameterError
+from .core.gcode import MoveKind, read_gcode
+from .core.toolpath.common import Direction, IsoDirection, Strategy, ToolParameters
+
+DEFAULT_RAPID = 5000.0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("toolpath", help="ball-end finishing toolpath on the exact surface, posted to G-code")
+    p.add_argument("net", help="control net: .json, .csv or .dat")
+    p.add_argument("--knots", choices=["uniform", "clamped"], help="override the file's knot layout")
+    p.add_argument("--tool-diameter", type=float, required=True, help="ball-end diameter (mm)")
+    p.add_argument("--scallop", type=float, required=True, help="largest scallop height left (mm)")
+    p.add_argument("--tolerance", type=float, default=0.002, help="chordal tolerance along passes (mm, default 0.002)")
+    p.add_argument("--strategy", default="raster", choices=[s.value for s in Strategy])
+    p.add_argument("--angle", type=float, default=0.0, help="raster direction from +X (degrees)")
+    p.add_argument("--direction", default="zigzag", choices=[d.value for d in Direction])
+    p.add_argument("--iso-direction", default="u", choices=[d.value for d in IsoDirection])
+    p.add_argument("--post", default="linuxcnc", help="FreeCAD post-processor (linuxcnc, grbl, fanuc, mach3_mach4, ...)")
+    p.add_argument("--feed", type=float, default=1200.0, help="cutting feed (mm/min)")
+    p.add_argument("--plunge-feed", type=float, default=400.0, help="vertical feed (mm/min)")
+    p.add_argument("--spindle", type=float, default=12000.0, help="spindle speed (rpm)")
+    p.add_argument("--rapid", type=float, default=DEFAULT_RAPID, help="rapid rate for the time estimate (mm/min)")
+    p.add_argument("--no-rs274", action="store_true", help="do not check the program with LinuxCNC's rs274")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=cmd_toolpath)
+
+
+def machining_time(gcode: str, rapid: float = DEFAULT_RAPID) -> tuple[float, float]:
+    """(cutting length mm, machining time s) of a program, from its own text and feeds."""
+    program = read_gcode(gcode, "program", require_end=False)
+    lengths = program.lengths()
+    rapid_mask = program.kind == MoveKind.RAPID
+    cutting = float(lengths[~rapid_mask].sum())
+    minutes = float((lengths[~rapid_mask] / program.feed[~rapid_mask]).sum()) + float(lengths[rapid_mask].sum()) / rapid
+    return cutting, 60.0 * minutes
+
+
+def cmd_toolpath(args: argparse.Namespace) -> int:
+    from .cli import EXIT_CHECK_FAILED, _safe_name, emit, staged_output
+
+    ToolParameters.validate(args.tool_diameter, args.scallop, args.tolerance)
+    for name in ("feed", "plunge_feed", "spindle", "rapid"):
+        if not getattr(args, name) > 0:
+            raise ParameterError(f"--{name.replace('_', '-')} must be > 0, got {getattr(args, name)}")
+    surface = Surface.from_file(args.net, args.knots)
+    from .app import cam, compat, pipeline
+
+    try:
+        compat.post_module(args.post)
+    except ValueError as exc:
+        raise ParameterError(str(exc)) from None
+    params = pipeline.FinishingParameters(
+        tool_diameter=args.tool_diameter, scallop=args.scallop, tolerance=args.tolerance,
+        strategy=args.strategy, angle=args.angle, direction=args.direction, iso_direction=args.iso_direction)
+    cutting = cam.Cutting(args.feed, args.plunge_feed, args.spindle, args.rapid)
+    name = _safe_name(surface.name)
+    with staged_output(Path(args.out)) as stage:
+        program = stage / f"{name}.ngc"
+        try:
+            report = pipeline.machine(surface, params, program, args.post, cutting, stage / f"{name}-job.FCStd")
+        except ValueError as exc:
+            raise ParameterError(str(exc)) from None
+        text = program.read_text()
+        report["cutting_length_mm"], report["machining_time_s"] = (round(v, 3) for v in machining_time(text, args.rapid))
+        report["program"] = program.name
+        if not args.no_rs274 and rs274.available():
+            check = rs274.check(program, {1: args.tool_diameter})
+            report["rs274"] = check.as_dict()
+            if not check.ok:
+                emit(report)
+                raise BSplineCAMError(f"{program.name}: LinuxCNC's rs274 rejects the program: {check.message}")
+        (stage / "toolpath.json").write_text(json.dumps(report, indent=1) + "\n")
+    emit(report)
+    return 0 if report.get("rs274", {"ok": True})["ok"] else EXIT_CHECK_FAILED

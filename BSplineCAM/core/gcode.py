@@ -1,0 +1,535 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Read the G-code that FreeCAD's post-processors emit into arrays of moves (mm, mm/min).
+
+Covers what the linuxcnc, grbl, fanuc and mach3_mach4 posts write: G0/G1/G2/G3 (arcs by
+I/J/K offsets or R), G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, F, S, T, M3/M4/M5, M6,
+M7/M8/M9, G43 H, G54..G59, G40/G49/G80/G94/G98/G99/G61/G64, G4 dwell, N numbers, ( ) and ;
+comments, % and M2/M30.  The semantics follow LinuxCNC's RS274NGC interpreter (Kramer, Proctor
+& Messina, "The NIST RS274NGC Interpreter - Version 3", NISTIR 6556, 2000): words on one line
+are executed in the order of section 3.8, not in the order written.  Anything else raises
+:class:`GcodeError` naming the line, so a program is never half-understood.
+
+A program in inches (G20) is converted to millimetres word by word; ``Program.converted_from_inches``
+records that it happened.  The machine position is unknown until the program sets every axis:
+no move is recorded from an unknown start (rs274 would assume the origin, which lies inside
+the stock of most parts).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+import numpy as np
+
+from .errors import BSplineCAMError
+from .typing import FloatArray, IntArray
+
+MM_PER_INCH = 25.4
+#: LinuxCNC's arc end-radius tolerance (mm absolute, and relative), rs274ngc interp_arc.cc.
+ARC_RADIUS_TOLERANCE_MM = 0.05
+ARC_RADIUS_TOLERANCE_REL = 0.001
+
+
+class GcodeError(BSplineCAMError):
+    """A program that cannot be read; the message names the line."""
+
+
+class MoveKind(IntEnum):
+    """Motion of one move; the arcs' sense is that of the active plane's (first, second) axes."""
+
+    RAPID = 0
+    LINE = 1
+    ARC_CW = 2
+    ARC_CCW = 3
+
+
+#: Plane code -> (first axis, second axis, normal axis) as indices into (x, y, z); right-handed.
+PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+
+
+@dataclass(frozen=True)
+class Program:
+    """Moves of a program in machine order; all lengths mm, feeds mm/min (NaN for rapids).
+
+    ``centre`` holds arc centres (NaN rows for straight moves); ``plane`` the plane code of
+    each arc (17, 18 or 19); ``line`` the 1-based source line of each move.
+    """
+
+    kind: IntArray
+    start: FloatArray
+    end: FloatArray
+    centre: FloatArray
+    plane: IntArray
+    feed: FloatArray
+    line: IntArray
+    source_units: str = "mm"
+    converted_from_inches: bool = False
+    tools: tuple[int, ...] = ()
+    warnings: tuple[str, ...] = field(default=(), compare=False)
+
+    def __len__(self) -> int:
+        return int(len(self.kind))
+
+    def lengths(self) -> FloatArray:
+        """Path length of each move (mm): chord for lines, helix length for arcs."""
+        length = np.linalg.norm(self.end - self.start, axis=1)
+        arcs = np.flatnonzero(self.kind >= MoveKind.ARC_CW)
+        if len(arcs):
+            sweep, radius, axial = _arc_geometry(self, arcs)
+            length[arcs] = np.hypot(np.abs(sweep) * radius, axial)
+        return length
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Straight pieces to simulate: arcs replaced by chords; ``move`` indexes the Program."""
+
+    start: FloatArray
+    end: FloatArray
+    rapid: np.ndarray
+    line: IntArray
+    move: IntArray
+
+    def __len__(self) -> int:
+        return int(len(self.move))
+
+
+# ---------------------------------------------------------------------------------------------
+# reading
+
+_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))|(.)")
+_COMMENT = re.compile(r"\([^()]*\)")
+
+#: G codes accepted without effect on the geometry (cutter compensation off, tool length,
+#: work offsets, canned cycle cancel, path control, feed mode per minute, return modes).
+_G_IGNORED = {40.0, 43.0, 49.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 61.0, 61.1, 64.0, 80.0,
+              94.0, 98.0, 99.0}
+_M_IGNORED = {0, 1, 3, 4, 5, 7, 8, 9}
+_AXES = "XYZ"
+
+
+def read_gcode(text: str, source: str = "program", require_end: bool = True) -> Program:
+    """Parse the text of a program into a :class:`Program` (mm).
+
+    ``require_end``: a program that stops without M2/M30 or a closing % is taken as truncated.
+    """
+    state = _State(source)
+    lines = text.splitlines()
+    percent_open = False
+    for lineno, raw in enumerate(lines, start=1):
+        stripped = raw.strip()
+        if stripped.startswith("%"):
+            if stripped.strip("% \t"):
+                raise GcodeError(f"{source}: line {lineno}: text after '%': {stripped!r}")
+            if percent_open or state.moves_seen:
+                state.ended = True
+                break
+            percent_open = True
+            continue
+        state.lineno = lineno
+        state.execute(_parse_line(raw, source, lineno))
+        if state.ended:
+            break
+    if require_end and not state.ended:
+        raise GcodeError(
+            f"{source}: the program ends at line {len(lines)} without M2, M30 or a closing %: "
+            "truncated?"
+        )
+    return state.program()
+
+
+def read_gcode_file(path: str, require_end: bool = True) -> Program:
+    """Read a program file; undecodable or unreadable files raise GcodeError."""
+    try:
+        with open(path, encoding="utf-8") as handle:
+            text = handle.read()
+    except OSError as exc:
+        raise GcodeError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise GcodeError(f"{path}: not a text file (invalid UTF-8)") from None
+    if "\x00" in text:
+        raise GcodeError(f"{path}: not a text file (contains NUL bytes)")
+    return read_gcode(text, path, require_end)
+
+
+def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
+    """Words of one line as (letter, value), comments and block delete removed."""
+    text = raw.split(";", 1)[0]
+    text = _COMMENT.sub(" ", text)
+    if "(" in text or ")" in text:
+        raise GcodeError(f"{source}: line {lineno}: unbalanced comment parenthesis")
+    text = "".join(text.split()).upper()
+    if text.startswith("/"):
+        text = text[1:]
+    for bad in "#[]<>":
+        if bad in text:
+            raise GcodeError(
+                f"{source}: line {lineno}: parameters and expressions are not supported: {text!r}"
+            )
+    words = []
+    for match in _WORD.finditer(text):
+        if match.group(3) is not None:
+            rest = text[match.start():]
+            bad = match.group(3)
+            if bad.isalpha():
+                raise GcodeError(f"{source}: line {lineno}: word {bad!r} has no number: {rest!r}")
+            raise GcodeError(f"{source}: line {lineno}: cannot read {rest!r}")
+        words.append((match.group(1), float(match.group(2))))
+    return words
+
+
+class _State:
+    """The interpreter's modal state while reading, and the moves so far."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self.lineno = 0
+        self.position: list[float | None] = [None, None, None]
+        self.motion: int | None = None
+        self.plane = 17
+        self.scale = 1.0  # mm per program unit
+        self.absolute = True
+        self.arc_absolute = False
+        self.feed = math.nan
+        self.inches_seen = False
+        self.ended = False
+        self.moves_seen = False
+        self.tools: list[int] = []
+        self.selected_tool: int | None = None
+        self.moves: list[tuple] = []
+        self.warnings: list[str] = []
+
+    def error(self, message: str) -> GcodeError:
+        return GcodeError(f"{self.source}: line {self.lineno}: {message}")
+
+    def execute(self, words: list[tuple[str, float]]) -> None:
+        if not words:
+            return
+        self.moves_seen = True
+        values: dict[str, float] = {}
+        g_codes: list[float] = []
+        m_codes: list[int] = []
+        for letter, value in words:
+            if letter == "G":
+                g_codes.append(round(value, 1))
+            elif letter == "M":
+                if value != int(value):
+                    raise self.error(f"unknown M code M{value:g}")
+                m_codes.append(int(value))
+            elif letter == "N":
+                continue
+            elif letter in "XYZIJKRFSTPHDLQ":
+                if letter in values:
+                    raise self.error(f"word {letter} appears twice")
+                values[letter] = value
+            elif letter in "ABCUVW":
+                raise self.error(f"axis word {letter} not supported (3-axis programs only)")
+            elif letter == "O":
+                raise self.error("O-word subroutines and program numbers are not supported")
+            else:
+                raise self.error(f"unknown word {letter}{value:g}")
+        motion = None
+        for g in g_codes:
+            if g in (0.0, 1.0, 2.0, 3.0):
+                if motion is not None:
+                    raise self.error("two motion codes on one line")
+                motion = int(g)
+            elif g in (17.0, 18.0, 19.0):
+                self.plane = int(g)
+            elif g == 20.0:
+                self.scale = MM_PER_INCH
+                self.inches_seen = True
+            elif g == 21.0:
+                self.scale = 1.0
+            elif g == 90.0:
+                self.absolute = True
+            elif g == 91.0:
+                self.absolute = False
+            elif g == 90.1:
+                self.arc_absolute = True
+            elif g == 91.1:
+                self.arc_absolute = False
+            elif g == 4.0:
+                if "P" not in values:
+                    raise self.error("G4 dwell without P")
+            elif g in _G_IGNORED:
+                continue
+            elif g == 93.0:
+                raise self.error("G93 inverse-time feed is not supported")
+            elif 81.0 <= g <= 89.0:
+                raise self.error(f"canned cycle G{g:g} is not supported")
+            else:
+                raise self.error(f"unknown or unsupported G code G{g:g}")
+        for m in m_codes:
+            if m not in _M_IGNORED and m not in (2, 6, 30):
+                raise self.error(f"unknown or unsupported M code M{m}")
+        if "F" in values:
+            if values["F"] <= 0:
+                raise self.error(f"feed F{values['F']:g} must be positive")
+            self.feed = values["F"] * self.scale
+        if "T" in values:
+            self.selected_tool = int(values["T"])
+        if 6 in m_codes and self.selected_tool is not None and self.selected_tool > 0:
+            self.tools.append(self.selected_tool)
+        if motion is not None:
+            self.motion = motion
+        has_axes = any(a in values for a in _AXES)
+        if motion is not None or (has_axes and 4.0 not in g_codes):
+            if 4.0 in g_codes and motion is not None:
+                raise self.error("G4 and a motion on one line")
+            if self.motion is None:
+                if has_axes:
+                    raise self.error("axis words without a motion mode (G0/G1/G2/G3)")
+            elif has_axes:
+                self._move(values)
+            elif self.motion in (2, 3):
+                raise self.error(f"G{self.motion} without an end point (X/Y/Z)")
+        elif any(k in values for k in "IJKR"):
+            raise self.error("arc words I/J/K/R without G2/G3")
+        if 2 in m_codes or 30 in m_codes:
+            self.ended = True
+
+    def _target(self, values: dict[str, float]) -> list[float | None]:
+        target = list(self.position)
+        for axis, letter in enumerate(_AXES):
+            if letter not in values:
+                continue
+            value = values[letter] * self.scale
+            if self.absolute:
+                target[axis] = value
+            elif self.position[axis] is None:
+                raise self.error(f"incremental {letter} move (G91) from an unknown position")
+            else:
+                target[axis] = self.position[axis] + value
+        return target
+
+    def _move(self, values: dict[str, float]) -> None:
+        target = self._target(values)
+        start = self.position
+        kind = self.motion
+        arc = kind in (2, 3)
+        if not arc and any(k in values for k in "IJKR"):
+            raise self.error(f"arc words I/J/K/R with G{kind}")
+        if kind != 0 and not math.isfinite(self.feed):
+            raise self.error(f"G{kind} with no feed rate set (F)")
+        known = all(v is not None for v in start)
+        if arc and not known:
+            raise self.error("arc from an unknown position: set X, Y and Z first")
+        self.position = target
+        if not known or any(v is None for v in target):
+            return
+        start_a = np.array(start, dtype=float)
+        end_a = np.array(target, dtype=float)
+        centre = np.full(3, np.nan)
+        if arc:
+            centre = self._arc_centre(values, start_a, end_a, kind)
+        elif np.array_equal(start_a, end_a):
+            return
+        feed = math.nan if kind == 0 else self.feed
+        self.moves.append((kind, start_a, end_a, centre, self.plane, feed, self.lineno))
+
+    def _arc_centre(self, values: dict[str, float], start: FloatArray, end: FloatArray,
+                    kind: int) -> FloatArray:
+        a1, a2, normal = PLANE_AXES[self.plane]
+        offset_letters = {17: "IJ", 18: "KI", 19: "JK"}[self.plane]
+        s = np.array([start[a1], start[a2]])
+        e = np.array([end[a1], end[a2]])
+        centre = np.empty(3)
+        centre[normal] = start[normal]
+        if "R" in values:
+            if any(k in values for k in "IJK"):
+                raise self.error("arc with both R and I/J/K")
+            radius = values["R"] * self.scale
+            chord = e - s
+            d = float(np.hypot(*chord))
+            if d < 1e-9:
+                raise self.error("R-form arc with the same start and end point (use I/J/K)")
+            if d > 2 * abs(radius) + ARC_RADIUS_TOLERANCE_MM:
+                raise self.error(
+                    f"arc radius R{values['R']:g} is smaller than half the chord ({d / 2:.4f} mm)"
+                )
+            h = math.sqrt(max(radius * radius - d * d / 4.0, 0.0))
+            left = np.array([-chord[1], chord[0]]) / d
+            # the short arc (R > 0) has its centre left of the chord when counter-clockwise
+            side = 1.0 if (kind == 3) == (radius > 0) else -1.0
+            c = (s + e) / 2.0 + side * h * left
+        else:
+            if not any(k in values for k in offset_letters):
+                raise self.error(
+                    f"G{kind} in G{self.plane} needs {offset_letters[0]}/{offset_letters[1]} "
+                    "or R"
+                )
+            off = np.array([values.get(k, 0.0) for k in offset_letters]) * self.scale
+            c = off if self.arc_absolute else s + off
+            r1 = float(np.hypot(*(s - c)))
+            r2 = float(np.hypot(*(e - c)))
+            if r1 < 1e-9:
+                raise self.error("arc of zero radius")
+            if abs(r1 - r2) > ARC_RADIUS_TOLERANCE_MM and abs(r1 - r2) > ARC_RADIUS_TOLERANCE_REL * r1:
+                raise self.error(
+                    f"radius to the arc's end ({r2:.4f} mm) differs from radius to its start "
+                    f"({r1:.4f} mm)"
+                )
+        centre[a1], centre[a2] = c
+        return centre
+
+    def program(self) -> Program:
+        if self.moves:
+            kind, start, end, centre, plane, feed, line = zip(*self.moves)
+        else:
+            kind = start = end = centre = plane = feed = line = ()
+        return Program(
+            kind=np.array(kind, dtype=np.intp),
+            start=np.array(start, dtype=float).reshape(-1, 3),
+            end=np.array(end, dtype=float).reshape(-1, 3),
+            centre=np.array(centre, dtype=float).reshape(-1, 3),
+            plane=np.array(plane, dtype=np.intp),
+            feed=np.array(feed, dtype=float),
+            line=np.array(line, dtype=np.intp),
+            source_units="in" if self.inches_seen else "mm",
+            converted_from_inches=self.inches_seen,
+            tools=tuple(self.tools),
+            warnings=tuple(self.warnings),
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# LinuxCNC canonical output, the independent reference
+
+_CANON = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SET_FEED_RATE|SELECT_PLANE|"
+                    r"USE_LENGTH_UNITS)\(([^)]*)\)")
+
+
+def read_canonical(text: str) -> Program:
+    """Moves from ``rs274 -g`` output (LinuxCNC's canonical machining functions).
+
+    Used to check :func:`read_gcode` against LinuxCNC's own interpreter.  The first traverse
+    starts from rs274's assumed origin, so like :func:`read_gcode` it only sets the position.
+    """
+    moves = []
+    position: FloatArray | None = None
+    plane = 17
+    scale = 1.0
+    feed = math.nan
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        match = _CANON.search(raw)
+        if not match:
+            continue
+        name, args = match.group(1), match.group(2)
+        if name == "USE_LENGTH_UNITS":
+            scale = MM_PER_INCH if "INCHES" in args else 1.0
+            continue
+        if name == "SELECT_PLANE":
+            plane = {"CANON_PLANE_XY": 17, "CANON_PLANE_XZ": 18, "CANON_PLANE_YZ": 19}[args.strip()]
+            continue
+        numbers = [float(v) for v in args.replace(",", " ").split()]
+        if name == "SET_FEED_RATE":
+            feed = numbers[0] * scale
+            continue
+        centre = np.full(3, np.nan)
+        if name == "ARC_FEED":
+            first_end, second_end, first_c, second_c, rotation, axis_end = numbers[:6]
+            if abs(rotation) != 1:
+                raise GcodeError(f"canonical line {lineno}: multi-turn arcs not supported")
+            a1, a2, normal = PLANE_AXES[plane]
+            end = np.empty(3)
+            end[a1], end[a2], end[normal] = first_end, second_end, axis_end
+            end *= scale
+            centre[a1], centre[a2] = first_c * scale, second_c * scale
+            kind = MoveKind.ARC_CCW if rotation > 0 else MoveKind.ARC_CW
+        else:
+            end = np.array(numbers[:3]) * scale
+            kind = MoveKind.RAPID if name == "STRAIGHT_TRAVERSE" else MoveKind.LINE
+        if position is not None and not (kind < 2 and np.array_equal(position, end)):
+            if kind >= 2:
+                centre[PLANE_AXES[plane][2]] = position[PLANE_AXES[plane][2]]
+            f = math.nan if kind == MoveKind.RAPID else feed
+            moves.append((int(kind), position, end, centre, plane, f, lineno))
+        position = end
+    state = _State("canonical")
+    state.moves = moves
+    return state.program()
+
+
+# ---------------------------------------------------------------------------------------------
+# geometry
+
+
+def _arc_geometry(program: Program, index: IntArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Signed sweep (rad, + counter-clockwise), start radius (mm) and axial travel of arcs."""
+    sweep = np.empty(len(index))
+    radius = np.empty(len(index))
+    axial = np.empty(len(index))
+    for code, (a1, a2, normal) in PLANE_AXES.items():
+        sel = program.plane[index] == code
+        if not np.any(sel):
+            continue
+        i = index[sel]
+        c = program.centre[i]
+        s = program.start[i]
+        e = program.end[i]
+        t0 = np.arctan2(s[:, a2] - c[:, a2], s[:, a1] - c[:, a1])
+        t1 = np.arctan2(e[:, a2] - c[:, a2], e[:, a1] - c[:, a1])
+        ccw = np.mod(t1 - t0, 2 * np.pi)
+        cw = np.mod(t0 - t1, 2 * np.pi)
+        ccw = np.where(ccw < 1e-12, 2 * np.pi, ccw)
+        cw = np.where(cw < 1e-12, 2 * np.pi, cw)
+        sweep[sel] = np.where(program.kind[i] == MoveKind.ARC_CCW, ccw, -cw)
+        radius[sel] = np.hypot(s[:, a1] - c[:, a1], s[:, a2] - c[:, a2])
+        axial[sel] = e[:, normal] - s[:, normal]
+    return sweep, radius, axial
+
+
+def linearise(program: Program, tolerance: float) -> Segments:
+    """Replace arcs by chords whose sagitta is at most ``tolerance`` (mm); lines pass through.
+
+    The chord count of an arc of radius r and sweep phi is ceil(phi / (2 acos(1 - tol/r))).
+    Radius and axial position vary linearly with the angle (LinuxCNC's helix and spiral).
+    """
+    if not tolerance > 0:
+        raise ValueError(f"tolerance must be positive (mm), got {tolerance}")
+    n = len(program)
+    pieces = np.ones(n, dtype=np.intp)
+    arcs = np.flatnonzero(program.kind >= MoveKind.ARC_CW)
+    if len(arcs):
+        sweep, radius, _ = _arc_geometry(program, arcs)
+        half = np.arccos(np.clip(1.0 - tolerance / np.maximum(radius, 1e-12), -1.0, 1.0))
+        pieces[arcs] = np.maximum(1, np.ceil(np.abs(sweep) / (2 * np.maximum(half, 1e-9))))
+    move = np.repeat(np.arange(n), pieces)
+    first = np.cumsum(pieces) - pieces
+    k = np.arange(len(move)) - first[move]
+    frac0 = k / pieces[move]
+    frac1 = (k + 1) / pieces[move]
+    start = program.start[move] + frac0[:, None] * (program.end - program.start)[move]
+    end = program.start[move] + frac1[:, None] * (program.end - program.start)[move]
+    if len(arcs):
+        is_arc = np.zeros(n, dtype=bool)
+        is_arc[arcs] = True
+        sel = is_arc[move]
+        sweep_all = np.zeros(n)
+        sweep_all[arcs] = sweep
+        for code, (a1, a2, normal) in PLANE_AXES.items():
+            rows = np.flatnonzero(sel & (program.plane[move] == code))
+            if not len(rows):
+                continue
+            m = move[rows]
+            c = program.centre[m]
+            s = program.start[m]
+            e = program.end[m]
+            t0 = np.arctan2(s[:, a2] - c[:, a2], s[:, a1] - c[:, a1])
+            r0 = np.hypot(s[:, a1] - c[:, a1], s[:, a2] - c[:, a2])
+            r1 = np.hypot(e[:, a1] - c[:, a1], e[:, a2] - c[:, a2])
+            for frac, out in ((frac0, start), (frac1, end)):
+                f = frac[rows]
+                t = t0 + f * sweep_all[m]
+                r = r0 + f * (r1 - r0)
+                out[rows, a1] = c[:, a1] + r * np.cos(t)
+                out[rows, a2] = c[:, a2] + r * np.sin(t)
+                out[rows, normal] = s[:, normal] + f * (e[:, normal] - s[:, normal])
+            last = rows[frac1[rows] >= 1.0]
+            end[last] = program.end[move[last]]
+    return Segments(start=start, end=end, rapid=program.kind[move] == MoveKind.RAPID,
+                    line=program.line[move], move=move)

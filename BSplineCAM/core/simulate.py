@@ -1,0 +1,372 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Stock simulation on a Z-map: the lower envelope of the tool swept along every move.
+
+The stock is a grid of vertical dexels over the XY footprint; each keeps the height of its
+top at the cell centre.  A move removes material down to the exact lower envelope of the
+tool swept along the straight segment (arcs come here as chords, see ``gcode.linearise``).
+
+Envelope of one segment, at a cell centre p (derivation in the docstring of
+:func:`_envelope`): with the tool bottom z_tip + f(r) at radial distance r from its axis,
+the height is min over the segment of z(s) + f(|p - c(s)|).  For the ball, flat and bull-nose
+profiles f is convex and non-decreasing, so that function of s is convex and its minimum is
+the unconstrained stationary point clamped to the segment: closed form for ball and flat
+ends, a 1-D bisection for the bull-nose (Huang & Oliver, "NC milling error assessment and
+tool path correction", SIGGRAPH 1994, use the same lower-envelope formulation).
+
+Speed: segments with similar windows are stacked and evaluated as one (K, H, W) array, so
+numpy's per-call overhead is paid per batch, not per move; only the final min into the
+height map loops over moves, at a few microseconds each.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from .errors import ParameterError
+from .gcode import Program, Segments, linearise
+from .typing import FloatArray
+
+#: Cells evaluated per batch: (K, H, W) temporaries stay in the processor's cache.
+BATCH_CELLS = 1 << 17
+#: A rapid that removes more than this (mm) is a collision.
+COLLISION_TOLERANCE_MM = 0.01
+_BISECTION_STEPS = 24
+#: Worker threads for the envelopes (the machine's cores, at most 4).
+THREADS = max(1, min(4, os.cpu_count() or 1))
+
+
+class ToolShape(str, Enum):
+    """End of the cutter."""
+
+    BALL = "ball"
+    FLAT = "flat"
+    BULLNOSE = "bullnose"
+
+    @classmethod
+    def parse(cls, value: str | ToolShape) -> ToolShape:
+        try:
+            return cls(value)
+        except ValueError:
+            raise ParameterError(
+                f"tool shape must be one of {', '.join(s.value for s in cls)}, got {value!r}"
+            ) from None
+
+
+@dataclass(frozen=True)
+class Tool:
+    """A cutter; the programmed point is the tool tip (lowest point on the axis), in mm."""
+
+    diameter: float
+    shape: ToolShape = ToolShape.BALL
+    corner_radius: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "shape", ToolShape.parse(self.shape))
+        if not (isinstance(self.diameter, (int, float)) and math.isfinite(self.diameter)
+                and self.diameter > 0):
+            raise ParameterError(f"tool diameter must be a positive length (mm), got {self.diameter!r}")
+        if self.shape is ToolShape.BULLNOSE:
+            if not (math.isfinite(self.corner_radius) and 0 < self.corner_radius <= self.radius):
+                raise ParameterError(
+                    f"bull-nose corner radius must be in (0, {self.radius:g}] mm (half the "
+                    f"diameter), got {self.corner_radius!r}"
+                )
+        elif self.corner_radius not in (0, 0.0):
+            raise ParameterError(f"corner radius (mm) applies to a bull-nose tool, not {self.shape.value}")
+
+    @property
+    def radius(self) -> float:
+        return self.diameter / 2.0
+
+    def profile(self, r: FloatArray) -> FloatArray:
+        """Height of the tool's bottom above its tip at radial distance r (mm); inf beyond."""
+        r = np.abs(np.asarray(r, dtype=float))
+        R = self.radius
+        with np.errstate(invalid="ignore"):
+            if self.shape is ToolShape.BALL:
+                out = R - np.sqrt(np.maximum(R * R - r * r, 0.0))
+            elif self.shape is ToolShape.FLAT:
+                out = np.zeros_like(r)
+            else:
+                a, rc = R - self.corner_radius, self.corner_radius
+                e = np.maximum(r - a, 0.0)
+                out = rc - np.sqrt(np.maximum(rc * rc - e * e, 0.0))
+        return np.where(r <= R * (1 + 1e-12), out, np.inf)
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Cells of size ``cell`` (mm) from (x0, y0); arrays on it are (ny, nx), rows along y."""
+
+    x0: float
+    y0: float
+    cell: float
+    nx: int
+    ny: int
+
+    @classmethod
+    def covering(cls, x_min: float, x_max: float, y_min: float, y_max: float,
+                 cell: float) -> Grid:
+        """The grid of whole cells covering the rectangle, centred on it."""
+        if not (math.isfinite(cell) and cell > 0):
+            raise ParameterError(f"cell size must be a positive length (mm), got {cell!r}")
+        nx = max(1, int(math.ceil((x_max - x_min) / cell - 1e-9)))
+        ny = max(1, int(math.ceil((y_max - y_min) / cell - 1e-9)))
+        if nx * ny > 50_000_000:
+            raise ParameterError(f"cell size {cell:g} mm gives {nx}x{ny} cells: too many")
+        x0 = (x_min + x_max) / 2.0 - nx * cell / 2.0
+        y0 = (y_min + y_max) / 2.0 - ny * cell / 2.0
+        return cls(float(x0), float(y0), float(cell), nx, ny)
+
+    def centres(self) -> tuple[FloatArray, FloatArray]:
+        """Cell-centre coordinates (x of each column, y of each row), mm."""
+        return (self.x0 + (np.arange(self.nx) + 0.5) * self.cell,
+                self.y0 + (np.arange(self.ny) + 0.5) * self.cell)
+
+
+@dataclass(frozen=True)
+class Collision:
+    """A rapid move that cut stock: source line, deepest cut (mm) and where."""
+
+    line: int
+    depth_mm: float
+    x: float
+    y: float
+
+    def to_dict(self) -> dict:
+        return {"line": self.line, "depth_mm": round(self.depth_mm, 6),
+                "x": round(self.x, 4), "y": round(self.y, 4)}
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """The machined Z-map (mm) and what the simulation noticed on the way."""
+
+    grid: Grid
+    height: FloatArray
+    top: float
+    collisions: tuple[Collision, ...]
+
+    def removed_volume(self) -> float:
+        """Volume cut from the stock block (mm^3), cell area times removed depth."""
+        return float(np.sum(self.top - self.height) * self.grid.cell ** 2)
+
+
+def simulate_program(program: Program, tool: Tool, grid: Grid, top: float,
+                     chord_tolerance: float | None = None) -> Simulation:
+    """Simulate a program; arcs become chords within ``chord_tolerance`` (default cell/10)."""
+    tol = grid.cell / 10.0 if chord_tolerance is None else chord_tolerance
+    return simulate(linearise(program, tol), tool, grid, top)
+
+
+def simulate(segments: Segments, tool: Tool, grid: Grid, top: float,
+             collision_tolerance: float = COLLISION_TOLERANCE_MM) -> Simulation:
+    """Cut a block of stock with top at ``top`` (mm) along the segments, in program order.
+
+    Feed segments between two rapids commute (the Z-map keeps a minimum), so they are batched
+    in any order; a rapid that can reach the stock is checked against the stock as the moves
+    before it left it, and reported as a :class:`Collision` if it cuts deeper than
+    ``collision_tolerance``.
+    """
+    height = np.full((grid.ny, grid.nx), float(top), dtype=np.float32)
+    start = np.asarray(segments.start, dtype=float)
+    end = np.asarray(segments.end, dtype=float)
+    window = _windows(start, end, tool.radius, grid)
+    low = np.minimum(start[:, 2], end[:, 2])
+    live = (window[:, 1] >= window[:, 0]) & (window[:, 3] >= window[:, 2]) & (low < top)
+    collisions: list[Collision] = []
+    risky = np.flatnonzero(live & segments.rapid)
+    begin = 0
+    for r in [*risky.tolist(), len(start)]:
+        feed = np.arange(begin, r)
+        feed = feed[live[feed] & ~segments.rapid[feed]]
+        if len(feed):
+            _cut(height, feed, start, end, window, tool, grid, None)
+        if r < len(start):
+            depth = _cut(height, np.array([r]), start, end, window, tool, grid, collision_tolerance)
+            if depth is not None:
+                collisions.append(Collision(int(segments.line[r]), *depth))
+        begin = r + 1
+    return Simulation(grid, height.astype(float), float(top), _merge(collisions))
+
+
+def _merge(collisions: list[Collision]) -> tuple[Collision, ...]:
+    """One collision per source line (its deepest cut)."""
+    best: dict[int, Collision] = {}
+    for c in collisions:
+        if c.line not in best or c.depth_mm > best[c.line].depth_mm:
+            best[c.line] = c
+    return tuple(best[k] for k in sorted(best))
+
+
+def _windows(start: FloatArray, end: FloatArray, radius: float, grid: Grid) -> np.ndarray:
+    """Inclusive cell ranges (ix_lo, ix_hi, iy_lo, iy_hi) each segment's tool can reach."""
+    lo = np.minimum(start[:, :2], end[:, :2]) - radius
+    hi = np.maximum(start[:, :2], end[:, :2]) + radius
+    origin = np.array([grid.x0, grid.y0])
+    first = np.ceil((lo - origin) / grid.cell - 0.5).astype(np.int64)
+    last = np.floor((hi - origin) / grid.cell - 0.5).astype(np.int64)
+    first = np.maximum(first, 0)
+    last = np.minimum(last, np.array([grid.nx - 1, grid.ny - 1]))
+    return np.stack([first[:, 0], last[:, 0], first[:, 1], last[:, 1]], axis=1)
+
+
+def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArray,
+         window: np.ndarray, tool: Tool, grid: Grid,
+         collision_tolerance: float | None) -> tuple[float, float, float] | None:
+    """Lower ``height`` by the envelopes of segments ``index``; for a rapid, report its cut.
+
+    Batches run on up to THREADS threads: numpy releases the GIL inside its loops, and the
+    merge into ``height`` (a minimum, so order-free) is serialised by a lock.
+    """
+    w = window[index, 1] - window[index, 0] + 1
+    h = window[index, 3] - window[index, 2] + 1
+    # pad window sizes to a few shapes so that many segments share one batch
+    wb = np.minimum(_round_up(w), grid.nx)
+    hb = np.minimum(_round_up(h), grid.ny)
+    ix0 = np.minimum(window[index, 0], grid.nx - wb)
+    iy0 = np.minimum(window[index, 2], grid.ny - hb)
+    key = hb * (grid.nx + 1) + wb
+    order = np.argsort(key, kind="stable")
+    bounds = np.flatnonzero(np.diff(key[order])) + 1
+    batches = []
+    for group in np.split(order, bounds):
+        per_batch = max(1, BATCH_CELLS // int(hb[group[0]] * wb[group[0]]))
+        batches.extend(group[b:b + per_batch] for b in range(0, len(group), per_batch))
+    result: list[tuple[float, float, float]] = []
+    lock = threading.Lock()
+
+    def run(mine: list[np.ndarray]) -> None:
+        for sel in mine:
+            H, W = int(hb[sel[0]]), int(wb[sel[0]])
+            seg = index[sel]
+            env = _envelope(start[seg], end[seg], ix0[sel], iy0[sel], H, W, tool, grid)
+            with lock:
+                for k in range(len(sel)):
+                    y, x = int(iy0[sel[k]]), int(ix0[sel[k]])
+                    view = height[y:y + H, x:x + W]
+                    if collision_tolerance is not None:
+                        depth = np.nan_to_num(view - env[k], nan=-np.inf)
+                        at = int(np.argmax(depth))
+                        if depth.flat[at] > collision_tolerance:
+                            cy, cx = divmod(at, W)
+                            result.append((float(depth.flat[at]),
+                                           grid.x0 + (x + cx + 0.5) * grid.cell,
+                                           grid.y0 + (y + cy + 0.5) * grid.cell))
+                    np.fmin(view, env[k], out=view)
+
+    threads = min(THREADS, len(batches))
+    if threads <= 1:
+        run(batches)
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            for future in [pool.submit(run, batches[i::threads]) for i in range(threads)]:
+                future.result()
+    return max(result) if result else None
+
+
+def _round_up(n: np.ndarray) -> np.ndarray:
+    """Window sizes rounded up to 1/16 steps of their power of two (at most 6.25% padding)."""
+    n = np.maximum(n, 1)
+    step = np.maximum(1, 2 ** np.floor(np.log2(n)).astype(np.int64) // 16)
+    return -(-n // step) * step
+
+
+def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, H: int, W: int,
+              tool: Tool, grid: Grid) -> FloatArray:
+    """Lower envelope (K, H, W) of the tool swept from p0 to p1 over each segment's window.
+
+    In the segment's frame, a cell centre lies at qa along and qp across the XY direction
+    (length L, slope m = dz/L).  With the tool axis at distance t = s L along the segment, the
+    envelope is min over t in [0, L] of
+        g(t) = z0 + m t + f(sqrt(qp^2 + (qa - t)^2)),
+    convex in t.  Its stationary point solves f'(r) (qa - t) / r = m; with
+    rho^2 = R^2 - qp^2 and tau = qa - t: ball tau* = rho m / sqrt(1 + m^2), flat
+    tau* = rho sign(m), bull-nose by bisection.  Clamping t* = qa - tau* to [0, L] gives the
+    minimum.  Cells out of the tool's reach come out NaN (the caller merges with fmin).
+    A vertical segment (L = 0) has t = 0 and the lower end's z.  float32 throughout: the
+    arrays are the simulation's whole cost and 1e-5 mm is far below any cell size.
+    """
+    R = tool.radius
+    d = p1[:, :2] - p0[:, :2]
+    L = np.hypot(d[:, 0], d[:, 1])
+    flat = L < 1e-9
+    safe = np.where(flat, 1.0, L)
+    ux = np.where(flat, 1.0, d[:, 0] / safe)
+    uy = np.where(flat, 0.0, d[:, 1] / safe)
+    m = np.where(flat, 0.0, (p1[:, 2] - p0[:, 2]) / safe)
+    z0 = np.where(flat, np.minimum(p0[:, 2], p1[:, 2]), p0[:, 2])
+    L = np.where(flat, 0.0, L)
+    dx = (grid.x0 + (ix0[:, None] + np.arange(W) + 0.5) * grid.cell - p0[:, 0, None])[:, None, :]
+    dy = (grid.y0 + (iy0[:, None] + np.arange(H) + 0.5) * grid.cell - p0[:, 1, None])[:, :, None]
+    e = (slice(None), None, None)
+    f32 = np.float32
+    qa = np.add((dx * ux[e]).astype(f32), (dy * uy[e]).astype(f32))
+    qp2 = np.subtract((dy * ux[e]).astype(f32), (dx * uy[e]).astype(f32))
+    np.square(qp2, out=qp2)
+    t = np.subtract(f32(R * R), qp2)
+    with np.errstate(invalid="ignore"):
+        np.sqrt(t, out=t)  # rho; NaN beyond the tool's reach across the path
+        if tool.shape is ToolShape.BALL:
+            t *= (m / np.sqrt(1.0 + m * m)).astype(f32)[e]
+        elif tool.shape is ToolShape.FLAT:
+            t *= np.sign(m).astype(f32)[e]
+        else:
+            t = _bullnose_tau(qp2, t, np.abs(m).astype(f32)[e], tool) * np.sign(m).astype(f32)[e]
+        np.subtract(qa, t, out=t)  # t* = qa - tau*, then clamp to the segment
+        np.maximum(t, f32(0.0), out=t)
+        np.minimum(t, L.astype(f32)[e], out=t)
+        np.subtract(qa, t, out=qa)  # tau at the minimum
+        t *= m.astype(f32)[e]
+        np.square(qa, out=qa)
+        qa += qp2  # r^2
+        r2 = qa
+        if tool.shape is ToolShape.BALL:
+            t += (z0 + R).astype(f32)[e]
+            np.subtract(f32(R * R), r2, out=r2)
+            np.sqrt(r2, out=r2)
+            t -= r2
+        elif tool.shape is ToolShape.FLAT:
+            t += z0.astype(f32)[e]
+            r2[r2 > f32(R * R * (1 + 1e-6))] = np.nan
+            t += r2 * f32(0.0)
+        else:
+            a, rc = R - tool.corner_radius, tool.corner_radius
+            t += (z0 + rc).astype(f32)[e]
+            r2[r2 > f32(R * R * (1 + 1e-6))] = np.nan
+            np.sqrt(r2, out=r2)
+            r2 -= f32(a)
+            np.maximum(r2, f32(0.0), out=r2)  # NaN stays NaN
+            np.square(r2, out=r2)
+            np.subtract(f32(rc * rc), r2, out=r2)
+            np.sqrt(r2, out=r2)
+            t -= r2
+    return t
+
+
+def _bullnose_tau(qp2: FloatArray, rho: FloatArray, m: FloatArray, tool: Tool) -> FloatArray:
+    """tau >= 0 solving f'(r) tau / r = m for the bull-nose profile, by bisection on [0, rho].
+
+    f'(r) = (r - a) / sqrt(rc^2 - (r - a)^2) beyond the flat of radius a, zero within; the
+    left side grows with tau, so bisection is safe.
+    """
+    a, rc = tool.radius - tool.corner_radius, tool.corner_radius
+    lo = np.zeros_like(rho)
+    hi = rho.copy()
+    for _ in range(_BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        r = np.sqrt(qp2 + mid * mid)
+        e = np.clip(r - a, 0.0, rc * (1 - 1e-12))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = e / np.sqrt(rc * rc - e * e) * np.where(r > 0, mid / np.maximum(r, 1e-300), 0.0)
+        grow = slope < m
+        lo = np.where(grow, mid, lo)
+        hi = np.where(grow, hi, mid)
+    return 0.5 * (lo + hi)

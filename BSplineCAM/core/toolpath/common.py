@@ -1,0 +1,547 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Shared pieces of the ball-end finishing strategies: validation, data, geometry helpers.
+
+Everything here is plain data in, plain data out (numpy arrays and dataclasses); the app layer
+turns a :class:`Toolpath` into ``Path.Command`` lists through :func:`to_moves`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any, Callable, NamedTuple, Optional
+
+import numpy as np
+
+from ..errors import BSplineCAMError, ParameterError
+from ..basis import DEGREE, KnotLayout
+from ..matrix import locate, power_rows, span_matrices_cached
+from ..typing import FloatArray
+
+#: Valid range of the chordal tolerance (mm).
+TOLERANCE_RANGE = (1e-5, 1.0)
+
+ProgressFn = Optional[Callable[[float], Any]]
+CancelFn = Optional[Callable[[], bool]]
+
+
+class Strategy(str, Enum):
+    """Finishing strategies of issue 4."""
+
+    RASTER = "raster"
+    WATERLINE = "waterline"
+    ISOPARAMETRIC = "isoparametric"
+
+
+class Direction(str, Enum):
+    """Raster pass order: alternate sense (zigzag) or always the same sense (oneway)."""
+
+    ZIGZAG = "zigzag"
+    ONEWAY = "oneway"
+
+
+class IsoDirection(str, Enum):
+    """Parameter that varies along an iso-parametric pass."""
+
+    U = "u"
+    W = "w"
+
+
+class ToolpathCancelled(BSplineCAMError):
+    """Raised when the ``cancel`` callback asks to stop; the message says how far it got."""
+
+
+def parse_enum(enum: type[Enum], value: Any, argument: str) -> Any:
+    """Enum member from itself or its string; ParameterError naming ``argument`` otherwise."""
+    if isinstance(value, enum):
+        return value
+    try:
+        return enum(str(value).strip().lower())
+    except ValueError:
+        valid = ", ".join(repr(m.value) for m in enum)
+        raise ParameterError(f"unknown {argument} {value!r}: expected one of {valid}") from None
+
+
+def check_positive(value: Any, argument: str, unit: str = "mm") -> float:
+    """A finite number > 0, else ParameterError naming argument and unit."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{argument} must be a number in {unit}, got {value!r}") from None
+    if not math.isfinite(number) or number <= 0.0:
+        raise ParameterError(f"{argument} must be a finite number > 0 {unit}, got {value!r}")
+    return number
+
+
+def check_finite(value: Any, argument: str, unit: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{argument} must be a number in {unit}, got {value!r}") from None
+    if not math.isfinite(number):
+        raise ParameterError(f"{argument} must be finite ({unit}), got {value!r}")
+    return number
+
+
+@dataclass(frozen=True)
+class ToolParameters:
+    """Validated common arguments: ball radius R, scallop h and chordal tolerance (all mm)."""
+
+    radius: float
+    scallop: float
+    tolerance: float
+
+    @classmethod
+    def validate(cls, tool_diameter: Any, scallop: Any, tolerance: Any) -> ToolParameters:
+        diameter = check_positive(tool_diameter, "tool_diameter", "mm")
+        radius = diameter / 2.0
+        h = check_positive(scallop, "scallop", "mm")
+        if h > radius:
+            raise ParameterError(
+                f"scallop must not exceed the tool radius ({radius:g} mm), got {h:g} mm"
+            )
+        tol = check_positive(tolerance, "tolerance", "mm")
+        lo, hi = TOLERANCE_RANGE
+        if not lo <= tol <= hi:
+            raise ParameterError(f"tolerance must lie in [{lo:g}, {hi:g}] mm, got {tol:g} mm")
+        return cls(radius, h, tol)
+
+    @property
+    def flat_stepover(self) -> float:
+        """Stepover on a flat: s = 2 sqrt(2Rh - h^2) (mm)."""
+        return flat_stepover(self.radius, self.scallop)
+
+
+# -- scallop geometry ---------------------------------------------------------------------------
+def flat_stepover(radius: float, scallop: float) -> float:
+    """Distance between passes on a plane leaving cusps of height h: 2 sqrt(2Rh - h^2) (mm)."""
+    return 2.0 * math.sqrt(max(2.0 * radius * scallop - scallop * scallop, 0.0))
+
+
+def curved_stepover(radius: float, scallop: float, curvature: FloatArray) -> FloatArray:
+    """Arc length between passes on a surface of normal curvature ``curvature`` (1/mm).
+
+    Sign convention: curvature > 0 is concave (the surface bends towards its upward normal).
+    In the plane across the passes the ball centres lie on a circle of radius rho + R (convex)
+    or rho - R (concave) about the centre of curvature; the cusp lies at distance rho + h
+    (resp. rho - h) from it and R from either centre, so by the law of cosines
+
+        convex:   cos(theta/2) = ((rho+R)^2 + (rho+h)^2 - R^2) / (2 (rho+R)(rho+h))
+        concave:  cos(theta/2) = ((rho-R)^2 + (rho-h)^2 - R^2) / (2 (rho-R)(rho-h))
+
+    and the stepover is s = rho * theta (Lin & Koren 1996; Suresh & Yang 1994).  As rho grows
+    both tend to the flat 2 sqrt(2Rh - h^2).  Where a concave rho <= R the ball cannot follow
+    the surface; the flat value is returned there (those regions are reported separately).
+    """
+    R, h = float(radius), float(scallop)
+    kappa = np.asarray(curvature, dtype=float)
+    flat = flat_stepover(R, h)
+    out = np.full(kappa.shape, flat)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = 1.0 / np.abs(kappa)
+        convex = (kappa < 0) & (rho < 1e7)
+        concave = (kappa > 0) & (rho > R * (1 + 1e-9)) & (rho < 1e7)
+        r = rho[convex]
+        c = ((r + R) ** 2 + (r + h) ** 2 - R * R) / (2 * (r + R) * (r + h))
+        out[convex] = 2 * r * np.arccos(np.clip(c, -1.0, 1.0))
+        r = rho[concave]
+        c = ((r - R) ** 2 + (r - h) ** 2 - R * R) / (2 * (r - R) * (r - h))
+        out[concave] = 2 * r * np.arccos(np.clip(c, -1.0, 1.0))
+    # Where the arccos loses precision (nearly flat), keep the flat value.
+    out[~np.isfinite(out) | (out <= 0)] = flat
+    return out
+
+
+# -- fast scattered evaluation with derivatives ---------------------------------------------------
+@dataclass
+class Jet:
+    """Point, first and second derivatives and the upward unit normal at scattered parameters."""
+
+    u: FloatArray
+    w: FloatArray
+    p: FloatArray
+    su: FloatArray
+    sw: FloatArray
+    suu: FloatArray
+    suw: FloatArray
+    sww: FloatArray
+    sign: float = 1.0
+
+    @property
+    def normal(self) -> FloatArray:
+        n = self.sign * np.cross(self.su, self.sw)
+        length = np.linalg.norm(n, axis=-1, keepdims=True)
+        return n / np.where(length > 0, length, 1.0)
+
+
+class Evaluator:
+    """Scattered evaluation of a cubic B-spline surface and its derivatives, patch by patch.
+
+    Each patch is pre-multiplied into its power-basis coefficients A_ij = M_i P_ij M_j^T (the
+    paper's matrix form, appendix A), so the points of one patch cost one BLAS product with
+    their [W] rows and a 4-term sum with their [U] rows; derivatives differentiate [U] and [W].
+    ``sign`` (+1 or -1) orients the normal sign * Su x Sw up (+z) on average: the side the
+    ball approaches from.
+    """
+
+    def __init__(self, surface: Any):
+        self.surface = surface
+        net = np.asarray(surface.control_points, dtype=float)
+        self.nu, self.nw = net.shape[:2]
+        self.pu, self.pw = self.nu - DEGREE, self.nw - DEGREE
+        mu = span_matrices_cached(self.nu, KnotLayout.parse(surface.knots))
+        mw = span_matrices_cached(self.nw, KnotLayout.parse(surface.knots))
+        coef = np.empty((self.pu, self.pw, 4, 12))
+        for i in range(self.pu):
+            for j in range(self.pw):
+                block = net[i:i + 4, j:j + 4]  # (4, 4, 3)
+                a = np.einsum("ak,klc,bl->bac", mu[i], block, mw[j])  # (b: w-power, a, c)
+                coef[i, j] = a.reshape(4, 12)
+        self.coef = coef
+        pts = surface.grid(9, 9)
+        nz = np.cross(np.gradient(pts, axis=0), np.gradient(pts, axis=1))[..., 2]
+        self.sign = 1.0 if float(nz.sum()) >= 0 else -1.0
+
+    def _eval(self, u: FloatArray, w: FloatArray, combos: list) -> list:
+        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
+        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
+        m = len(u)
+        iu, su = locate(u, self.nu)
+        iw, sw = locate(w, self.nw)
+        key = iu * self.pw + iw
+        order = np.argsort(key, kind="stable")
+        key, su, sw = key[order], su[order], sw[order]
+        bounds = np.searchsorted(key, np.arange(self.pu * self.pw + 1))
+        patches = np.flatnonzero(np.diff(bounds))
+        coef_t = self.coef.reshape(-1, 4, 12).transpose(0, 2, 1)  # (patch, 12 = (a, c), 4 = b)
+        xt = {}
+        for q in sorted({q for _, q in combos}):
+            rw_t = np.ascontiguousarray(power_rows(sw, q, self.pw).T)  # (4, m)
+            buf = np.empty((12, m))
+            for patch in patches:
+                lo, hi = bounds[patch], bounds[patch + 1]
+                np.matmul(coef_t[patch], rw_t[:, lo:hi], out=buf[:, lo:hi])
+            xt[q] = buf
+        rows = {}
+        out = []
+        for p, q in combos:
+            if p not in rows:
+                rows[p] = np.ascontiguousarray(power_rows(su, p, self.pu).T)  # (4, m)
+            ru, buf = rows[p], xt[q]
+            acc = np.empty((m, 3))
+            for c in range(3):
+                total = buf[c] * ru[0]
+                for a in range(1, 4):
+                    total += buf[3 * a + c] * ru[a]
+                acc[order, c] = total
+            out.append(acc)
+        return out
+
+    def points(self, u: FloatArray, w: FloatArray) -> FloatArray:
+        return self._eval(u, w, [(0, 0)])[0]
+
+    def jet(self, u: FloatArray, w: FloatArray) -> Jet:
+        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
+        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
+        p, su, sw, suu, suw, sww = self._eval(u, w, [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)])
+        return Jet(u, w, p, su, sw, suu, suw, sww, self.sign)
+
+
+def normal_curvature(jet: Jet, direction: FloatArray) -> FloatArray:
+    """Normal curvature II(t)/I(t) (1/mm) in the tangent direction nearest ``direction`` (3-vectors).
+
+    Positive means concave (the surface bends towards the upward normal), as in
+    :func:`curved_stepover`.  The direction is projected on the tangent plane and written in
+    (Su, Sw) by the first fundamental form (do Carmo, section 3-2).
+    """
+    n = jet.normal
+    d = np.asarray(direction, dtype=float)
+    d = d - np.einsum("ij,ij->i", d, n)[:, None] * n
+    E = np.einsum("ij,ij->i", jet.su, jet.su)
+    F = np.einsum("ij,ij->i", jet.su, jet.sw)
+    G = np.einsum("ij,ij->i", jet.sw, jet.sw)
+    bu = np.einsum("ij,ij->i", d, jet.su)
+    bw = np.einsum("ij,ij->i", d, jet.sw)
+    det = E * G - F * F
+    det = np.where(np.abs(det) > 0, det, 1.0)
+    a = (G * bu - F * bw) / det
+    b = (E * bw - F * bu) / det
+    L = np.einsum("ij,ij->i", jet.suu, n)
+    M = np.einsum("ij,ij->i", jet.suw, n)
+    N = np.einsum("ij,ij->i", jet.sww, n)
+    first = E * a * a + 2 * F * a * b + G * b * b
+    second = L * a * a + 2 * M * a * b + N * b * b
+    return second / np.where(first > 0, first, 1.0)
+
+
+def principal_curvatures(jet: Jet) -> tuple[FloatArray, FloatArray]:
+    """(k_min, k_max) in 1/mm from the shape operator; positive = concave (bends to the normal)."""
+    n = jet.normal
+    E = np.einsum("ij,ij->i", jet.su, jet.su)
+    F = np.einsum("ij,ij->i", jet.su, jet.sw)
+    G = np.einsum("ij,ij->i", jet.sw, jet.sw)
+    L = np.einsum("ij,ij->i", jet.suu, n)
+    M = np.einsum("ij,ij->i", jet.suw, n)
+    N = np.einsum("ij,ij->i", jet.sww, n)
+    det = E * G - F * F
+    det = np.where(det > 0, det, np.inf)
+    H = (E * N - 2 * F * M + G * L) / (2 * det)
+    K = (L * N - M * M) / det
+    disc = np.sqrt(np.maximum(H * H - K, 0.0))
+    return H - disc, H + disc
+
+
+# -- unreachable regions ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Region:
+    """A connected patch the ball cannot reach: concave radius of curvature below R.
+
+    Boxes in parameters (u, w in [0, 1]) and model XY (mm); ``min_radius_mm`` is the tightest
+    concave radius found there.
+    """
+
+    u_range: tuple[float, float]
+    w_range: tuple[float, float]
+    x_range: tuple[float, float]
+    y_range: tuple[float, float]
+    min_radius_mm: float
+
+    def as_dict(self) -> dict:
+        return {
+            "u_range": list(self.u_range), "w_range": list(self.w_range),
+            "x_range": list(self.x_range), "y_range": list(self.y_range),
+            "min_radius_mm": self.min_radius_mm,
+        }
+
+
+def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
+    """4-connected components of a 2-D boolean mask by vectorised min-label propagation."""
+    rows, cols = mask.shape
+    big = rows * cols
+    labels = np.where(mask, np.arange(big).reshape(rows, cols), big)
+    while True:
+        prev = labels
+        nxt = labels.copy()
+        nxt[1:] = np.minimum(nxt[1:], labels[:-1])
+        nxt[:-1] = np.minimum(nxt[:-1], labels[1:])
+        nxt[:, 1:] = np.minimum(nxt[:, 1:], labels[:, :-1])
+        nxt[:, :-1] = np.minimum(nxt[:, :-1], labels[:, 1:])
+        labels = np.where(mask, nxt, big)
+        # pointer jumping: follow label -> label of that cell, speeds up long regions
+        flat = labels.ravel()
+        inside = flat < big
+        flat[inside] = np.minimum(flat[inside], flat[flat[inside]])
+        if np.array_equal(labels, prev):
+            break
+    unique, inverse = np.unique(labels[mask], return_inverse=True)
+    out = np.full(mask.shape, -1)
+    out[mask] = inverse.ravel()
+    return out, len(unique)
+
+
+def unreachable_regions(evaluator: Evaluator, radius: float, samples: int = 201) -> list[Region]:
+    """Regions whose largest concave principal curvature exceeds 1/R, on a parameter grid."""
+    u = np.linspace(0.0, 1.0, samples)
+    uu, ww = np.meshgrid(u, u, indexing="ij")
+    jet = evaluator.jet(uu.ravel(), ww.ravel())
+    _, kmax = principal_curvatures(jet)
+    kmax = kmax.reshape(samples, samples)
+    mask = kmax > 1.0 / radius
+    if not mask.any():
+        return []
+    labels, count = label_regions(mask)
+    pts = jet.p.reshape(samples, samples, 3)
+    regions = []
+    for k in range(count):
+        sel = labels == k
+        pu, pw = uu[sel], ww[sel]
+        xy = pts[sel]
+        step = 1.0 / (samples - 1)
+        regions.append(Region(
+            (max(0.0, float(pu.min()) - step), min(1.0, float(pu.max()) + step)),
+            (max(0.0, float(pw.min()) - step), min(1.0, float(pw.max()) + step)),
+            (float(xy[:, 0].min()), float(xy[:, 0].max())),
+            (float(xy[:, 1].min()), float(xy[:, 1].max())),
+            float(1.0 / kmax[sel].max()),
+        ))
+    return regions
+
+
+# -- polylines ----------------------------------------------------------------------------------
+def split_runs(valid: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of consecutive True entries."""
+    v = np.concatenate([[False], np.asarray(valid, bool), [False]])
+    edges = np.flatnonzero(v[1:] != v[:-1])
+    return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
+
+
+def simplify(points: FloatArray, starts: np.ndarray, tolerance: float, metric: str) -> np.ndarray:
+    """Douglas–Peucker (1973) on many polylines at once; returns the mask of kept points.
+
+    ``points`` holds all polylines back to back, ``starts`` the first index of each (plus the
+    end).  Each round splits every segment whose worst interior point deviates more than
+    ``tolerance``, at that point, for all polylines in one vectorised step.  ``metric``:
+    'vertical' (z of the chord at the point's XY position along it, for drop-cutter passes),
+    'distance' (3-D distance to the chord) or 'planar' (XY distance, for waterlines).
+    """
+    n = len(points)
+    keep = np.zeros(n, bool)
+    keep[starts[:-1]] = True
+    keep[starts[1:] - 1] = True
+    while True:
+        kept = np.flatnonzero(keep)
+        free = np.flatnonzero(~keep)
+        if len(free) == 0:
+            break
+        pos = np.searchsorted(kept, free)
+        a = points[kept[pos - 1]]
+        b = points[kept[pos]]
+        p = points[free]
+        dev = chord_deviation(a, b, p, metric)
+        seg = pos  # free points between the same kept pair share pos
+        worst = np.full(len(kept) + 1, -np.inf)
+        np.maximum.at(worst, seg, dev)
+        bad = dev > tolerance
+        bad &= dev >= worst[seg]
+        if not bad.any():
+            break
+        cand = free[bad]
+        _, first = np.unique(seg[bad], return_index=True)
+        keep[cand[first]] = True
+    return keep
+
+
+def chord_deviation(a: FloatArray, b: FloatArray, p: FloatArray, metric: str) -> FloatArray:
+    """Deviation of points p from chords a-b (mm) in the given metric (see :func:`simplify`)."""
+    if metric == "distance":
+        ab = b - a
+        t = np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+        t = np.clip(t, 0.0, 1.0)
+        return np.linalg.norm(a + t[:, None] * ab - p, axis=1)
+    ab = b[:, :2] - a[:, :2]
+    t = np.einsum("ij,ij->i", p[:, :2] - a[:, :2], ab) / np.maximum(
+        np.einsum("ij,ij->i", ab, ab), 1e-300)
+    t = np.clip(t, 0.0, 1.0)
+    if metric == "planar":
+        return np.linalg.norm(a[:, :2] + t[:, None] * ab - p[:, :2], axis=1)
+    return np.abs(a[:, 2] + t * (b[:, 2] - a[:, 2]) - p[:, 2])
+
+
+# -- result -------------------------------------------------------------------------------------
+@dataclass
+class ToolpathStats:
+    """Summary numbers: counts, cutting length (mm), compute time (s), stepover range (mm)."""
+
+    passes: int = 0
+    moves: int = 0
+    points: int = 0
+    cutting_length_mm: float = 0.0
+    seconds: float = 0.0
+    stepover_min_mm: float = float("nan")
+    stepover_max_mm: float = float("nan")
+    notes: list = field(default_factory=list)
+
+
+@dataclass
+class Toolpath:
+    """Finishing passes as tool-TIP positions (mm, model coordinates), in machining order.
+
+    ``passes`` is a list of (n, 3) float arrays, each cut as straight feed moves; linking
+    between passes (retract, rapid, plunge) is left to :func:`to_moves` or the app layer.
+    """
+
+    strategy: str
+    passes: list
+    parameters: dict
+    unreachable: list
+    stats: ToolpathStats
+    clearance_height: float = float("nan")
+    extra: dict = field(default_factory=dict)
+
+    def finish(self, started: float, clearance_height: Optional[float]) -> Toolpath:
+        self.passes = [np.ascontiguousarray(p, dtype=float) for p in self.passes if len(p) >= 2]
+        st = self.stats
+        st.passes = len(self.passes)
+        st.moves = int(sum(len(p) - 1 for p in self.passes))
+        st.points = int(sum(len(p) for p in self.passes))
+        st.cutting_length_mm = float(
+            sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in self.passes))
+        top = max((float(p[:, 2].max()) for p in self.passes), default=0.0)
+        if clearance_height is None:
+            self.clearance_height = top + 5.0
+        else:
+            clear = check_finite(clearance_height, "clearance_height", "mm")
+            if clear <= top:
+                raise ParameterError(
+                    f"clearance_height must lie above the highest cutter location "
+                    f"({top:.3f} mm), got {clear:g} mm")
+            self.clearance_height = clear
+        self.parameters["clearance_height"] = self.clearance_height
+        st.seconds = time.perf_counter() - started
+        return self
+
+
+class Move(NamedTuple):
+    """One motion: ``kind`` is 'rapid' or 'feed'; x, y, z the end point (mm)."""
+
+    kind: str
+    x: float
+    y: float
+    z: float
+
+
+def to_moves(toolpath: Toolpath, clearance_height: Optional[float] = None,
+             safe_height: Optional[float] = None) -> list[Move]:
+    """Flat list of moves: per pass rapid to clearance above the start, rapid down to the safe
+    height, feed down to the start, feed along the pass, rapid back up to clearance.
+
+    ``clearance_height`` (absolute Z, mm; default the toolpath's) must clear every pass;
+    ``safe_height`` (absolute Z, mm) is where the rapid descent stops and the plunge feed starts
+    (default 1 mm above each pass start, never above clearance).
+    """
+    clear = toolpath.clearance_height if clearance_height is None else check_finite(
+        clearance_height, "clearance_height", "mm")
+    top = max((float(p[:, 2].max()) for p in toolpath.passes), default=-math.inf)
+    if not clear > top:
+        raise ParameterError(
+            f"clearance_height must lie above the highest cutter location ({top:.3f} mm), "
+            f"got {clear:g} mm")
+    if safe_height is not None:
+        safe_height = check_finite(safe_height, "safe_height", "mm")
+        if safe_height > clear:
+            raise ParameterError(f"safe_height ({safe_height:g} mm) must not exceed "
+                                 f"clearance_height ({clear:g} mm)")
+    moves: list[Move] = []
+    for p in toolpath.passes:
+        x0, y0, z0 = (float(v) for v in p[0])
+        moves.append(Move("rapid", x0, y0, clear))
+        approach = min(clear, z0 + 1.0) if safe_height is None else max(safe_height, z0)
+        if approach < clear:
+            moves.append(Move("rapid", x0, y0, approach))
+        if approach > z0:
+            moves.append(Move("feed", x0, y0, z0))
+        moves.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in p[1:])
+        moves.append(Move("rapid", float(p[-1, 0]), float(p[-1, 1]), clear))
+    return moves
+
+
+class Monitor:
+    """Calls ``progress(fraction)`` and polls ``cancel()``; raises ToolpathCancelled."""
+
+    def __init__(self, progress: ProgressFn, cancel: CancelFn, what: str):
+        for name, fn in (("progress", progress), ("cancel", cancel)):
+            if fn is not None and not callable(fn):
+                raise ParameterError(f"{name} must be callable or None, got {fn!r}")
+        self.progress, self.cancel, self.what = progress, cancel, what
+        self.last = 0.0
+
+    def __call__(self, fraction: float) -> None:
+        fraction = min(max(float(fraction), self.last), 1.0)
+        self.last = fraction
+        if self.cancel is not None and self.cancel():
+            raise ToolpathCancelled(
+                f"{self.what} toolpath cancelled at {100 * fraction:.0f}% of the work")
+        if self.progress is not None:
+            self.progress(fraction)

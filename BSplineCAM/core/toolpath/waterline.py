@@ -1,0 +1,217 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Waterline finishing: constant-Z contours of the ball's cutter-location surface.
+
+At tip height z the ball touches the surface without cutting exactly where the drop-cutter
+height c(x, y) - R equals z, so each waterline is a level set of the exact drop-cutter field
+(the offset surface S + R n with its folds resolved by the max).  Levels are found by
+marching squares (Lorensen & Cline 1987) on a grid of exact heights, each crossing is
+polished on its grid edge by regula falsi on the exact drop-cutter, and chords whose
+midpoint would have the tool below the exact height by more than the tolerance are split.
+The step-down follows the scallop on walls: adjacent contours a slope alpha apart along the
+surface are dz / sin(alpha) apart, so dz = s sin(alpha) with s the curvature-adjusted
+stepover; walls shallower than ``min_slope`` are left to a raster pass (reported in notes).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..typing import FloatArray
+from .common import Monitor, ToolParameters, curved_stepover, normal_curvature, simplify
+from .dropcutter import DropCutter
+
+#: Marching-squares segments per case (corner bits: 1 = (i, j), 2 = (i+1, j), 4 = (i+1, j+1),
+#: 8 = (i, j+1)); edges 0 = bottom, 1 = right, 2 = top, 3 = left.  Saddles 5 and 10 are split
+#: by the cell-centre value at run time.
+CASES = {
+    1: [(3, 0)], 2: [(0, 1)], 3: [(3, 1)], 4: [(1, 2)], 6: [(0, 2)], 7: [(3, 2)],
+    8: [(2, 3)], 9: [(2, 0)], 11: [(2, 1)], 12: [(1, 3)], 13: [(1, 0)], 14: [(0, 3)],
+}
+
+
+def level_heights(dc: DropCutter, tool: ToolParameters, min_slope: float,
+                  z_top: float, z_bottom: float) -> list[float]:
+    """Tip heights of the waterlines, top down (mm), from scallop-limited step-downs."""
+    uu, ww = np.meshgrid(dc.u, dc.w, indexing="ij")
+    jet = dc.evaluator.jet(uu.ravel(), ww.ravel())
+    n = jet.normal
+    sin_a = np.sqrt(np.clip(1.0 - n[:, 2] ** 2, 0.0, 1.0))
+    steep = sin_a >= math.sin(min_slope)
+    # Steepest-descent direction in the tangent plane: across the waterlines.
+    down = np.column_stack([n[:, 0] * n[:, 2], n[:, 1] * n[:, 2], n[:, 2] ** 2 - 1.0])
+    kappa = normal_curvature(jet, down)
+    dz = curved_stepover(tool.radius, tool.scallop, kappa) * sin_a
+    z_off = jet.p[:, 2] + tool.radius * (n[:, 2] - 1.0)
+    order = np.argsort(z_off[steep])
+    zs, dzs = z_off[steep][order], dz[steep][order]
+    floor = tool.flat_stepover * math.sin(min_slope)
+    levels = []
+    z = z_top
+    gap = dc.margin ** 0.5
+    while True:
+        step = tool.flat_stepover
+        for _ in range(6):
+            lo, hi = np.searchsorted(zs, [z - step - gap, z + gap])
+            need = max(float(dzs[lo:hi].min()), 0.02 * floor) if hi > lo else step
+            if need >= 0.999 * step:
+                break
+            step = need
+        z -= step
+        if z <= z_bottom:
+            break
+        levels.append(z)
+    return levels
+
+
+def _crossings(Z: FloatArray, level: float) -> tuple[list, np.ndarray, np.ndarray]:
+    """Marching squares: segments as pairs of edge keys, and per key its two grid corners."""
+    above = np.nan_to_num(Z, nan=-np.inf) > level
+    a00, a10 = above[:-1, :-1], above[1:, :-1]
+    a11, a01 = above[1:, 1:], above[:-1, 1:]
+    case = a00 * 1 + a10 * 2 + a11 * 4 + a01 * 8
+    segments = []
+    ci, cj = np.nonzero((case != 0) & (case != 15))
+    cases = case[ci, cj]
+    nx, ny = Z.shape
+    for c, ii, jj in zip(cases.tolist(), ci.tolist(), cj.tolist()):
+        if c in (5, 10):
+            centre = np.nanmean(Z[ii:ii + 2, jj:jj + 2]) > level
+            pairs = {(5, True): [(3, 2), (1, 0)], (5, False): [(3, 0), (1, 2)],
+                     (10, True): [(0, 3), (2, 1)], (10, False): [(0, 1), (2, 3)]}[(c, centre)]
+        else:
+            pairs = CASES[c]
+        for e0, e1 in pairs:
+            segments.append((_edge_key(ii, jj, e0, nx, ny), _edge_key(ii, jj, e1, nx, ny)))
+    return segments, above, case
+
+
+def _edge_key(i: int, j: int, edge: int, nx: int, ny: int) -> int:
+    """Horizontal edges (i, j)-(i+1, j) are keys i*ny + j; vertical ones get offset nx*ny."""
+    if edge == 0:
+        return i * ny + j
+    if edge == 2:
+        return i * ny + j + 1
+    if edge == 3:
+        return nx * ny + i * ny + j
+    return nx * ny + (i + 1) * ny + j
+
+
+def _chain(segments: list) -> list[list[int]]:
+    """Link segments sharing edge keys into polylines (closed loops repeat their first key)."""
+    links: dict[int, list[int]] = {}
+    for s, (a, b) in enumerate(segments):
+        links.setdefault(a, []).append(s)
+        links.setdefault(b, []).append(s)
+    used = [False] * len(segments)
+    chains = []
+    ends = [k for k, v in links.items() if len(v) == 1]
+    for start in ends + [k for k in links if len(links[k]) != 1]:
+        for s0 in links[start]:
+            if used[s0]:
+                continue
+            chain = [start]
+            key, seg = start, s0
+            while True:
+                used[seg] = True
+                a, b = segments[seg]
+                key = b if a == key else a
+                chain.append(key)
+                nxt = [s for s in links[key] if not used[s]]
+                if not nxt:
+                    break
+                seg = nxt[0]
+            chains.append(chain)
+    return chains
+
+
+def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Monitor,
+              dc: DropCutter) -> tuple[list, dict]:
+    """Closed or open contours (lists of (n, 3) tip positions), top level first."""
+    g = tool.radius / 4.0
+    lo, hi = dc.lo, dc.hi
+    xs = np.linspace(lo[0], hi[0], max(3, math.ceil((hi[0] - lo[0]) / g) + 1))
+    ys = np.linspace(lo[1], hi[1], max(3, math.ceil((hi[1] - lo[1]) / g) + 1))
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    Z = dc.heights(np.column_stack([X.ravel(), Y.ravel()]))[0].reshape(X.shape)
+    monitor(0.3)
+    levels = level_heights(dc, tool, min_slope, float(np.nanmax(Z)), float(np.nanmin(Z)))
+    nx, ny = Z.shape
+    corners = np.empty((2 * nx * ny, 2, 2), dtype=np.intp)  # edge key -> two grid corners
+    ii, jj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    corners[: nx * ny, 0] = np.column_stack([ii.ravel(), jj.ravel()])
+    corners[: nx * ny, 1] = np.column_stack([ii.ravel(), np.minimum(jj.ravel() + 1, ny - 1)])
+    corners[nx * ny:, 0] = np.column_stack([ii.ravel(), jj.ravel()])
+    corners[nx * ny:, 1] = np.column_stack([np.minimum(ii.ravel() + 1, nx - 1), jj.ravel()])
+    polylines, heights = [], []
+    for k, level in enumerate(levels):
+        segments, _, _ = _crossings(Z, level)
+        for chain in _chain(segments):
+            polylines.append(np.asarray(chain))
+            heights.append(level)
+        monitor(0.3 + 0.3 * (k + 1) / max(len(levels), 1))
+    if not polylines:
+        return [], {"levels": levels, "notes": ["no waterline levels"]}
+    keys = np.concatenate(polylines)
+    zl = np.concatenate([np.full(len(p), h) for p, h in zip(polylines, heights)])
+    c0, c1 = corners[keys, 0], corners[keys, 1]
+    p0 = np.column_stack([xs[c0[:, 0]], ys[c0[:, 1]]])
+    p1 = np.column_stack([xs[c1[:, 0]], ys[c1[:, 1]]])
+    z0 = np.nan_to_num(Z[c0[:, 0], c0[:, 1]], nan=-1e9)
+    z1 = np.nan_to_num(Z[c1[:, 0], c1[:, 1]], nan=-1e9)
+    # Regula falsi on each edge against the exact drop-cutter (Illinois variant).
+    t0, t1 = np.zeros(len(keys)), np.ones(len(keys))
+    f0, f1 = z0 - zl, z1 - zl
+    for _ in range(6):
+        t = np.clip((t0 * f1 - t1 * f0) / np.where(f1 != f0, f1 - f0, 1.0), 0.0, 1.0)
+        ft = np.nan_to_num(dc.heights(p0 + t[:, None] * (p1 - p0))[0], nan=-1e9) - zl
+        same = np.sign(ft) == np.sign(f0)
+        t0, f0, t1, f1 = (np.where(same, t, t0), np.where(same, ft, 0.5 * f0),
+                          np.where(same, t1, t), np.where(same, 0.5 * f1, ft))
+    t = np.where(np.abs(f0) < np.abs(f1), t0, t1)
+    xy = p0 + t[:, None] * (p1 - p0)
+    pts = np.column_stack([xy, zl])
+    starts = np.cumsum([0] + [len(p) for p in polylines])
+    pts, starts = _split_chords(dc, pts, starts, tool.tolerance)
+    monitor(0.9)
+    keep = simplify(pts, starts, 0.5 * tool.tolerance, "planar")
+    passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+    steps = -np.diff(levels) if len(levels) > 1 else np.array([np.nan])
+    return passes, {
+        "levels": levels, "stepover_min_mm": float(np.nanmin(steps)),
+        "stepover_max_mm": float(np.nanmax(steps)),
+        "notes": [f"walls below {math.degrees(min_slope):g} degrees are not finished by "
+                  "waterline; pair with a raster pass"],
+    }
+
+
+def _split_chords(dc: DropCutter, pts: FloatArray, starts: np.ndarray,
+                  tolerance: float) -> tuple[FloatArray, np.ndarray]:
+    """Insert contour points where a chord midpoint has the exact height above the level by
+    more than ``tolerance`` (the tool would dip into the surface there)."""
+    for _ in range(4):
+        same = np.ones(len(pts) - 1, bool)
+        same[starts[1:-1] - 1] = False
+        mid = 0.5 * (pts[:-1, :2] + pts[1:, :2])
+        level = pts[:-1, 2]
+        zm = dc.heights(mid)[0]
+        bad = same & np.isfinite(zm) & (zm - level > tolerance)
+        idx = np.flatnonzero(bad)
+        if len(idx) == 0:
+            break
+        q = mid[idx]
+        lv = level[idx]
+        for _newton in range(3):
+            eps = 1e-3
+            zq = dc.heights(q)[0]
+            gx = (dc.heights(q + [eps, 0.0])[0] - zq) / eps
+            gy = (dc.heights(q + [0.0, eps])[0] - zq) / eps
+            g2 = np.maximum(gx * gx + gy * gy, 1e-12)
+            q = q - ((zq - lv) / g2)[:, None] * np.column_stack([gx, gy])
+        new = np.column_stack([q, lv])
+        pts = np.insert(pts, idx + 1, new, axis=0)
+        shift = np.searchsorted(idx + 1, starts, side="right")
+        starts = starts + shift
+    return pts, starts

@@ -1,0 +1,199 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""G-code reader: FreeCAD post-processor output, arcs, units, errors, and LinuxCNC's rs274."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from BSplineCAM.core.gcode import (
+    GcodeError,
+    MoveKind,
+    read_canonical,
+    read_gcode,
+    linearise,
+)
+
+RS274 = shutil.which("rs274")
+
+# What FreeCAD 0.20's linuxcnc/fanuc/mach3 posts write, with line numbers and comments.
+FREECAD_STYLE = """%
+(Exported by FreeCAD)
+(Post Processor: linuxcnc_post)
+N100 (begin preamble)
+N110 G17 G54 G40 G49 G80 G90
+N120 G21
+N130 (begin operation: Surface)
+N140 (machine units: mm/min)
+N150 M6 T1
+N160 G43 H1
+N170 M3 S10000
+N180 G0 Z15.000
+N190 G0 X10.000 Y5.000
+N200 G1 X10.000 Y5.000 Z-1.000 F300.000 ; plunge
+N210 G1 X30.000 Y5.000 Z-1.000 F600.000
+N220 G2 X40.000 Y15.000 I0.000 J10.000 F600.000
+N230 G3 X30.000 Y25.000 R10.000
+N240 G1 X20 Y25
+N250 G0 Z15.000
+N260 M9
+N270 M5
+N280 G17 G54 G90 G80 G40
+N290 M2
+%
+"""
+
+
+def test_freecad_style_program() -> None:
+    prog = read_gcode(FREECAD_STYLE)
+    # the first two rapids only set the (unknown) start position, so no move is recorded
+    assert list(prog.kind) == [MoveKind.LINE, MoveKind.LINE, MoveKind.ARC_CW,
+                               MoveKind.ARC_CCW, MoveKind.LINE, MoveKind.RAPID]
+    np.testing.assert_allclose(prog.start[0], [10, 5, 15])
+    np.testing.assert_allclose(prog.end[2], [40, 15, -1])
+    np.testing.assert_allclose(prog.centre[2], [30, 15, -1])
+    np.testing.assert_allclose(prog.centre[3], [30, 15, -1], atol=1e-12)  # R form, same circle
+    assert prog.feed[0] == 300 and prog.feed[3] == 600 and math.isnan(prog.feed[5])
+    assert prog.line[2] == 16  # source line of N220
+    assert prog.tools == (1,)
+    assert not prog.converted_from_inches
+    lengths = prog.lengths()
+    assert lengths[2] == pytest.approx(1.5 * math.pi * 10)  # clockwise: the long way round
+    assert lengths[3] == pytest.approx(math.pi / 2 * 10)
+
+
+@pytest.mark.parametrize("plane, words, centre", [
+    ("G17", "G2 X10 Y0 I5 J0", [5, 0, 0]),
+    ("G18", "G2 X10 Z0 I5 K0", [5, 0, 0]),
+    ("G19", "G2 Y10 Z0 J5 K0", [0, 5, 0]),
+])
+def test_arc_planes(plane: str, words: str, centre: list[float]) -> None:
+    prog = read_gcode(f"G21 G90 F100\nG0 X0 Y0 Z0\n{plane}\n{words}\nM2\n")
+    np.testing.assert_allclose(prog.centre[0], centre)
+    assert prog.lengths()[0] == pytest.approx(5 * math.pi)
+
+
+@pytest.mark.parametrize("kind, r, centre", [
+    ("G2", 5, [5, 0]),       # half circle: both sides agree
+    ("G2", 10, [5, -8.660254]),  # short clockwise arc from (0,0) to (10,0): centre below
+    ("G3", 10, [5, 8.660254]),
+    ("G2", -10, [5, 8.660254]),  # R < 0: the long arc
+])
+def test_r_form_centre(kind: str, r: float, centre: list[float]) -> None:
+    prog = read_gcode(f"G21 G90 F100\nG0 X0 Y0 Z0\n{kind} X10 Y0 R{r}\nM2\n")
+    np.testing.assert_allclose(prog.centre[0, :2], centre, atol=1e-6)
+
+
+def test_incremental_and_absolute_arc_centre() -> None:
+    prog = read_gcode("G21 G90 F100\nG0 X1 Y1 Z0\nG91 G1 X2 Y3\nG90.1 G90 G2 X13 Y4 I8 J4\nM30\n")
+    np.testing.assert_allclose(prog.end[0], [3, 4, 0])
+    np.testing.assert_allclose(prog.centre[1, :2], [8, 4])
+
+
+def test_inches_converted() -> None:
+    prog = read_gcode("G20 G90\nG0 X0 Y0 Z1\nG1 X1 Y2 Z-0.1 F10\nG2 X3 Y2 R1\nM2\n")
+    assert prog.converted_from_inches and prog.source_units == "in"
+    np.testing.assert_allclose(prog.end[0], [25.4, 50.8, -2.54])
+    assert prog.feed[0] == pytest.approx(254.0)
+    np.testing.assert_allclose(prog.centre[1, :2], [50.8, 50.8])
+
+
+@pytest.mark.parametrize("text, message", [
+    ("G21\nG0 X0 Y0 Z0\nG1 X1 E5 F100\nM2\n", "line 3: unknown word E5"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X1 F100\nG7\nM2\n", "line 4: unknown or unsupported G code G7"),
+    ("G21\nG0 X0 Y0 Z0\nM66\nM2\n", "line 3: unknown or unsupported M code M66"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X1 Y\n", "line 3: word 'Y' has no number"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X1 Y2 F100\n", "without M2, M30 or a closing %: truncated"),
+    ("%\nG21\nG0 X0 Y0 Z0\nG1 X1 F100\n", "truncated"),
+    ("G21\nG0 X0 Y0 Z0 (open comment\nM2\n", "line 2: unbalanced comment"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X1\nM2\n", "line 3: G1 with no feed rate"),
+    ("G21\nG0 X0 Y0 Z0\nG2 X10 Y0 I4 J0 F100\nM2\n", "line 3: radius to the arc's end"),
+    ("G21\nG0 X0 Y0 Z0\nG2 X10 Y0 R2 F100\nM2\n", "line 3: arc radius R2 is smaller"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X#1 F100\nM2\n", "line 3: parameters and expressions"),
+    ("G21\nG0 X0 Y0 Z0\nG81 X1 Y1 Z-1 R1 F100\nM2\n", "line 3: canned cycle G81"),
+    ("G21\nG0 X0 Y0 Z0 A5\nM2\n", "line 2: axis word A"),
+    ("G21\nX1\nM2\n", "line 2: axis words without a motion mode"),
+    ("G21\nG91 G0 X1\nM2\n", "line 2: incremental X move (G91) from an unknown position"),
+    ("\x01\x02garbage\x7f\n", "line 1: cannot read"),
+])
+def test_errors_name_the_line(text: str, message: str) -> None:
+    with pytest.raises(GcodeError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        read_gcode(text, "prog.ngc")
+
+
+def test_unknown_start_not_a_move() -> None:
+    prog = read_gcode("G21 G90\nG0 Z10\nG0 X5 Y5\nG1 Z0 F100\nM2\n")
+    assert len(prog) == 1
+    np.testing.assert_allclose(prog.start[0], [5, 5, 10])
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.5, 50), st.floats(-math.pi, math.pi), st.floats(0.05, 2 * math.pi - 0.05),
+       st.booleans(), st.floats(1e-4, 0.05), st.floats(-3, 3))
+def test_linearise_chords(radius: float, a0: float, sweep: float, ccw: bool, tol: float,
+                          dz: float) -> None:
+    """Chord vertices lie on the helix, sagitta <= tolerance, chords chain end to end."""
+    a1 = a0 + (sweep if ccw else -sweep)
+    s = (radius * math.cos(a0), radius * math.sin(a0))
+    e = (radius * math.cos(a1), radius * math.sin(a1))
+    code = "G3" if ccw else "G2"
+    prog = read_gcode(f"G21 G90 F100\nG0 X{s[0]:.12f} Y{s[1]:.12f} Z0\n"
+                      f"{code} X{e[0]:.12f} Y{e[1]:.12f} Z{dz:.12f} I{-s[0]:.12f} J{-s[1]:.12f}\nM2\n")
+    seg = linearise(prog, tol)
+    pts = np.vstack([seg.start, seg.end[-1:]])
+    np.testing.assert_allclose(np.hypot(pts[:, 0], pts[:, 1]), radius, rtol=1e-9)
+    np.testing.assert_allclose(seg.start[1:], seg.end[:-1], atol=1e-9)
+    np.testing.assert_allclose(pts[-1], [e[0], e[1], dz], atol=1e-9)
+    mid = (seg.start[:, :2] + seg.end[:, :2]) / 2
+    sagitta = radius - np.hypot(mid[:, 0], mid[:, 1])
+    assert sagitta.max() <= tol * (1 + 1e-9)
+    turned = np.unwrap(np.arctan2(pts[:, 1], pts[:, 0]))
+    assert (turned[-1] - turned[0]) == pytest.approx(sweep if ccw else -sweep, abs=1e-9)
+
+
+ARC_PROGRAM = """%
+G17 G21 G90 G54 G40 G49 G80
+T1 M6
+S12000 M3
+G0 X5 Y5 Z20
+G1 Z8 F200
+G1 X25 Y5 Z7.5 F800
+G2 X35 Y15 I0 J10
+G3 X25 Y25 R10
+G1 X15 Y25
+G3 X5 Y15 I0 J-10
+G2 X15 Y5 R-10
+G91 G1 X3 Y1 Z-0.5
+G90 G18 G2 X24 Z7 I3 K0
+G17 G0 Z20
+M5
+M2
+%
+"""
+
+
+@pytest.mark.skipif(RS274 is None, reason="LinuxCNC rs274 not installed")
+def test_same_moves_as_linuxcnc(tmp_path) -> None:
+    """Our reader and LinuxCNC's interpreter agree on every end point and arc centre."""
+    ngc = tmp_path / "arcs.ngc"
+    ngc.write_text(ARC_PROGRAM)
+    table = tmp_path / "tool.tbl"
+    table.write_text("T1 P1 D6 Z0 ;\n")
+    out = subprocess.run([RS274, "-t", str(table), "-g", str(ngc)], capture_output=True,
+                         text=True, input="", timeout=60, check=True).stdout
+    ours = read_gcode(ARC_PROGRAM)
+    theirs = read_canonical(out)
+    assert len(ours) == len(theirs)
+    np.testing.assert_array_equal(ours.kind, theirs.kind)
+    np.testing.assert_allclose(ours.end, theirs.end, atol=1e-4)
+    np.testing.assert_allclose(ours.start, theirs.start, atol=1e-4)
+    arcs = ours.kind >= MoveKind.ARC_CW
+    np.testing.assert_allclose(ours.centre[arcs], theirs.centre[arcs], atol=1e-4)
+    np.testing.assert_allclose(ours.feed[~arcs & (ours.kind == 1)],
+                               theirs.feed[~arcs & (theirs.kind == 1)])

@@ -1,0 +1,207 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Z-map simulation against closed forms, brute-force sweeps and LinuxCNC's interpreter."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from BSplineCAM.core.errors import ParameterError
+from BSplineCAM.core.gcode import Segments, read_canonical, read_gcode
+from BSplineCAM.core.simulate import Grid, Tool, simulate, simulate_program
+
+RS274 = shutil.which("rs274")
+TOP = 10.0
+
+
+def run(text: str, tool: Tool, grid: Grid, top: float = TOP, **kw):
+    return simulate_program(read_gcode(text), tool, grid, top, **kw)
+
+
+def program(*moves: str) -> str:
+    return "\n".join(["G17 G21 G90", *moves, "M2"]) + "\n"
+
+
+def ball_profile(q: np.ndarray, radius: float) -> np.ndarray:
+    return radius - np.sqrt(np.maximum(radius ** 2 - q ** 2, 0.0))
+
+
+@pytest.mark.parametrize("shape, corner", [("ball", 0.0), ("flat", 0.0), ("bullnose", 1.0)])
+def test_straight_groove_over_a_plane(shape: str, corner: float) -> None:
+    """Groove of a pass at depth d: bottom TOP - d, cross-section the tool profile."""
+    R, d = 3.0, 1.0
+    tool = Tool(2 * R, shape, corner)
+    grid = Grid(0.0, 0.0, 0.1, 400, 200)
+    sim = run(program("G0 X5 Y10.05 Z20", "G0 Z12", f"G1 Z{TOP - d} F100", "G1 X35"), tool, grid)
+    xs, ys = grid.centres()
+    col = np.searchsorted(xs, 20.0)
+    q = ys - 10.05
+    expected = np.minimum(TOP - d + tool.profile(q), TOP)
+    np.testing.assert_allclose(sim.height[:, col], expected, atol=2e-5)
+    cut = sim.height[:, col] < TOP - 1e-6
+    # groove width at the stock top, closed form per profile
+    width = {"ball": 2 * math.sqrt(R ** 2 - (R - d) ** 2), "flat": 2 * R,
+             "bullnose": 2 * (R - corner + corner)}[shape]
+    assert cut.sum() * grid.cell == pytest.approx(width, abs=2 * grid.cell)
+    assert sim.height.min() == pytest.approx(TOP - d, abs=1e-5)
+    # the plunge's end (x = 5) and the pass's end (x = 35) bound the groove along x
+    row = sim.height[np.searchsorted(ys, 10.05)]
+    assert np.all(row[(xs < 5 - R - 0.05) | (xs > 35 + R + 0.05)] == TOP)
+
+
+@pytest.mark.parametrize("stepover", [0.5, 1.0, 2.0])
+def test_two_pass_scallop(stepover: float) -> None:
+    """Scallop between two ball passes: h = R - sqrt(R^2 - (s/2)^2) at the midline."""
+    R = 3.0
+    grid = Grid(0.0, 0.0, 0.05, 600, 400)
+    y0 = 10.025
+    text = program("G0 X2 Y{:.4f} Z20".format(y0 - stepover / 2), "G1 Z8 F100", "G1 X28",
+                   "G0 Z20", "G0 X2 Y{:.4f}".format(y0 + stepover / 2), "G1 Z8", "G1 X28")
+    sim = run(text, Tool(2 * R), grid)
+    xs, ys = grid.centres()
+    mid = sim.height[np.argmin(np.abs(ys - y0)), np.searchsorted(xs, 15.0)]
+    assert mid - 8.0 == pytest.approx(R - math.sqrt(R * R - (stepover / 2) ** 2), abs=2e-5)
+
+
+@pytest.mark.parametrize("form", ["ij", "r"])
+@pytest.mark.parametrize("direction", ["G2", "G3"])
+def test_arc_groove(form: str, direction: str) -> None:
+    """Ball along a horizontal quarter circle: height R - sqrt(R^2 - (r - Rc)^2) off the circle."""
+    R, Rc, c = 2.0, 10.0, (20.05, 20.05)
+    start = (c[0] + Rc, c[1])
+    end = (c[0], c[1] + Rc) if direction == "G3" else (c[0], c[1] - Rc)
+    words = (f"I{-Rc} J0" if form == "ij" else f"R{Rc}")
+    text = program(f"G0 X{start[0]} Y{start[1]} Z20", "G1 Z8 F100",
+                   f"{direction} X{end[0]} Y{end[1]} {words}")
+    grid = Grid(0.0, 0.0, 0.1, 400, 400)
+    sim = run(text, Tool(2 * R), grid, chord_tolerance=1e-4)
+    xs, ys = grid.centres()
+    X, Y = np.meshgrid(xs, ys)
+    ang = np.arctan2(Y - c[1], X - c[0])
+    inside_sweep = (ang > 0.1) & (ang < math.pi / 2 - 0.1) if direction == "G3" else \
+        (ang < -0.1) & (ang > -math.pi / 2 + 0.1)
+    off = np.hypot(X - c[0], Y - c[1]) - Rc
+    near = inside_sweep & (np.abs(off) < R * 0.7)
+    expected = 8.0 + ball_profile(off[near], R)
+    np.testing.assert_allclose(sim.height[near], expected, atol=2e-4)
+    far = inside_sweep & (np.abs(off) > R + 0.1)
+    assert np.all(sim.height[far] == TOP)
+
+
+def test_arc_forms_agree() -> None:
+    """The same arcs by I/J and by R cut the same stock."""
+    grid = Grid(0.0, 0.0, 0.1, 300, 300)
+    a = run(program("G0 X5 Y5 Z20", "G1 Z9 F100", "G2 X15 Y15 I10 J0", "G2 X25 Y5 I0 J-10",
+                    "G3 X5 Y5 I-10 J0"), Tool(4.0), grid)
+    b = run(program("G0 X5 Y5 Z20", "G1 Z9 F100", "G2 X15 Y15 R10", "G2 X25 Y5 R10",
+                    "G3 X5 Y5 R10"), Tool(4.0), grid)
+    np.testing.assert_allclose(a.height, b.height, atol=1e-5)
+
+
+def brute_envelope(p0, p1, tool: Tool, grid: Grid, samples: int = 4001) -> np.ndarray:
+    """Reference: the tool stamped at many positions along the segment (an upper bound)."""
+    xs, ys = grid.centres()
+    X, Y = np.meshgrid(xs, ys)
+    out = np.full(X.shape, np.inf)
+    for t in np.linspace(0.0, 1.0, samples):
+        p = p0 + t * (p1 - p0)
+        out = np.minimum(out, p[2] + tool.profile(np.hypot(X - p[0], Y - p[1])))
+    return out
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.sampled_from([("ball", 0.0), ("flat", 0.0), ("bullnose", 0.7)]),
+       st.lists(st.floats(1.0, 9.0), min_size=4, max_size=4), st.floats(-3.0, 3.0),
+       st.floats(-3.0, 3.0))
+def test_sloped_segment_matches_brute_force(shape, xy, z0, z1) -> None:
+    """Sloped moves: the closed-form envelope is the minimum of densely stamped tools."""
+    tool = Tool(3.0, shape[0], shape[1])
+    grid = Grid(0.0, 0.0, 0.2, 50, 50)
+    p0 = np.array([xy[0], xy[1], z0])
+    p1 = np.array([xy[2], xy[3], z1])
+    seg = Segments(p0[None], p1[None], np.array([False]), np.array([1]), np.array([0]))
+    sim = simulate(seg, tool, grid, 5.0)
+    ref = np.minimum(brute_envelope(p0, p1, tool, grid), 5.0)
+    step = np.linalg.norm(p1 - p0) / 4000
+    # the stamps overestimate by at most the slope of the profile times the sample step
+    assert np.all(sim.height <= ref + 2e-5)
+    close = ref - sim.height
+    assert np.percentile(close, 99) <= 20 * step + 2e-5
+
+
+def test_rapid_collision_reported_with_line() -> None:
+    text = program("G0 X5 Y5 Z20", "G0 Z9", "G0 X25", "G1 Z12 F100", "G0 X5 Z20")
+    sim = run(text, Tool(4.0), Grid(0.0, 0.0, 0.1, 300, 100))
+    # line 3 plunges 1 mm into the stock, line 4 traverses through it; the retract is clear
+    assert [c.line for c in sim.collisions] == [3, 4]
+    # deepest at the cell centre nearest the tip, (0.05, 0.05) mm off the tool axis
+    expected = 1.0 - ball_profile(np.array(math.hypot(0.05, 0.05)), 2.0)
+    assert sim.collisions[0].depth_mm == pytest.approx(float(expected), abs=1e-5)
+
+
+def test_rapid_through_cut_slot_is_no_collision() -> None:
+    text = program("G0 X5 Y5 Z20", "G1 Z9 F100", "G1 X25", "G0 X5", "G0 Z20")
+    sim = run(text, Tool(4.0), Grid(0.0, 0.0, 0.1, 300, 100))
+    assert sim.collisions == ()
+
+
+def test_bad_tools() -> None:
+    with pytest.raises(ParameterError, match="diameter"):
+        Tool(-1.0)
+    with pytest.raises(ParameterError, match="corner radius"):
+        Tool(6.0, "bullnose", 4.0)
+    with pytest.raises(ParameterError, match="tool shape"):
+        Tool(6.0, "conical")
+
+
+RS274_PROGRAM = """%
+G17 G21 G90 G54 G40 G49 G80
+T1 M6
+S12000 M3
+G0 X10 Y10 Z20
+G1 Z8.5 F200
+G1 X40 Y12 Z8 F800
+G2 X50 Y22 I0 J10
+G3 X40 Y32 R10
+G1 X20 Y30 Z8.7
+G3 X10 Y20 I0 J-10
+G2 X20 Y10 R-10
+G91 G1 X5 Y3 Z-0.3
+G90 G18 G2 X31 Z8.2 I3 K0
+G17 G0 Z20
+G0 X30 Y45
+G1 Z9 F300
+G2 X30 Y45 I0 J-6
+G0 Z20
+M5
+M2
+%
+"""
+
+
+@pytest.mark.skipif(RS274 is None, reason="LinuxCNC rs274 not installed")
+@pytest.mark.parametrize("shape, corner", [("ball", 0.0), ("bullnose", 1.0)])
+def test_removed_volume_matches_linuxcnc(tmp_path, shape: str, corner: float) -> None:
+    """LinuxCNC's canonical moves and our reader's moves remove the same volume."""
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text(RS274_PROGRAM)
+    table = tmp_path / "tool.tbl"
+    table.write_text("T1 P1 D6 Z0 ;\n")
+    canon = subprocess.run([RS274, "-t", str(table), "-g", str(ngc)], capture_output=True,
+                           text=True, input="", timeout=60, check=True).stdout
+    grid = Grid(0.0, 0.0, 0.1, 650, 600)
+    tool = Tool(6.0, shape, corner)
+    ours = simulate_program(read_gcode(RS274_PROGRAM), tool, grid, TOP)
+    theirs = simulate_program(read_canonical(canon), tool, grid, TOP)
+    volume = ours.removed_volume()
+    assert volume > 500
+    # rs274 prints 4 decimals; a shift of 1e-4 mm over the groove edges is far below a cell
+    assert theirs.removed_volume() == pytest.approx(volume, rel=1e-4)
+    assert np.abs(ours.height - theirs.height).max() < 0.01
+    assert ours.collisions == theirs.collisions == ()
