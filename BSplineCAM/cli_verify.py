@@ -30,7 +30,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                              "scallop and coverage against the design")
     p.add_argument("net", help="control net: .json (canonical), .csv or .dat")
     p.add_argument("program", help="G-code program (.ngc, .nc, .gcode)")
-    p.add_argument("--knots", choices=["uniform", "clamped"], help="override the file's knot layout")
+    p.add_argument("--knots", choices=["uniform", "clamped"],
+                   help="override the file's knot layout")
     p.add_argument("--tool-diameter", type=float, required=True, help="cutter diameter (mm)")
     p.add_argument("--tool-shape", choices=[s.value for s in ToolShape], default="ball",
                    help="cutter end (default ball)")
@@ -54,7 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def cmd_verify(args: argparse.Namespace) -> int:
     from . import report
-    from .cli import staged_output
+    from .cli import emit, staged_output
 
     started = time.perf_counter()
     surface = Surface.from_file(args.net, args.knots)
@@ -72,5 +73,5 @@ def cmd_verify(args: argparse.Namespace) -> int:
     summary = {k: metrics[k] for k in ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
                                        "edge_scallop_max_mm", "coverage", "rapid_collisions",
                                        "cutting_length_mm", "machining_time_s")}
-    print(json.dumps({"out": str(Path(args.out).resolve()), **summary}, indent=1))
+    emit({"out": str(Path(args.out).resolve()), **summary})
     return 0

@@ -86,9 +86,9 @@ def plot_simulated(result: Verification, path: str | os.PathLike) -> None:
         ax.legend(loc="upper right")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
+    tool = result.metrics["tool"]
     ax.set_title(f"Simulated part ({sim.grid.nx} x {sim.grid.ny} cells of {sim.grid.cell:g} mm, "
-                 f"{result.metrics['tool']['shape']} Ø{result.metrics['tool']['diameter_mm']:g} mm)",
-                 fontsize=9)
+                 f"{tool['shape']} Ø{tool['diameter_mm']:g} mm)", fontsize=9)
     ax.set_aspect("equal")
     fig.tight_layout()
     _save(fig, path)

@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 from BSplineCAM.core.gcode import (
     GcodeError,
     MoveKind,
+    linearise,
     read_canonical,
     read_gcode,
-    linearise,
 )
 
 RS274 = shutil.which("rs274")
@@ -144,7 +144,8 @@ def test_linearise_chords(radius: float, a0: float, sweep: float, ccw: bool, tol
     e = (radius * math.cos(a1), radius * math.sin(a1))
     code = "G3" if ccw else "G2"
     prog = read_gcode(f"G21 G90 F100\nG0 X{s[0]:.12f} Y{s[1]:.12f} Z0\n"
-                      f"{code} X{e[0]:.12f} Y{e[1]:.12f} Z{dz:.12f} I{-s[0]:.12f} J{-s[1]:.12f}\nM2\n")
+                      f"{code} X{e[0]:.12f} Y{e[1]:.12f} Z{dz:.12f} "
+                      f"I{-s[0]:.12f} J{-s[1]:.12f}\nM2\n")
     seg = linearise(prog, tol)
     pts = np.vstack([seg.start, seg.end[-1:]])
     np.testing.assert_allclose(np.hypot(pts[:, 0], pts[:, 1]), radius, rtol=1e-9)

@@ -61,8 +61,8 @@ def test_two_pass_scallop(stepover: float) -> None:
     R = 3.0
     grid = Grid(0.0, 0.0, 0.05, 600, 400)
     y0 = 10.025
-    text = program("G0 X2 Y{:.4f} Z20".format(y0 - stepover / 2), "G1 Z8 F100", "G1 X28",
-                   "G0 Z20", "G0 X2 Y{:.4f}".format(y0 + stepover / 2), "G1 Z8", "G1 X28")
+    text = program(f"G0 X2 Y{y0 - stepover / 2:.4f} Z20", "G1 Z8 F100", "G1 X28",
+                   "G0 Z20", f"G0 X2 Y{y0 + stepover / 2:.4f}", "G1 Z8", "G1 X28")
     sim = run(text, Tool(2 * R), grid)
     xs, ys = grid.centres()
     mid = sim.height[np.argmin(np.abs(ys - y0)), np.searchsorted(xs, 15.0)]
@@ -129,9 +129,15 @@ def test_sloped_segment_matches_brute_force(shape, xy, z0, z1) -> None:
     sim = simulate(seg, tool, grid, 5.0)
     ref = np.minimum(brute_envelope(p0, p1, tool, grid), 5.0)
     step = np.linalg.norm(p1 - p0) / 4000
-    # the stamps overestimate by at most the slope of the profile times the sample step
-    assert np.all(sim.height <= ref + 2e-5)
-    close = ref - sim.height
+    # the stamps overestimate by at most the slope of the profile times the sample step;
+    # cells within 1e-4 mm of the swept rim (where the profile is vertical) may go either way
+    xs, ys = grid.centres()
+    X, Y = np.meshgrid(xs, ys)
+    d = p1[:2] - p0[:2]
+    t = np.clip(((X - p0[0]) * d[0] + (Y - p0[1]) * d[1]) / max(d @ d, 1e-300), 0, 1)
+    rim = np.abs(np.hypot(X - p0[0] - t * d[0], Y - p0[1] - t * d[1]) - tool.radius) < 1e-4
+    assert np.all((sim.height <= ref + 2e-5) | rim)
+    close = (ref - sim.height)[~rim]
     assert np.percentile(close, 99) <= 20 * step + 2e-5
 
 

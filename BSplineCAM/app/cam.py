@@ -9,6 +9,7 @@ FreeCAD's default tool controller has zero feed, which a real controller refuses
 from __future__ import annotations
 
 import os
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -95,25 +96,29 @@ def post_objects(job) -> list:
 def post_process(job, post: str = "linuxcnc", path: str | os.PathLike | None = None, header: bool = False) -> str:
     """G-code of ``job`` by FreeCAD's post-processor ``post`` (linuxcnc, grbl, fanuc, ...).
 
-    The program is written to ``path`` (atomically) when given.  Header and editor are off by
-    default, for deterministic output.
+    The program is written to ``path`` only when complete (through a temporary file beside
+    it).  Header and editor are off by default, for deterministic output.
     """
-    module = compat.post_module(post)
     objects = post_objects(job)
     if not objects:
         raise ValueError(f"job {job.Label!r} has no active operation to post")
-    args = ["--no-show-editor"]
-    if not header:
-        args.append("--no-header")
-    gcode = module.export(objects, "-", " ".join(args))
-    if not gcode or not gcode.strip():
-        raise RuntimeError(f"post-processor {post!r} produced no G-code")
-    if path is not None:
-        from ..core.netio import atomic_write
-
-        with atomic_write(Path(path)) as handle:
-            handle.write(gcode if gcode.endswith("\n") else gcode + "\n")
-    return gcode
+    folder = Path(path).parent if path is not None else Path(tempfile.gettempdir())
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".post-", suffix=".ngc", dir=folder)
+    os.close(fd)
+    try:
+        gcode = compat.post_export(post, objects, tmp, header)
+        if not gcode.strip():
+            raise RuntimeError(f"post-processor {post!r} produced no G-code")
+        if not gcode.endswith("\n"):
+            gcode += "\n"
+        if path is not None:
+            Path(tmp).write_text(gcode)
+            os.replace(tmp, path)
+        return gcode
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
 
 
 def _activate(doc) -> None:

@@ -80,6 +80,9 @@ _CAM_MODULES = {
 }
 #: Where post-processor scripts live: (FreeCAD 0.20, FreeCAD 1.0).
 _POST_PACKAGES = ("PathScripts.post", "Path.Post.scripts")
+#: Decimals of coordinates in posted programs: 0.1 µm, so rounding stays far below the 1 µm
+#: gouge budget (FreeCAD's default of 3 decimals alone can move a point by 0.5 µm).
+POST_PRECISION = 4
 #: The post-processors BSplineCAM supports and tests.
 POST_PROCESSORS = ("linuxcnc", "grbl", "fanuc", "mach3_mach4")
 
@@ -132,3 +135,46 @@ def opencamlib_available() -> bool:
         except ImportError:
             continue
     return False
+
+
+def post_export(name: str, objects: list, filename: str, header: bool = False) -> str:
+    """Run FreeCAD's post-processor ``name`` on ``objects``, writing ``filename``; return the text.
+
+    Every post takes ``(objects, filename, argstring)``, but they differ: some return the text,
+    some only write the file (0.20's grbl), and each parses its own options, so only those it
+    knows are passed.  0.20's fanuc reads ``Tool.ToolType``, which ToolBits lack; it gets a
+    stand-in tool controller that answers it.
+    """
+    module = post_module(name)
+    wanted = ["--no-show-editor", f"--precision={POST_PRECISION}"] + ([] if header else ["--no-header"])
+    parser = getattr(module, "parser", None)
+    known = getattr(parser, "_option_string_actions", None)
+    args = [a for a in wanted if known is None or a.split("=")[0] in known]
+    if name == "fanuc" and not is_freecad_1():
+        objects = [_LegacyToolController(o) if hasattr(o, "ToolNumber") else o for o in objects]
+    text = module.export(objects, filename, " ".join(args))
+    if not text and os.path.exists(filename):
+        with open(filename, encoding="utf-8") as handle:
+            text = handle.read()
+    return text or ""
+
+
+class _LegacyTool:
+    """A ToolBit seen through the legacy Tool API that 0.20's fanuc post reads."""
+
+    ToolType = "BallEndMill"
+
+    def __init__(self, bit):
+        self._bit = bit
+
+    def __getattr__(self, name):
+        return getattr(self._bit, name)
+
+
+class _LegacyToolController:
+    def __init__(self, controller):
+        self._controller = controller
+        self.Tool = _LegacyTool(controller.Tool)
+
+    def __getattr__(self, name):
+        return getattr(self._controller, name)

@@ -9,10 +9,10 @@ comments, % and M2/M30.  The semantics follow LinuxCNC's RS274NGC interpreter (K
 are executed in the order of section 3.8, not in the order written.  Anything else raises
 :class:`GcodeError` naming the line, so a program is never half-understood.
 
-A program in inches (G20) is converted to millimetres word by word; ``Program.converted_from_inches``
-records that it happened.  The machine position is unknown until the program sets every axis:
-no move is recorded from an unknown start (rs274 would assume the origin, which lies inside
-the stock of most parts).
+A program in inches (G20) is converted to millimetres word by word;
+``Program.converted_from_inches`` records that it happened.  The machine position is unknown
+until the program sets every axis: no move is recorded from an unknown start (rs274 would
+assume the origin, which lies inside the stock of most parts).
 """
 
 from __future__ import annotations
@@ -109,6 +109,8 @@ _G_IGNORED = {40.0, 43.0, 49.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 61.0, 61.1, 
               94.0, 98.0, 99.0}
 _M_IGNORED = {0, 1, 3, 4, 5, 7, 8, 9}
 _AXES = "XYZ"
+_NO_CENTRE = (math.nan, math.nan, math.nan)
+_FAST_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
 
 
 def read_gcode(text: str, source: str = "program", require_end: bool = True) -> Program:
@@ -169,6 +171,9 @@ def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
             raise GcodeError(
                 f"{source}: line {lineno}: parameters and expressions are not supported: {text!r}"
             )
+    words = _FAST_WORD.findall(text)
+    if sum(len(a) + len(b) for a, b in words) == len(text):
+        return [(a, float(b)) for a, b in words]
     words = []
     for match in _WORD.finditer(text):
         if match.group(3) is not None:
@@ -321,15 +326,16 @@ class _State:
         self.position = target
         if not known or any(v is None for v in target):
             return
-        start_a = np.array(start, dtype=float)
-        end_a = np.array(target, dtype=float)
-        centre = np.full(3, np.nan)
         if arc:
-            centre = self._arc_centre(values, start_a, end_a, kind)
-        elif np.array_equal(start_a, end_a):
+            centre = tuple(self._arc_centre(values, np.array(start, dtype=float),
+                                            np.array(target, dtype=float), kind))
+        elif start == target:
             return
+        else:
+            centre = _NO_CENTRE
         feed = math.nan if kind == 0 else self.feed
-        self.moves.append((kind, start_a, end_a, centre, self.plane, feed, self.lineno))
+        self.moves.append((kind, tuple(start), tuple(target), centre, self.plane, feed,
+                           self.lineno))
 
     def _arc_centre(self, values: dict[str, float], start: FloatArray, end: FloatArray,
                     kind: int) -> FloatArray:
@@ -368,7 +374,8 @@ class _State:
             r2 = float(np.hypot(*(e - c)))
             if r1 < 1e-9:
                 raise self.error("arc of zero radius")
-            if abs(r1 - r2) > ARC_RADIUS_TOLERANCE_MM and abs(r1 - r2) > ARC_RADIUS_TOLERANCE_REL * r1:
+            miss = abs(r1 - r2)
+            if miss > ARC_RADIUS_TOLERANCE_MM and miss > ARC_RADIUS_TOLERANCE_REL * r1:
                 raise self.error(
                     f"radius to the arc's end ({r2:.4f} mm) differs from radius to its start "
                     f"({r1:.4f} mm)"

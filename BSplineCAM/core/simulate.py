@@ -71,7 +71,8 @@ class Tool:
         object.__setattr__(self, "shape", ToolShape.parse(self.shape))
         if not (isinstance(self.diameter, (int, float)) and math.isfinite(self.diameter)
                 and self.diameter > 0):
-            raise ParameterError(f"tool diameter must be a positive length (mm), got {self.diameter!r}")
+            raise ParameterError(
+                f"tool diameter must be a positive length (mm), got {self.diameter!r}")
         if self.shape is ToolShape.BULLNOSE:
             if not (math.isfinite(self.corner_radius) and 0 < self.corner_radius <= self.radius):
                 raise ParameterError(
@@ -79,7 +80,8 @@ class Tool:
                     f"diameter), got {self.corner_radius!r}"
                 )
         elif self.corner_radius not in (0, 0.0):
-            raise ParameterError(f"corner radius (mm) applies to a bull-nose tool, not {self.shape.value}")
+            raise ParameterError(
+                f"corner radius (mm) applies to a bull-nose tool, not {self.shape.value}")
 
     @property
     def radius(self) -> float:

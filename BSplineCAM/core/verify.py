@@ -46,7 +46,8 @@ class StockTop(str, Enum):
         try:
             return cls(value)
         except ValueError:
-            raise ParameterError(f"stock top must be 'design' or 'program', got {value!r}") from None
+            raise ParameterError(
+                f"stock top must be 'design' or 'program', got {value!r}") from None
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Optional
+from typing import Any
 
 from ..errors import ParameterError
 from .common import (
@@ -26,9 +26,9 @@ from .common import (
     ProgressFn,
     Region,
     Strategy,
+    ToolParameters,
     Toolpath,
     ToolpathCancelled,
-    ToolParameters,
     ToolpathStats,
     check_finite,
     curved_stepover,
@@ -49,7 +49,7 @@ def generate(
     angle: float = 0.0,
     direction: str | Direction = Direction.ZIGZAG,
     iso_direction: str | IsoDirection = IsoDirection.U,
-    clearance_height: Optional[float] = None,
+    clearance_height: float | None = None,
     progress: ProgressFn = None,
     cancel: CancelFn = None,
     min_slope: float = 30.0,

@@ -15,8 +15,8 @@ from typing import Any, Callable, NamedTuple, Optional
 
 import numpy as np
 
-from ..errors import BSplineCAMError, ParameterError
 from ..basis import DEGREE, KnotLayout
+from ..errors import BSplineCAMError, ParameterError
 from ..matrix import locate, power_rows, span_matrices_cached
 from ..typing import FloatArray
 
@@ -460,7 +460,7 @@ class Toolpath:
     clearance_height: float = float("nan")
     extra: dict = field(default_factory=dict)
 
-    def finish(self, started: float, clearance_height: Optional[float]) -> Toolpath:
+    def finish(self, started: float, clearance_height: float | None) -> Toolpath:
         self.passes = [np.ascontiguousarray(p, dtype=float) for p in self.passes if len(p) >= 2]
         st = self.stats
         st.passes = len(self.passes)
@@ -492,8 +492,8 @@ class Move(NamedTuple):
     z: float
 
 
-def to_moves(toolpath: Toolpath, clearance_height: Optional[float] = None,
-             safe_height: Optional[float] = None) -> list[Move]:
+def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
+             safe_height: float | None = None) -> list[Move]:
     """Flat list of moves: per pass rapid to clearance above the start, rapid down to the safe
     height, feed down to the start, feed along the pass, rapid back up to clearance.
 

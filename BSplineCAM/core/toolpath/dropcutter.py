@@ -241,14 +241,30 @@ class DropCutter:
         return tip, u, w
 
 
-def brute_force_heights(surface: Any, radius: float, xy: FloatArray, samples: int = 801) -> FloatArray:
-    """Reference tip heights from a dense uniform parameter sample (slow; for tests)."""
+def brute_force_heights(surface: Any, radius: float, xy: FloatArray, samples: int = 801,
+                        zoom: int = 41) -> FloatArray:
+    """Reference tip heights by brute force (slow; for tests): the best of a dense uniform
+    parameter sample, then of a ``zoom`` x ``zoom`` sample around each of the best few."""
     u = np.linspace(0.0, 1.0, samples)
     pts = np.asarray(surface.evaluate_grid(u, u)).reshape(-1, 3)
     out = np.empty(len(xy))
     R2 = radius * radius
+    step = 1.0 / (samples - 1)
     for k, q in enumerate(np.asarray(xy, dtype=float)):
         d2 = ((pts[:, :2] - q) ** 2).sum(axis=1)
-        near = d2 <= R2
-        out[k] = (pts[near, 2] + np.sqrt(R2 - d2[near])).max() - radius if near.any() else np.nan
+        f = np.where(d2 <= R2, pts[:, 2] + np.sqrt(np.maximum(R2 - d2, 0.0)), -np.inf)
+        if not np.isfinite(f.max()):
+            out[k] = np.nan
+            continue
+        best = f.max()
+        for g in np.argsort(f)[-3:]:
+            i, j = divmod(int(g), samples)
+            lu = np.clip(np.linspace(u[i] - 2 * step, u[i] + 2 * step, zoom), 0.0, 1.0)
+            lw = np.clip(np.linspace(u[j] - 2 * step, u[j] + 2 * step, zoom), 0.0, 1.0)
+            local = np.asarray(surface.evaluate_grid(lu, lw)).reshape(-1, 3)
+            dl = ((local[:, :2] - q) ** 2).sum(axis=1)
+            ok = dl <= R2
+            if ok.any():
+                best = max(best, float((local[ok, 2] + np.sqrt(R2 - dl[ok])).max()))
+        out[k] = best - radius
     return out

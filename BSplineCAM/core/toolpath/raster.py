@@ -1,11 +1,13 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Parallel (raster) finishing: vertical cutting planes at any angle, drop-cutter heights.
 
-Pass spacing follows the scallop height: after each pass the largest XY stepover that keeps
-the cusp below h is found at every contact point from the normal curvature across the pass
+Pass spacing follows the scallop height: at every dense surface sample the largest XY
+stepover that keeps the cusp below h is found from the normal curvature across the pass
 (:func:`common.curved_stepover`) and the slope (an arc s along the surface spans s cos(slope)
-in XY); the next pass goes at the smallest of these, and is moved back if its own contacts
-demand less.  Along a pass the exact drop-cutter heights are sampled every sqrt(8 R tol) mm,
+in XY), and filed under the across-coordinate of its ball centre p + R n.  Each next line
+goes at the smallest stepover filed in the band from the current line to it, so the contacts
+of both lines and everything between are honoured before any drop-cutter call; then all
+lines are computed in one vectorised batch.  Along a pass the exact drop-cutter heights are sampled every sqrt(8 R tol) mm,
 where no convex stretch of the cutter-location curve (radius >= R) can sag more than tol,
 refined where a midpoint still deviates more than tol/2, and thinned by Douglas–Peucker to
 tol/2, so no chord departs from the exact cutter-location curve by more than tol.

@@ -141,10 +141,11 @@ def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Mon
     nx, ny = Z.shape
     corners = np.empty((2 * nx * ny, 2, 2), dtype=np.intp)  # edge key -> two grid corners
     ii, jj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
-    corners[: nx * ny, 0] = np.column_stack([ii.ravel(), jj.ravel()])
-    corners[: nx * ny, 1] = np.column_stack([ii.ravel(), np.minimum(jj.ravel() + 1, ny - 1)])
-    corners[nx * ny:, 0] = np.column_stack([ii.ravel(), jj.ravel()])
-    corners[nx * ny:, 1] = np.column_stack([np.minimum(ii.ravel() + 1, nx - 1), jj.ravel()])
+    flat_i, flat_j = ii.ravel(), jj.ravel()
+    corners[: nx * ny, 0] = np.column_stack([flat_i, flat_j])  # (i, j)-(i+1, j)
+    corners[: nx * ny, 1] = np.column_stack([np.minimum(flat_i + 1, nx - 1), flat_j])
+    corners[nx * ny:, 0] = np.column_stack([flat_i, flat_j])  # (i, j)-(i, j+1)
+    corners[nx * ny:, 1] = np.column_stack([flat_i, np.minimum(flat_j + 1, ny - 1)])
     polylines, heights = [], []
     for k, level in enumerate(levels):
         segments, _, _ = _crossings(Z, level)
@@ -164,7 +165,7 @@ def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Mon
     # Regula falsi on each edge against the exact drop-cutter (Illinois variant).
     t0, t1 = np.zeros(len(keys)), np.ones(len(keys))
     f0, f1 = z0 - zl, z1 - zl
-    for _ in range(6):
+    for _ in range(12):
         t = np.clip((t0 * f1 - t1 * f0) / np.where(f1 != f0, f1 - f0, 1.0), 0.0, 1.0)
         ft = np.nan_to_num(dc.heights(p0 + t[:, None] * (p1 - p0))[0], nan=-1e9) - zl
         same = np.sign(ft) == np.sign(f0)

@@ -1,0 +1,205 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The Path/CAM job inside FreeCAD (0.20 and 1.0): op, heights, feeds, posts, rs274, simulation.
+
+unittest classes run by ``freecadcmd`` (tools/run_freecad_tests.sh).  Every program is checked
+by LinuxCNC's rs274 and simulated from its *text* against the exact design surface.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from BSplineCAM import Surface, rs274  # noqa: E402
+from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
+from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulate import Tool  # noqa: E402
+from BSplineCAM.core.verify import verify  # noqa: E402
+
+FreeCAD = compat.ensure_freecad()
+CASE_STUDY = ROOT / "examples" / "case-study.json"
+TOOL = 6.0
+#: Posted coordinates carry 4 decimals: up to 0.05 µm of rounding per axis.
+ROUNDING = 1e-4
+
+
+def case_study() -> Surface:
+    return Surface.from_json(CASE_STUDY)
+
+
+class JobFixture(unittest.TestCase):
+    """One document with the case study, a job and an op; programs posted per test."""
+
+    params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=0.05, strategy="raster")
+
+    @classmethod
+    def setUpClass(cls):
+        cls.doc = FreeCAD.newDocument("TestBSplineCAMJob")
+        cls.model, cls.job, cls.op = pipeline.build_job(case_study(), cls.params, cam.Cutting(), cls.doc)
+        cls.doc.recompute()
+        cls.tmp = tempfile.TemporaryDirectory()
+
+    @classmethod
+    def tearDownClass(cls):
+        FreeCAD.closeDocument(cls.doc.Name)
+        cls.tmp.cleanup()
+
+    def post(self, post: str = "linuxcnc") -> tuple[str, Path]:
+        path = Path(self.tmp.name) / f"{post}.ngc"
+        return cam.post_process(self.job, post, path), path
+
+
+class TestJob(JobFixture):
+    def test_job_holds_model_ballend_and_feeds(self):
+        self.assertEqual(len(self.job.Model.Group), 1)
+        tcs = self.job.Tools.Group
+        self.assertEqual(len(tcs), 1)
+        tc = tcs[0]
+        self.assertIn("ball", str(getattr(tc.Tool, "ShapeName", "") or tc.Tool.BitShape).lower())
+        self.assertAlmostEqual(float(tc.Tool.Diameter), TOOL)
+        self.assertGreater(tc.HorizFeed.Value, 0)
+        self.assertGreater(tc.VertFeed.Value, 0)
+        self.assertGreater(float(tc.SpindleSpeed), 0)
+        self.assertIs(self.op.ToolController, tc)
+        self.assertIn(self.op, self.job.Operations.Group)
+
+    def test_op_report_and_heights(self):
+        report = json.loads(self.op.Report)
+        self.assertEqual(report["strategy"], "raster")
+        self.assertGreater(report["passes"], 10)
+        stock_top = self.job.Stock.Shape.BoundBox.ZMax
+        self.assertGreater(self.op.SafeHeight.Value, stock_top)
+        self.assertGreater(self.op.ClearanceHeight.Value, self.op.SafeHeight.Value)
+
+    def test_rapids_stay_above_clearance_or_descend_to_safe_height(self):
+        text, _ = self.post()
+        program = read_gcode(text)
+        clearance = self.op.ClearanceHeight.Value
+        safe = self.op.SafeHeight.Value
+        rapid = np.flatnonzero(program.kind == MoveKind.RAPID)
+        self.assertGreater(len(rapid), 0)
+        for i in rapid:
+            start, end = program.start[i], program.end[i]
+            lateral = np.hypot(*(end[:2] - start[:2]))
+            if lateral > ROUNDING:
+                self.assertGreaterEqual(min(start[2], end[2]), clearance - ROUNDING, f"lateral rapid at line {program.line[i]}")
+            else:
+                self.assertGreaterEqual(end[2], safe - ROUNDING, f"rapid descent below safe height at line {program.line[i]}")
+        feeds = program.feed[program.kind != MoveKind.RAPID]
+        self.assertTrue(np.all(feeds > 0))
+        self.assertIn("S12000", text.replace(" ", ""))
+        self.assertRegex(text, r"M6\s*T1")
+
+    def test_every_post_passes_rs274(self):
+        if not rs274.available():
+            self.skipTest("rs274 (linuxcnc-uspace) not installed")
+        for post in compat.POST_PROCESSORS:
+            with self.subTest(post=post):
+                text, path = self.post(post)
+                check = rs274.check(path, {1: TOOL})
+                self.assertTrue(check.ok, f"{post}: {check.message}")
+                self.assertGreater(check.feeds, 100)
+                moves = read_gcode(text)
+                self.assertEqual(int(np.sum(moves.kind == MoveKind.LINE)), check.feeds, post)
+
+    def test_unknown_post_is_named(self):
+        with self.assertRaisesRegex(ValueError, "unknown post-processor 'nosuch'.*linuxcnc"):
+            cam.post_process(self.job, "nosuch")
+
+    def test_job_saves_and_reopens(self):
+        path = Path(self.tmp.name) / "job.FCStd"
+        self.doc.saveAs(str(path))
+        before = [c.toGCode() for c in self.op.Path.Commands]
+        doc = FreeCAD.openDocument(str(path))
+        try:
+            op = doc.getObject(self.op.Name)
+            op.touch()
+            doc.recompute()
+            self.assertEqual(op.Version, "1")
+            self.assertEqual([c.toGCode() for c in op.Path.Commands], before)
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+            FreeCAD.setActiveDocument(self.doc.Name)
+
+
+class TestMachinedPart(unittest.TestCase):
+    """Simulate the posted G-code of each strategy and measure it against the design."""
+
+    def machine(self, strategy: str, scallop: float, **extra) -> tuple[dict, dict]:
+        params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=scallop, strategy=strategy, **extra)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "p.ngc"
+            report = pipeline.machine(case_study(), params, path)
+            if rs274.available():
+                check = rs274.check(path, {1: TOOL})
+                self.assertTrue(check.ok, check.message)
+            program = read_gcode(path.read_text())
+        metrics = verify(case_study(), program, Tool(TOOL), cell=0.1).metrics
+        return report, metrics
+
+    def assert_machined(self, metrics: dict, scallop: float, tolerance: float = 0.002):
+        self.assertEqual(metrics["rapid_collisions"], [])
+        self.assertLessEqual(metrics["gouge_max_mm"], 1e-3 + 2 * ROUNDING, metrics)
+        self.assertLessEqual(metrics["scallop_max_mm"], scallop + tolerance, metrics)
+        self.assertGreaterEqual(metrics["coverage"], 0.99, metrics)
+
+    def test_raster(self):
+        report, metrics = self.machine("raster", 0.02, angle=30.0)
+        self.assert_machined(metrics, 0.02)
+        self.assertGreater(report["passes"], 20)
+
+    def test_waterline(self):
+        _, metrics = self.machine("waterline", 0.02)
+        self.assertEqual(metrics["rapid_collisions"], [])
+        self.assertLessEqual(metrics["gouge_max_mm"], 1e-3 + 2 * ROUNDING, metrics)
+
+    def test_isoparametric(self):
+        _, metrics = self.machine("isoparametric", 0.02)
+        self.assert_machined(metrics, 0.02)
+
+
+class TestBadInput(unittest.TestCase):
+    def run_cli(self, *args) -> tuple[int, str, list]:
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "out"
+            proc = subprocess.run([str(ROOT / "bin" / "bsplinecam"), "toolpath", str(CASE_STUDY), "--out", str(out), *args],
+                                  capture_output=True, text=True, check=False, env={**os.environ})
+            files = sorted(p.name for p in out.iterdir()) if out.exists() else []
+        return proc.returncode, proc.stderr, files
+
+    def test_bad_parameters_write_nothing(self):
+        cases = [
+            (["--tool-diameter", "0", "--scallop", "0.01"], "tool_diameter"),
+            (["--tool-diameter", "-6", "--scallop", "0.01"], "tool_diameter"),
+            (["--tool-diameter", "6", "--scallop", "0"], "scallop"),
+            (["--tool-diameter", "6", "--scallop", "4"], "scallop"),
+            (["--tool-diameter", "6", "--scallop", "0.01", "--tolerance", "5"], "tolerance"),
+            (["--tool-diameter", "6", "--scallop", "0.01", "--post", "nosuch"], "nosuch"),
+            (["--tool-diameter", "6", "--scallop", "0.01", "--feed", "0"], "feed"),
+        ]
+        for args, word in cases:
+            with self.subTest(args=args):
+                code, err, files = self.run_cli(*args)
+                self.assertEqual(code, 2, err)
+                self.assertIn(word, err)
+                self.assertNotIn("Traceback", err.split("bsplinecam toolpath: error")[-1])
+                self.assertEqual(files, [])
+
+    def test_job_without_model(self):
+        with self.assertRaisesRegex(ValueError, "needs a model"):
+            cam.make_job(None, TOOL)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,389 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Ball-end finishing toolpaths (issue 4) against independent references.
+
+References: closed-form offsets of planes, SciPy's bounded scalar optimiser on the exact
+parabola (not our B-spline code), brute-force maxima over dense surface samples, and
+brute-force cusp heights of intersecting circles / ball envelopes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import CASE_STUDY
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from BSplineCAM.core import ParameterError, Surface
+from BSplineCAM.core.toolpath import (
+    DropCutter,
+    ToolpathCancelled,
+    curved_stepover,
+    flat_stepover,
+    generate,
+    to_moves,
+)
+from BSplineCAM.core.toolpath.dropcutter import brute_force_heights
+
+
+def bezier_net(fz, size: float = 40.0) -> np.ndarray:
+    """4x4 clamped net (one Bezier patch) whose surface is exactly z = fz(x, y) for fz of
+    degree <= 1 in y and <= 2 in x, via the Bernstein coefficients of a quadratic."""
+    t = np.linspace(0.0, 1.0, 4)
+    x, y = np.meshgrid(t * size, t * size, indexing="ij")
+    net = np.stack([x, y, np.zeros_like(x)], axis=-1)
+    # Quadratic a + b s + c s^2 on s in [0,1] as cubic Bernstein: a, a+b/3, a+2b/3+c/3, a+b+c.
+    for j in range(4):
+        yv = y[0, j]
+        a = fz(0.0, yv)
+        m = fz(0.5 * size, yv)
+        e = fz(size, yv)
+        c = 2 * (a + e - 2 * m)
+        b = e - a - c
+        net[:, j, 2] = [a, a + b / 3, a + 2 * b / 3 + c / 3, a + b + c]
+    return net
+
+
+def plane(slope_x: float = 0.0, slope_y: float = 0.0, height: float = 5.0) -> Surface:
+    return Surface(bezier_net(lambda x, y: height + slope_x * x + slope_y * y), "clamped", "plane")
+
+
+RHO = 25.0  # radius of curvature at the apex of the parabolic cylinder (mm)
+
+
+def parabolic_cylinder() -> Surface:
+    """z = 10 - (x - 20)^2 / (2 rho): curvature 1/rho at the ridge x = 20, axis along y."""
+    return Surface(bezier_net(lambda x, y: 10.0 - (x - 20.0) ** 2 / (2 * RHO)), "clamped", "ridge")
+
+
+@pytest.fixture(scope="module")
+def case() -> Surface:
+    return Surface.from_json(CASE_STUDY)
+
+
+@pytest.fixture(scope="module")
+def case_raster(case):
+    return generate(case, "raster", tool_diameter=6.0, scallop=0.02, tolerance=0.002)
+
+
+# -- scallop formulas ---------------------------------------------------------------------------
+def cusp_height(R: float, rho: float, s: float, convex: bool) -> float:
+    """Brute force: two balls (circles) of radius R whose centres lie on the offset circle at arc
+    distance s on a circle of radius rho; deepest material left, measured radially."""
+    theta = s / rho
+    rc = rho + R if convex else rho - R
+    phi = np.linspace(0.0, theta, 20001)  # surface points between the two contacts
+    best = np.full(len(phi), np.inf)
+    for a in (0.0, theta):
+        cx, cy = rc * math.cos(a), rc * math.sin(a)
+        # distance along the radius from the surface point to the ball boundary
+        dx, dy = np.cos(phi), np.sin(phi)
+        # solve |r d - c| = R for r: r^2 - 2 r (d.c) + |c|^2 - R^2 = 0
+        dc = dx * cx + dy * cy
+        disc = np.sqrt(np.maximum(dc * dc - (rc * rc - R * R), 0.0))
+        r = dc - disc if convex else dc + disc
+        best = np.minimum(best, (r - rho) if convex else (rho - r))
+    return float(best.max())
+
+
+@settings(max_examples=40, deadline=None)
+@given(R=st.floats(0.5, 10.0), frac=st.floats(0.0005, 0.2), rho=st.floats(2.0, 400.0),
+       convex=st.booleans())
+def test_curved_stepover_leaves_cusp_h(R, frac, rho, convex):
+    h = frac * R
+    if not convex and rho <= 1.5 * R:
+        rho += 1.5 * R
+    kappa = -1.0 / rho if convex else 1.0 / rho
+    s = float(curved_stepover(R, h, np.array([kappa]))[0])
+    assert cusp_height(R, rho, s, convex) == pytest.approx(h, rel=2e-3, abs=1e-6)
+
+
+def test_flat_limit():
+    R, h = 3.0, 0.01
+    assert flat_stepover(R, h) == pytest.approx(2 * math.sqrt(2 * R * h - h * h))
+    assert curved_stepover(R, h, np.array([0.0, 1e-9, -1e-9])) == pytest.approx(
+        flat_stepover(R, h), rel=1e-6)
+
+
+# -- drop-cutter --------------------------------------------------------------------------------
+@pytest.mark.parametrize("sx,sy", [(0.0, 0.0), (0.3, 0.0), (0.2, -0.45), (-0.7, 0.3)])
+def test_dropcutter_plane_closed_form(sx, sy, rng):
+    R = 3.0
+    dc = DropCutter(plane(sx, sy), R)
+    xy = rng.uniform(8.0, 32.0, (200, 2))
+    z = dc.heights(xy)[0]
+    nz = 1.0 / math.sqrt(1 + sx * sx + sy * sy)
+    expected = 5.0 + sx * xy[:, 0] + sy * xy[:, 1] + R / nz - R
+    np.testing.assert_allclose(z, expected, atol=1e-9)
+
+
+def parabola_reference(x: float, R: float) -> float:
+    """Tip height over x for the ridge, by SciPy's bounded optimiser on the exact parabola."""
+    from scipy.optimize import minimize_scalar
+
+    def neg(p):
+        return -(10.0 - (p - 20.0) ** 2 / (2 * RHO) + math.sqrt(max(R * R - (p - x) ** 2, 0)))
+
+    lo, hi = max(0.0, x - R), min(40.0, x + R)
+    res = minimize_scalar(neg, bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+    ends = [-neg(lo), -neg(hi)]
+    return max(-res.fun, *ends) - R
+
+
+def test_dropcutter_parabolic_cylinder_and_edges():
+    R = 4.0
+    dc = DropCutter(parabolic_cylinder(), R)
+    xs = np.concatenate([np.linspace(0.0, 40.0, 41), [0.3, 39.7, 1.1]])
+    z = dc.heights(np.column_stack([xs, np.full(len(xs), 17.0)]))[0]
+    ref = np.array([parabola_reference(x, R) for x in xs])
+    np.testing.assert_allclose(z, ref, atol=1e-7)
+
+
+def test_dropcutter_case_study_brute_force(case, rng):
+    R = 3.0
+    dc = DropCutter(case, R)
+    xy = np.concatenate([rng.uniform(0.0, 100.0, (40, 2)), [[0.0, 0.0], [100.0, 50.0], [50, 0.2]]])
+    z = dc.heights(xy)[0]
+    ref = brute_force_heights(case, R, xy, samples=801)
+    # The brute force is a lower bound (sampled points); ours is exact: never below, and
+    # above by no more than the reference's own sampling error.
+    assert np.all(z >= ref - 1e-9)
+    assert np.all(z - ref < 1e-4)
+
+
+def test_dropcutter_tight_hollow_two_contacts():
+    """A hollow narrower than the ball: the ball rests on both walls, never inside."""
+    surface = tight_hollow()
+    dc = DropCutter(surface, 3.0)
+    xy = np.column_stack([np.linspace(10, 20, 41), np.full(41, 15.0)])
+    z = dc.heights(xy)[0]
+    ref = brute_force_heights(surface, 3.0, xy, samples=601)
+    assert np.all(z >= ref - 1e-9)
+    assert np.all(z - ref < 1e-4)
+
+
+def tight_hollow() -> Surface:
+    u = np.linspace(0.0, 30.0, 11)
+    x, y = np.meshgrid(u, u, indexing="ij")
+    z = 8.0 - 6.0 * np.exp(-((x - 15) ** 2 + (y - 15) ** 2) / 8.0)
+    return Surface(np.stack([x, y, z], axis=-1), "clamped", "hollow")
+
+
+# -- raster -------------------------------------------------------------------------------------
+def test_raster_flat_stepover_and_heights():
+    R, h = 2.0, 0.01
+    tp = generate(plane(), "raster", tool_diameter=2 * R, scallop=h)
+    lines = np.asarray(tp.extra["line_offsets_mm"])
+    steps = np.diff(lines)
+    np.testing.assert_allclose(steps[:-1], flat_stepover(R, h), rtol=1e-9)
+    assert steps[-1] <= flat_stepover(R, h) + 1e-9
+    for p in tp.passes:
+        np.testing.assert_allclose(p[:, 2], 5.0, atol=1e-9)
+        assert len(p) == 2  # a straight pass needs one move
+    assert tp.stats.moves == len(tp.passes)
+
+
+def test_raster_stepover_on_ridge_follows_curvature():
+    """Near the ridge of the parabolic cylinder (convex, radius rho) the XY stepover equals
+    the closed-form convex stepover; it shrinks with the slope further out."""
+    R, h = 3.0, 0.02
+    tp = generate(parabolic_cylinder(), "raster", tool_diameter=2 * R, scallop=h, angle=90.0)
+    lines = -np.asarray(tp.extra["line_offsets_mm"])  # across = -x for 90 degrees
+    mid = np.argmin(np.abs(lines - 20.0))
+    step = abs(lines[mid + 1] - lines[mid])
+    expected = float(curved_stepover(R, h, np.array([-1.0 / RHO]))[0])
+    assert step == pytest.approx(expected, rel=0.02)
+    assert expected < flat_stepover(R, h)  # convex: cusps grow, passes close up
+
+
+def test_raster_chords_never_below_exact_cl(case, case_raster, rng):
+    dc = DropCutter(case, 3.0)
+    passes = case_raster.passes[::7]
+    a = np.concatenate([p[:-1] for p in passes])
+    b = np.concatenate([p[1:] for p in passes])
+    t = rng.uniform(0.0, 1.0, (len(a), 3))
+    pts = (a[:, None] + t[..., None] * (b - a)[:, None]).reshape(-1, 3)
+    z = dc.heights(pts[:, :2])[0]
+    ok = np.isfinite(z)
+    assert np.all(pts[ok, 2] >= z[ok] - case_raster.parameters["tolerance"] - 1e-9)
+    # and every vertex is on the exact cutter-location surface
+    verts = np.concatenate(passes)
+    np.testing.assert_allclose(verts[:, 2], dc.heights(verts[:, :2])[0], atol=1e-9)
+
+
+def test_raster_scallop_brute_force(case, case_raster):
+    """Material left between adjacent passes, from the envelope of ball positions sampled
+    densely along the actual moves, measured along the normal: <= h + tolerance."""
+    tp = case_raster
+    R, h, tol = 3.0, tp.parameters["scallop"], tp.parameters["tolerance"]
+    lines = np.asarray(tp.extra["line_offsets_mm"])
+    worst = 0.0
+    for k in (len(lines) * np.array([0.2, 0.45, 0.65, 0.85])).astype(int):
+        y0, y1 = lines[k], lines[k + 1]
+        tips = []
+        for p in tp.passes:
+            if y0 - R - 1e-9 <= p[0, 1] <= y1 + R + 1e-9:  # contacts shift up to R on slopes
+                seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+                n = np.maximum(np.ceil(seg / 0.02).astype(int), 1)
+                for a, b, m in zip(p[:-1], p[1:], n):
+                    tips.append(a + np.linspace(0, 1, m, endpoint=False)[:, None] * (b - a))
+        tips = np.concatenate(tips)
+        tips = tips[np.argsort(tips[:, 0])]
+        u = np.linspace(0.1, 0.9, 240)
+        w_all = np.linspace(0.0, 1.0, 4001)
+        y_mid = case.evaluate(0.5, w_all)[:, 1]
+        w = w_all[(y_mid > y0 - 1) & (y_mid < y1 + 1)]
+        pts = case.evaluate_grid(u, w).reshape(-1, 3)
+        nrm = case.normals(u, w, grid=True).reshape(-1, 3)
+        sel = (pts[:, 1] > y0) & (pts[:, 1] < y1)
+        pts, nz = pts[sel], np.abs(nrm[sel, 2])
+        order = np.argsort(pts[:, 0])
+        pts, nz = pts[order], nz[order]
+        for chunk in range(0, len(pts), 200):
+            q = pts[chunk:chunk + 200]
+            lo, hi = np.searchsorted(tips[:, 0], [q[0, 0] - R, q[-1, 0] + R])
+            near = tips[lo:hi]
+            d2 = ((q[:, None, :2] - near[None, :, :2]) ** 2).sum(-1)
+            bottom = np.where(d2 < R * R, near[None, :, 2] + R - np.sqrt(np.maximum(R * R - d2, 0)),
+                              np.inf).min(axis=1)
+            left = (bottom - q[:, 2]) * nz[chunk:chunk + 200]
+            assert left.min() > -tol  # the ball never cuts deeper than the chordal tolerance
+            worst = max(worst, float(left.max()))
+    assert worst <= h + tol
+    assert worst > 0.5 * h  # and the stepover is not needlessly small
+
+
+@pytest.mark.parametrize("angle", [0.0, 30.0, 135.0])
+@pytest.mark.parametrize("direction", ["zigzag", "oneway"])
+def test_raster_angles_and_directions(angle, direction):
+    tp = generate(plane(0.1, 0.0), "raster", tool_diameter=6.0, scallop=0.2, angle=angle,
+                  direction=direction)
+    d = np.array([math.cos(math.radians(angle)), math.sin(math.radians(angle))])
+    senses = [np.sign((p[-1, :2] - p[0, :2]) @ d) for p in tp.passes]
+    if direction == "oneway":
+        assert set(senses) == {1.0}
+    else:
+        assert senses[:4] == [1.0, -1.0, 1.0, -1.0]
+    for p in tp.passes:  # away from the edges, where the ball would hang over
+        inner = np.all((p[:, :2] > 3.0) & (p[:, :2] < 37.0), axis=1)
+        np.testing.assert_allclose(
+            p[inner, 2], 5.0 + 0.1 * p[inner, 0] + 3 * (math.sqrt(1.01) - 1), atol=1e-9)
+
+
+# -- unreachable regions ------------------------------------------------------------------------
+def test_unreachable_region_reported_and_not_gouged():
+    surface = tight_hollow()
+    tp = generate(surface, "raster", tool_diameter=6.0, scallop=0.05, tolerance=0.01)
+    assert len(tp.unreachable) == 1
+    region = tp.unreachable[0]
+    assert region.x_range[0] < 15 < region.x_range[1] and region.y_range[0] < 15 < region.y_range[1]
+    assert region.min_radius_mm < 3.0
+    pts = np.concatenate(tp.passes)
+    near = np.hypot(pts[:, 0] - 15, pts[:, 1] - 15) < 4
+    ref = brute_force_heights(surface, 3.0, pts[near, :2][::4], samples=401)
+    assert np.all(pts[near, 2][::4] >= ref - 1e-9)
+    assert generate(plane(), "raster", tool_diameter=6.0, scallop=0.05).unreachable == []
+
+
+# -- waterline and iso-parametric ---------------------------------------------------------------
+def test_waterline_on_exact_levels(case):
+    tp = generate(case, "waterline", tool_diameter=6.0, scallop=0.05, tolerance=0.01)
+    dc = DropCutter(case, 3.0)
+    tol = 0.01
+    for p in tp.passes[::5]:
+        assert np.ptp(p[:, 2]) == 0.0
+        z = dc.heights(p[:, :2])[0]
+        ok = np.isfinite(z)
+        np.testing.assert_allclose(z[ok], p[ok, 2], atol=1e-5)
+        mid = 0.5 * (p[:-1] + p[1:])
+        zm = dc.heights(mid[:, :2])[0]
+        assert np.all(zm[np.isfinite(zm)] <= mid[np.isfinite(zm), 2] + tol + 1e-9)
+    levels = np.asarray(tp.extra["levels"])
+    assert np.all(-np.diff(levels) <= flat_stepover(3.0, 0.05) + 1e-9)
+
+
+def test_isoparametric_plane_and_case(case):
+    R, h = 3.0, 0.02
+    tp = generate(plane(), "isoparametric", tool_diameter=2 * R, scallop=h)
+    iso = np.asarray(tp.extra["iso_values"]) * 40.0  # y = 40 w on the plane
+    np.testing.assert_allclose(np.diff(iso)[:-1], flat_stepover(R, h), rtol=1e-9)
+    for p in tp.passes:
+        np.testing.assert_allclose(p[:, 2], 5.0, atol=1e-9)
+    tp = generate(case, "isoparametric", tool_diameter=6.0, scallop=0.05, iso_direction="w")
+    dc = DropCutter(case, 3.0)
+    pts = np.concatenate(tp.passes[::9])
+    z = dc.heights(pts[:, :2])[0]
+    ok = np.isfinite(z)
+    assert np.all(pts[ok, 2] >= z[ok] - 1e-7)  # offset points never gouge
+
+
+# -- API: validation, progress, cancel, moves ---------------------------------------------------
+@pytest.mark.parametrize("kwargs,fragment", [
+    ({"tool_diameter": 0.0}, "tool_diameter"),
+    ({"tool_diameter": -6.0}, "tool_diameter"),
+    ({"tool_diameter": float("nan")}, "tool_diameter"),
+    ({"tool_diameter": "big"}, "tool_diameter"),
+    ({"scallop": 0.0}, "scallop"),
+    ({"scallop": 3.5}, "scallop"),
+    ({"tolerance": 1e-7}, "tolerance"),
+    ({"tolerance": 2.0}, "tolerance"),
+    ({"strategy": "spiral"}, "strategy"),
+    ({"direction": "sideways"}, "direction"),
+    ({"iso_direction": "v"}, "iso_direction"),
+    ({"angle": float("inf")}, "angle"),
+    ({"clearance_height": 1.0}, "clearance_height"),
+    ({"progress": 3}, "progress"),
+])
+def test_bad_arguments(kwargs, fragment):
+    with pytest.raises(ValueError, match=fragment) as info:
+        generate(plane(), **{"tool_diameter": 6.0, "scallop": 0.1, **kwargs})
+    assert isinstance(info.value, ParameterError)
+    if "mm" in str(info.value) or fragment in ("strategy", "direction", "iso_direction",
+                                                "progress", "angle"):
+        return
+    raise AssertionError(f"no unit in {info.value}")
+
+
+def test_progress_and_cancel():
+    seen = []
+    generate(plane(), "raster", tool_diameter=6.0, scallop=0.1, progress=seen.append)
+    assert seen[0] == 0.0 and seen[-1] == 1.0 and seen == sorted(seen)
+    calls = []
+
+    def cancel():
+        calls.append(1)
+        return len(calls) > 2
+
+    with pytest.raises(ToolpathCancelled, match="cancelled"):
+        generate(plane(), "raster", tool_diameter=6.0, scallop=0.1, cancel=cancel)
+
+
+def test_moves_helper():
+    tp = generate(plane(), "raster", tool_diameter=6.0, scallop=0.5, clearance_height=20.0)
+    moves = to_moves(tp)
+    assert moves[0].kind == "rapid" and moves[0].z == 20.0
+    assert moves[-1].kind == "rapid" and moves[-1].z == 20.0
+    feeds = [m for m in moves if m.kind == "feed"]
+    assert len(feeds) == tp.stats.moves + tp.stats.passes  # plunge + cutting moves
+    assert all(abs(m.z - 5.0) < 1e-9 for m in feeds)
+    # approach: rapid down to 1 mm above the start, then feed
+    assert moves[1][:3] == ("rapid", moves[0].x, moves[0].y)
+    assert moves[1].z == pytest.approx(6.0)
+    assert to_moves(tp, safe_height=8.0)[1].z == 8.0
+    with pytest.raises(ParameterError, match="clearance_height"):
+        to_moves(tp, clearance_height=4.0)
+    with pytest.raises(ParameterError, match="safe_height"):
+        to_moves(tp, safe_height=30.0)
+
+
+def test_stats(case_raster):
+    st_ = case_raster.stats
+    assert st_.passes == len(case_raster.passes)
+    assert st_.moves == sum(len(p) - 1 for p in case_raster.passes)
+    length = sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in case_raster.passes)
+    assert st_.cutting_length_mm == pytest.approx(length)
+    assert st_.seconds > 0
+    assert case_raster.parameters["tool_diameter"] == 6.0
+    assert case_raster.clearance_height > max(p[:, 2].max() for p in case_raster.passes)
