@@ -38,6 +38,13 @@ def case_study() -> Surface:
     return Surface.from_json(CASE_STUDY)
 
 
+def steep_dome() -> Surface:
+    """A 60 x 60 mm net with a dome whose walls reach about 56°: work for waterline passes."""
+    x, y = np.meshgrid(np.linspace(0, 60, 9), np.linspace(0, 60, 9), indexing="ij")
+    z = 10 + 40 * np.exp(-((x - 30) ** 2 + (y - 30) ** 2) / 180)
+    return Surface(np.stack([x, y, z], axis=-1), "clamped", "dome")
+
+
 class JobFixture(unittest.TestCase):
     """One document with the case study, a job and an op; programs posted per test."""
 
@@ -119,7 +126,7 @@ class TestJob(JobFixture):
 
     def test_job_saves_and_reopens(self):
         path = Path(self.tmp.name) / "job.FCStd"
-        self.doc.saveAs(str(path))
+        self.doc.saveCopy(str(path))
         before = [c.toGCode() for c in self.op.Path.Commands]
         doc = FreeCAD.openDocument(str(path))
         try:
@@ -136,17 +143,19 @@ class TestJob(JobFixture):
 class TestMachinedPart(unittest.TestCase):
     """Simulate the posted G-code of each strategy and measure it against the design."""
 
-    def machine(self, strategy: str, scallop: float, **extra) -> tuple[dict, dict]:
+    def machine(self, strategy: str, scallop: float, surface: Surface | None = None, **extra):
+        """Post ``strategy`` with linuxcnc, check it with rs274, simulate the text; return
+        (op report, verification)."""
+        surface = surface or case_study()
         params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=scallop, strategy=strategy, **extra)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "p.ngc"
-            report = pipeline.machine(case_study(), params, path)
+            report = pipeline.machine(surface, params, path)
             if rs274.available():
                 check = rs274.check(path, {1: TOOL})
                 self.assertTrue(check.ok, check.message)
             program = read_gcode(path.read_text())
-        metrics = verify(case_study(), program, Tool(TOOL), cell=0.1).metrics
-        return report, metrics
+        return report, verify(surface, program, Tool(TOOL), cell=0.1)
 
     def assert_machined(self, metrics: dict, scallop: float, tolerance: float = 0.002):
         self.assertEqual(metrics["rapid_collisions"], [])
@@ -155,18 +164,27 @@ class TestMachinedPart(unittest.TestCase):
         self.assertGreaterEqual(metrics["coverage"], 0.99, metrics)
 
     def test_raster(self):
-        report, metrics = self.machine("raster", 0.02, angle=30.0)
-        self.assert_machined(metrics, 0.02)
+        report, result = self.machine("raster", 0.02, angle=30.0)
+        self.assert_machined(result.metrics, 0.02)
         self.assertGreater(report["passes"], 20)
 
-    def test_waterline(self):
-        _, metrics = self.machine("waterline", 0.02)
+    def test_waterline_finishes_steep_walls(self):
+        """On a steep dome, constant-Z passes leave at most h + tol on walls steeper than 40°
+        (flatter areas are a raster pass's job)."""
+        scallop = 0.02
+        _, result = self.machine("waterline", scallop, surface=steep_dome())
+        metrics = result.metrics
         self.assertEqual(metrics["rapid_collisions"], [])
         self.assertLessEqual(metrics["gouge_max_mm"], 1e-3 + 2 * ROUNDING, metrics)
+        cell = metrics["cell_mm"]
+        gy, gx = np.gradient(result.design, cell)
+        steep = result.inner & (np.degrees(np.arctan(np.hypot(gx, gy))) >= 40.0)
+        self.assertGreater(int(steep.sum()), 1000)
+        self.assertLessEqual(float(np.nanmax(result.deviation[steep])), scallop + 0.002)
 
     def test_isoparametric(self):
-        _, metrics = self.machine("isoparametric", 0.02)
-        self.assert_machined(metrics, 0.02)
+        _, result = self.machine("isoparametric", 0.02)
+        self.assert_machined(result.metrics, 0.02)
 
 
 class TestBadInput(unittest.TestCase):
