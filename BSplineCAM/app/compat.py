@@ -150,6 +150,7 @@ def post_export(name: str, objects: list, filename: str, header: bool = False) -
     parser = getattr(module, "parser", None)
     known = getattr(parser, "_option_string_actions", None)
     args = [a for a in wanted if known is None or a.split("=")[0] in known]
+    objects = [_PostView(o) if hasattr(o, "Path") and not hasattr(o, "ToolNumber") else o for o in objects]
     if name == "fanuc" and not is_freecad_1():
         objects = [_LegacyToolController(o) if hasattr(o, "ToolNumber") else o for o in objects]
     text = module.export(objects, filename, " ".join(args))
@@ -157,6 +158,30 @@ def post_export(name: str, objects: list, filename: str, header: bool = False) -
         with open(filename, encoding="utf-8") as handle:
             text = handle.read()
     return text or ""
+
+
+class _PathView:
+    """A Path whose ``Commands`` list is built once.  ``Path.Commands`` copies every command
+    out of C++ on each access, and posts such as 0.20's fanuc read it once per command, which
+    makes posting quadratic (minutes for a finishing program)."""
+
+    def __init__(self, path):
+        self._path = path
+        self.Commands = path.Commands
+
+    def __getattr__(self, name):
+        return getattr(self._path, name)
+
+
+class _PostView:
+    """An operation seen by a post-processor: everything delegated, its Path cached."""
+
+    def __init__(self, obj):
+        self._obj = obj
+        self.Path = _PathView(obj.Path)
+
+    def __getattr__(self, name):
+        return getattr(self._obj, name)
 
 
 class _LegacyTool:
