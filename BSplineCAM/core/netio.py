@@ -128,6 +128,16 @@ def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[io.IOBase
         raise
 
 
+def read_text(path: Path) -> str:
+    """A file's UTF-8 text; a NetError names the file when it is missing or binary."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise NetError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise NetError(f"{path}: not a text file (invalid UTF-8)") from None
+
+
 # ---------------------------------------------------------------------------------------------
 # JSON
 
@@ -135,12 +145,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[io.IOBase
 def read_json(path: str | os.PathLike) -> ControlNet:
     """Read the canonical control-net JSON (see README): name, units, knots, control_points."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise NetError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise NetError(f"{path}: not a text file (invalid UTF-8)") from None
+    text = read_text(path)
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -185,12 +190,7 @@ CSV_HEADER = ["row", "column", "x", "y", "z"]
 def read_csv(path: str | os.PathLike, knots: str | KnotLayout = "uniform") -> ControlNet:
     """Read a CSV control net: header ``row,column,x,y,z``, one point per line, any order."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise NetError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise NetError(f"{path}: not a text file (invalid UTF-8)") from None
+    text = read_text(path)
     entries: dict[tuple[int, int], list[float]] = {}
     reader = csv.reader(io.StringIO(text))
     saw_header = False
@@ -261,12 +261,7 @@ def read_dat(path: str | os.PathLike, rows: int | None = None) -> FloatArray:
     differences along both directions) is the row layout.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as exc:
-        raise NetError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise NetError(f"{path}: not a text file (invalid UTF-8)") from None
+    lines = read_text(path).splitlines()
     values: list[list[float]] = []
     header_rows = None
     for lineno, line in enumerate(lines, start=1):
