@@ -3,7 +3,9 @@
 
 ``tools/run_gui_test.sh`` starts FreeCAD with ``tests/gui_run_tests.py``, which runs these
 classes in FreeCAD's event loop, writes a JSON result and exits with its status.  The last
-class saves ``docs/view3d.png`` (3D view) and ``docs/workbench.png`` (main window).
+class saves ``docs/view3d.png`` (3D view) and ``docs/workbench.png`` (main window);
+``TestCamCommands`` runs the job, post-process and verify commands on the case study (coarse
+scallop) and saves ``docs/verify3d.png`` (simulated part) and ``docs/job.png`` (job tree).
 File dialogs are replaced by fixed paths; error boxes are closed by a timer and recorded.
 """
 
@@ -144,7 +146,7 @@ class TestWorkbench(GuiTestCase):
         icon = FreeCADGui.listWorkbenches()[WORKBENCH].Icon
         self.assertTrue(os.path.isfile(icon), icon)
         registered = set(FreeCADGui.listCommands())
-        for name in layout.SURFACE_COMMANDS:
+        for name in layout.SURFACE_COMMANDS + layout.TOOLPATH_COMMANDS + layout.VERIFY_COMMANDS:
             self.assertIn(name, registered)
             info = FreeCADGui.Command.get(name).getInfo()
             self.assertTrue(info["menuText"] and info["toolTip"], info)
@@ -152,10 +154,12 @@ class TestWorkbench(GuiTestCase):
             self.assertTrue(os.path.isfile(pixmap) and pixmap.endswith(".svg"), pixmap)
         bars = FreeCADGui.getMainWindow().findChildren(QtGui.QToolBar)
         toolbars = {tb.windowTitle() for tb in bars if tb.isVisible()}
-        self.assertIn("BSplineCAM surface", toolbars)
+        for title in ("BSplineCAM surface", "BSplineCAM toolpath", "BSplineCAM verify"):
+            self.assertIn(title, toolbars)
         menus = [a.text() for a in FreeCADGui.getMainWindow().menuBar().actions()]
         self.assertIn("&BSplineCAM", menus)
-        self.assertEqual(layout.TOOLPATH_COMMANDS + layout.VERIFY_COMMANDS, [])  # placeholders
+        self.assertEqual(layout.TOOLPATH_COMMANDS, ["BSplineCAM_Job", "BSplineCAM_PostProcess"])
+        self.assertEqual(layout.VERIFY_COMMANDS, ["BSplineCAM_Verify"])
 
     def test_is_active(self) -> None:
         self.assertTrue(is_active("BSplineCAM_NewSurface"))
@@ -311,6 +315,279 @@ class TestSurfaceCommands(GuiTestCase):
         routes = [o for o in self.doc.Objects if hasattr(o, "MaxDeviation")]
         self.assertEqual(len(routes), 1)
         self.assertTrue(1e-4 < float(routes[0].MaxDeviation) < 1.0, routes[0].MaxDeviation)
+
+
+#: A coarse scallop keeps the GUI test fast (mm).
+COARSE_SCALLOP = 0.1
+TOOL = 6.0
+
+
+@contextlib.contextmanager
+def cam_dialogs(post: str = "", save_path: str = "", open_path: str = "",
+                tool: float = TOOL) -> Iterator[None]:
+    """Make the machining commands' dialogs answer fixed values."""
+    from BSplineCAM.gui import cam_commands
+
+    saved = cam_commands.ask_post, cam_commands.ask_tool_diameter
+    cam_commands.ask_post = lambda posts: post
+    cam_commands.ask_tool_diameter = lambda: tool
+    try:
+        with dialogs_answer(open_path=open_path, save_path=save_path):
+            yield
+    finally:
+        cam_commands.ask_post, cam_commands.ask_tool_diameter = saved
+
+
+def count_colours(image, step: int = 4) -> dict[str, int]:
+    """Pixels (every ``step``-th) that are white, green, blue, red or grey in a QImage."""
+    counts = {"white": 0, "green": 0, "blue": 0, "red": 0}
+    for x in range(0, image.width(), step):
+        for y in range(0, image.height(), step):
+            c = QtGui.QColor(image.pixel(x, y))
+            r, g, b = c.red(), c.green(), c.blue()
+            if r > 245 and g > 245 and b > 245:
+                counts["white"] += 1
+            elif g > r + 40 and g > b + 40:
+                counts["green"] += 1
+            elif b > r + 40 and b > g + 40:
+                counts["blue"] += 1
+            elif r > g + 60 and r > b + 60:
+                counts["red"] += 1
+    return counts
+
+
+class CamTestCase(GuiTestCase):
+    def open_job_panel(self, surface):
+        from BSplineCAM.gui import cam_commands
+
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(surface)
+        cam_commands.JobPanel.last = None
+        FreeCADGui.runCommand("BSplineCAM_Job")
+        process_events()
+        panel = cam_commands.JobPanel.last
+        self.assertIsNotNone(panel, "the job command opened no task panel")
+        self.assertTrue(FreeCADGui.Control.activeDialog())
+        self.assertFalse(is_active("BSplineCAM_Job"))  # one task panel at a time
+        panel.tool.setValue(TOOL)
+        panel.scallop.setValue(COARSE_SCALLOP)
+        return panel
+
+    def make_job(self):
+        """Surface, then the job command with a coarse scallop; (surface, job, op)."""
+        from BSplineCAM.gui import cam_commands
+
+        surface = self.new_surface()
+        panel = self.open_job_panel(surface)
+        undo = self.doc.UndoCount
+        with message_boxes() as boxes:
+            accepted = panel.accept()
+        if not accepted:
+            self.fail(f"the job panel refused: {panel.message.text()} {boxes}")
+        process_events()
+        self.assertFalse(FreeCADGui.Control.activeDialog())
+        self.assertEqual(self.doc.UndoCount, undo + 1)  # one transaction
+        jobs = [o for o in self.doc.Objects if cam_commands.is_job(o)]
+        ops = [o for o in self.doc.Objects if cam_commands.is_finishing_op(o)]
+        self.assertEqual((len(jobs), len(ops)), (1, 1))
+        return surface, jobs[0], ops[0]
+
+
+class TestCamCommands(CamTestCase):
+    def test_is_active(self) -> None:
+        names = ("BSplineCAM_Job", "BSplineCAM_PostProcess", "BSplineCAM_Verify")
+        for name in names:
+            self.assertFalse(is_active(name), f"{name} active in an empty document")
+        surface = self.new_surface()
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(surface)
+        self.assertTrue(is_active("BSplineCAM_Job"))
+        self.assertTrue(is_active("BSplineCAM_Verify"))  # a G-code file on the surface
+        self.assertFalse(is_active("BSplineCAM_PostProcess"))
+
+    def test_job_panel_validation_and_interruption(self) -> None:
+        from BSplineCAM.core.toolpath.common import ToolpathCancelled
+        from BSplineCAM.gui import progress
+
+        surface = self.new_surface()
+        names = [o.Name for o in self.doc.Objects]
+        undo = self.doc.UndoCount
+        panel = self.open_job_panel(surface)
+        panel.scallop.setValue(0.0)
+        with message_boxes() as boxes:
+            self.assertFalse(panel.accept())
+            process_events()
+        self.assertIn("scallop", panel.message.text().lower())
+        self.assertEqual(len(boxes), 1, boxes)
+        panel.scallop.setValue(COARSE_SCALLOP)
+        panel.spindle.setValue(0.0)
+        with message_boxes() as boxes:
+            self.assertFalse(panel.accept())
+        self.assertIn("spindle speed", panel.message.text())
+        panel.spindle.setValue(12000.0)
+        self.assertEqual([o.Name for o in self.doc.Objects], names)
+
+        # the user interrupts the computation at 30 %: everything is undone
+        def interrupting(obj):
+            def report(fraction: float) -> None:
+                if fraction > 0.3:
+                    raise ToolpathCancelled("interrupted by the user at 30%")
+            return report
+
+        saved = progress.op_progress
+        progress.op_progress = interrupting
+        try:
+            self.assertFalse(panel.accept())
+        finally:
+            progress.op_progress = saved
+        process_events()
+        self.assertIn("nterrupted", panel.message.text())
+        self.assertTrue(FreeCADGui.Control.activeDialog())  # the panel stays for a retry
+        self.assertEqual([o.Name for o in self.doc.Objects], names)
+        self.assertEqual(self.doc.UndoCount, undo)
+        self.assertFalse(surface.MakeSolid)
+        self.assertTrue(surface.isValid())
+        panel.reject()
+        process_events()
+        self.assertFalse(FreeCADGui.Control.activeDialog())
+
+    def test_job_post_verify(self) -> None:
+        from BSplineCAM import rs274
+        from BSplineCAM.app import verify_feature as vf
+        from BSplineCAM.gui import cam_commands
+
+        surface, job, op = self.make_job()
+        self.assertTrue(surface.MakeSolid)
+        self.assertEqual(type(job.ViewObject.Proxy).__name__, "ViewProvider")
+        self.assertIn(op, job.Operations.Group)
+        self.assertTrue(op.isValid())
+        report = json.loads(op.Report)
+        self.assertEqual(report["strategy"], "raster")
+        self.assertGreater(len(op.Path.Commands), 100)
+        tc = job.Tools.Group[0]
+        self.assertAlmostEqual(float(tc.Tool.Diameter), TOOL)
+        self.assertAlmostEqual(tc.HorizFeed.getValueAs("mm/min").Value, 1200.0, places=3)
+        self.assertAlmostEqual(float(tc.SpindleSpeed), 12000.0)
+
+        # post-processing, checked by rs274
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(op)  # the op stands for its job
+        self.assertTrue(is_active("BSplineCAM_PostProcess"))
+        programs = {}
+        for post in ("linuxcnc", "grbl"):
+            path = self.tmp / f"job-{post}.ngc"
+            cam_commands.PostProcess.last_check = None
+            with cam_dialogs(post=post, save_path=str(path)), message_boxes() as boxes:
+                FreeCADGui.runCommand("BSplineCAM_PostProcess")
+            self.assertEqual(boxes, [])
+            self.assertTrue(path.is_file(), path)
+            self.assertIn("G1", path.read_text())
+            programs[post] = path
+            if rs274.available():
+                check = cam_commands.PostProcess.last_check
+                self.assertTrue(check and check["ok"], check)
+                self.assertGreater(check["straight_feeds"], 100)
+        self.assertTrue(rs274.available() or os.environ.get("BSPLINECAM_NO_RS274"),
+                        "rs274 is not installed (set BSPLINECAM_NO_RS274=1 to allow)")
+
+        # verification of the job: a simulated part coloured by deviation
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(job)
+        before = {o.Name for o in self.doc.Objects}
+        with message_boxes() as boxes:
+            FreeCADGui.runCommand("BSplineCAM_Verify")
+        self.assertEqual(boxes, [])
+        made = [o for o in self.doc.Objects if o.Name not in before]
+        self.assertEqual(len(made), 1, made)
+        result = made[0]
+        self.assertTrue(vf.is_verification(result))
+        self.assertIs(result.Job, job)
+        metrics = json.loads(result.Metrics)
+        self.assertLess(metrics["gouge_max_mm"], 0.01)
+        self.assertLess(metrics["scallop_p99_mm"], 1.5 * COARSE_SCALLOP)
+        self.assertGreater(metrics["coverage"], 0.95)
+        self.assertGreater(metrics["machining_time_s"], 0)
+        vobj = result.ViewObject
+        self.assertEqual(type(vobj.Proxy).__name__, "VerificationViewProvider")
+        self.assertEqual(vobj.DisplayMode, "Deviation")
+        count = result.Mesh.CountPoints
+        self.assertEqual(vobj.Proxy.material.diffuseColor.getNum(), count)
+        self.assertEqual(vobj.Proxy.coords.point.getNum(), count)
+        colours = vobj.Proxy.colours
+        top = colours[:result.GridRows * result.GridColumns]
+        green = (top[:, 1] > 0.5) & (top[:, 2] < 0.5)
+        blue = top[:, 2] > 0.6
+        self.assertGreater(green.mean(), 0.2)  # passes touch the design
+        self.assertGreater(blue.mean(), 0.02)  # scallops left between passes
+        self.assertFalse(op.ViewObject.Visibility)  # paths hidden: the part shows
+        self.assertTrue(vobj.Visibility)
+
+        # the file route: a program on the selected surface
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(surface)
+        before = {o.Name for o in self.doc.Objects}
+        with cam_dialogs(open_path=str(programs["grbl"])), message_boxes() as boxes:
+            FreeCADGui.runCommand("BSplineCAM_Verify")
+        self.assertEqual(boxes, [])
+        made = [o for o in self.doc.Objects if o.Name not in before]
+        self.assertEqual(len(made), 1, made)
+        self.assertEqual(made[0].Program, str(programs["grbl"]))
+        other = json.loads(made[0].Metrics)
+        self.assertAlmostEqual(other["cutting_length_mm"], metrics["cutting_length_mm"], places=2)
+        made[0].ViewObject.Visibility = False
+        # the surface's control net is drawn outside its display modes: hiding the surface
+        # does not hide the net (surface_view), so switch it off for the pictures
+        surface.ViewObject.ShowControlNet = False
+        self.screenshots(job, op, result)
+
+    def screenshots(self, job, op, result) -> None:
+        """docs/verify3d.png (the coloured part) and docs/job.png (the bench with the job)."""
+        mw = FreeCADGui.getMainWindow()
+        mw.showNormal()
+        mw.setGeometry(0, 0, 1600, 1000)
+        mdi = mw.findChild(QtGui.QMdiArea)
+        for sub in mdi.subWindowList():
+            if sub.windowTitle().startswith("Start page"):
+                sub.close()
+        mdi.activeSubWindow().showMaximized()
+        FreeCADGui.Selection.clearSelection()
+        process_events(20)
+        view = FreeCADGui.activeDocument().activeView()
+        view.viewIsometric()
+        view.fitAll()
+        process_events(20)
+        DOCS.mkdir(parents=True, exist_ok=True)
+        verify3d = DOCS / "verify3d.png"
+        view.saveImage(str(verify3d), 1600, 1000, "White")
+        counts = count_colours(QtGui.QImage(str(verify3d)))
+        total = sum(1 for _ in range(0, 1600, 4)) * sum(1 for _ in range(0, 1000, 4))
+        self.assertGreater(counts["green"], total * 0.05, counts)
+        self.assertGreater(counts["blue"], total * 0.003, counts)  # scallop crests
+        self.assertGreater(counts["white"], total * 0.2, counts)
+
+        # the workbench with the job's tree open, the op's paths shown and selected
+        result.ViewObject.Visibility = False
+        op.ViewObject.Visibility = True
+        for model in job.Model.Group:
+            model.ViewObject.Visibility = True
+            model.ViewObject.Transparency = 40  # CAM's 80 % leaves it invisible in a picture
+        combo = mw.findChild(QtGui.QDockWidget, "Combo View")
+        if combo is not None:
+            mw.resizeDocks([combo], [430], QtCore.Qt.Horizontal)
+            for tree in combo.findChildren(QtGui.QTreeWidget):
+                tree.expandToDepth(3)  # the job and its groups, not the bit's body
+        report = mw.findChild(QtGui.QDockWidget, "Report view")
+        if report is not None:
+            report.show()
+        FreeCADGui.Selection.addSelection(op)
+        view.viewIsometric()
+        view.fitAll()
+        wait(1500)
+        job_png = DOCS / "job.png"
+        screen = QtGui.QApplication.primaryScreen()
+        self.assertTrue(screen.grabWindow(mw.winId()).save(str(job_png), "PNG"))
+        for path in (verify3d, job_png):
+            self.assertTrue(path.is_file() and path.stat().st_size > 10000, path)
 
 
 class TestZScreenshots(GuiTestCase):

@@ -8,8 +8,9 @@
 #   BSPLINECAM_DOCS     where screenshots go (default: docs/)
 #
 # FreeCAD runs with a throw-away HOME whose Mod folder links to this repository, so the test
-# neither depends on nor changes the user's FreeCAD settings.  Writes docs/view3d.png and
-# docs/workbench.png.
+# neither depends on nor changes the user's FreeCAD settings.  Writes docs/view3d.png,
+# docs/workbench.png, docs/net_editor.png, docs/verify3d.png (the simulated part coloured by
+# deviation) and docs/job.png (the bench with a machining job).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 FREECAD="${FREECAD:-freecad}"

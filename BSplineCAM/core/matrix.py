@@ -6,13 +6,16 @@ For the paper's uniform knots every patch uses the same matrix MB; for clamped (
 knots the patches near the ends have their own 4x4 matrices, found here by expanding the
 Cox–de Boor basis of each span in the power basis.  Derivatives come from differentiating [U].
 
-Evaluation never loops over points.  A grid is evaluated as two matrix products over whole
+Scattered points use the same matrix form pre-multiplied per patch, A_ij = M_i P_ij M_j^T
+(:func:`patch_form`), grouped by patch.  Evaluation never loops over points.  A grid is evaluated as two matrix products over whole
 rows of patches: the sparse u-basis rows (4 non-zeros each, from [U][MB]) meet the net, then
 one BLAS product with the w-basis gives all three coordinate planes at once.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -26,7 +29,7 @@ MB: FloatArray = np.array(
 ) / 6.0
 MB.setflags(write=False)
 
-#: Chunk of scattered points evaluated at once: bounds the (m, 4, 4, 3) gather temporary.
+#: Chunk of scattered points evaluated at once: bounds the (m, 4, 12) gather temporary.
 SCATTER_CHUNK = 1 << 15
 
 
@@ -232,6 +235,78 @@ def grid_normals(
     return out.transpose(2, 0, 1), degenerate.T
 
 
+@dataclass(frozen=True)
+class PatchCoefficients:
+    """Power-basis coefficients of every patch: A_ij = M_i P_ij M_j^T (appendix A, eq. A.2).
+
+    ``coef[i * spans_w + j]`` is patch (i, j) as a (4, 12) matrix: row b holds the t^(3-b) term
+    (t along w), column 3a + c coordinate c of the s^(3-a) term (s along u), so a point of the
+    patch is sum_a [U]_a ([W] @ coef)[3a + c].  Built once per net; read-only.
+    """
+
+    coef: FloatArray
+    counts: tuple[int, int]
+
+    @property
+    def spans(self) -> tuple[int, int]:
+        """Patches along u and along w."""
+        return self.counts[0] - DEGREE, self.counts[1] - DEGREE
+
+
+def patch_form(net: FloatArray, layout: str | KnotLayout) -> PatchCoefficients:
+    """Pre-multiply each 4x4 block of the net by its span matrices: [M_i][P_ij][M_j]^T."""
+    net = np.asarray(net, dtype=float)
+    n_u, n_w = net.shape[:2]
+    layout = KnotLayout.parse(layout)
+    mu = span_matrices_cached(n_u, layout)  # (pu, 4 = a, 4 = k)
+    mw = span_matrices_cached(n_w, layout)  # (pw, 4 = b, 4 = l)
+    blocks = np.lib.stride_tricks.sliding_window_view(net, (4, 4), axis=(0, 1))  # (pu,pw,3,k,l)
+    coef = np.einsum("iak,ijckl,jbl->ijbac", mu, blocks, mw, optimize=True)
+    coef = np.ascontiguousarray(coef.reshape((n_u - DEGREE) * (n_w - DEGREE), 4, 12))
+    coef.setflags(write=False)
+    return PatchCoefficients(coef, (n_u, n_w))
+
+
+def evaluate_patches(
+    form: PatchCoefficients, u: ArrayLike, w: ArrayLike, du: int = 0, dw: int = 0
+) -> FloatArray:
+    """Points (or the (du, dw) partial derivative) at scattered (u, w): broadcast shape + (3,)."""
+    return evaluate_patch_orders(form, u, w, ((du, dw),))[0]
+
+
+def evaluate_patch_orders(
+    form: PatchCoefficients, u: ArrayLike, w: ArrayLike, orders: Sequence[tuple[int, int]]
+) -> list[FloatArray]:
+    """Several partial derivatives (du, dw) at the same scattered parameters, in one pass.
+
+    Each point gathers its patch's coefficients; per w-order a 4-term sum with [W] gives the
+    12 u-power planes, then each u-order is a 4-term sum with [U].  No loop runs over points
+    or patches; work is done in chunks of ``SCATTER_CHUNK`` points, element by element, so the
+    result does not depend on the chunking.  Returns arrays of shape broadcast(u, w) + (3,).
+    """
+    u, w = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(w, dtype=float))
+    shape = u.shape
+    u, w = u.ravel(), w.ravel()
+    outs = [np.empty((len(u), 3)) for _ in orders]
+    for start in range(0, len(u), SCATTER_CHUNK):
+        sl = slice(start, start + SCATTER_CHUNK)
+        for out, value in zip(outs, _patch_chunk(form, u[sl], w[sl], orders)):
+            out[sl] = value
+    return [out.reshape(shape + (3,)) for out in outs]
+
+
+def _patch_chunk(form: PatchCoefficients, u: FloatArray, w: FloatArray,
+                 orders: Sequence[tuple[int, int]]) -> list[FloatArray]:
+    n_u, n_w = form.counts
+    p_u, p_w = form.spans
+    iu, su = locate(u, n_u)
+    iw, sw = locate(w, n_w)
+    coef = form.coef[iu * p_w + iw]  # (m, 4 = b, 12 = (a, c)): each point's own patch
+    planes = {q: np.einsum("mb,mbk->mk", power_rows(sw, q, p_w), coef).reshape(-1, 4, 3)
+              for q in sorted({q for _, q in orders})}  # (m, 4 = a, 3 = c)
+    return [np.einsum("ma,mac->mc", power_rows(su, p, p_u), planes[q]) for p, q in orders]
+
+
 def evaluate_points(
     net: FloatArray,
     layout: str | KnotLayout,
@@ -242,24 +317,11 @@ def evaluate_points(
 ) -> FloatArray:
     """Points (or partial derivatives) at scattered parameter pairs: shape broadcast(u, w) + (3,).
 
-    Per point: [U][M_i] · P[i:i+4, j:j+4] · ([W][M_j])^T, done in chunks so the gathered
-    4x4 control blocks never exceed ``SCATTER_CHUNK`` points at once.
+    Per point [U] · A_ij · [W]^T with the patch's power-basis coefficients
+    (:func:`patch_form`); a :class:`~BSplineCAM.core.surface.Surface` caches those, so prefer
+    its ``evaluate`` when evaluating one net repeatedly.
     """
-    net = np.asarray(net, dtype=float)
-    n_u, n_w = net.shape[:2]
-    u, w = np.broadcast_arrays(np.asarray(u, dtype=float), np.asarray(w, dtype=float))
-    shape = u.shape
-    u = u.ravel()
-    w = w.ravel()
-    out = np.empty((len(u), 3))
-    offsets = np.arange(4)
-    for start in range(0, len(u), SCATTER_CHUNK):
-        sl = slice(start, start + SCATTER_CHUNK)
-        iu, wu = local_weights(u[sl], n_u, layout, du)
-        iw, ww = local_weights(w[sl], n_w, layout, dw)
-        blocks = net[(iu[:, None] + offsets)[:, :, None], (iw[:, None] + offsets)[:, None, :]]
-        out[sl] = np.einsum("mk,mklc,ml->mc", wu, blocks, ww, optimize=True)
-    return out.reshape(shape + (3,))
+    return evaluate_patches(patch_form(net, layout), u, w, du, dw)
 
 
 def evaluate_curve(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from . import matrix, netio
 from .basis import DEGREE, KnotLayout, knot_vector, unique_knots
 from .errors import ParameterError
 from .typing import ArrayLike, FloatArray
+
+#: Partial derivatives (du, dw) in the order of :class:`Derivatives`' fields.
+SECOND_ORDER = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,9 @@ class Surface:
     >>> s = Surface(points, knots="clamped")      # points: (rows, cols, 3), rows follow u
     >>> s.evaluate(0.5, 0.5)                      # -> array([x, y, z])
     >>> s.grid(101, 101).shape                    # -> (101, 101, 3)
+
+    The net is read-only, so the per-patch power-basis coefficients used by the scattered
+    evaluations (``evaluate``, ``derivatives``, ``normals``) are computed once and cached.
     """
 
     degree = DEGREE
@@ -107,10 +114,15 @@ class Surface:
                 raise ParameterError(f"parameter {name} must lie in [0, 1] (normalised), got {values.min()}..{values.max()}")
         return np.clip(u, 0.0, 1.0), np.clip(w, 0.0, 1.0)
 
+    @cached_property
+    def patch_form(self) -> matrix.PatchCoefficients:
+        """Power-basis coefficients of every patch (:func:`matrix.patch_form`), built once."""
+        return matrix.patch_form(self.control_points, self.knots)
+
     def evaluate(self, u: ArrayLike, w: ArrayLike, du: int = 0, dw: int = 0) -> FloatArray:
         """Points (or the (du, dw) partial derivative) at parameters u, w (broadcast): (..., 3)."""
         u, w = self._check_params(u, w)
-        return matrix.evaluate_points(self.control_points, self.knots, u, w, du, dw)
+        return matrix.evaluate_patches(self.patch_form, u, w, du, dw)
 
     def evaluate_grid(self, u: ArrayLike, w: ArrayLike, du: int = 0, dw: int = 0) -> FloatArray:
         """Points (or a partial derivative) on the tensor grid u x w: (len(u), len(w), 3)."""
@@ -125,11 +137,14 @@ class Surface:
 
     def derivatives(self, u: ArrayLike, w: ArrayLike, grid: bool = False) -> Derivatives:
         """Point, first and second partial derivatives from derivatives of [U] and [W]."""
-        ev = self.evaluate_grid if grid else self.evaluate
-        return Derivatives(
-            point=ev(u, w), su=ev(u, w, 1, 0), sw=ev(u, w, 0, 1),
-            suu=ev(u, w, 2, 0), suw=ev(u, w, 1, 1), sww=ev(u, w, 0, 2),
-        )
+        if grid:
+            ev = self.evaluate_grid
+            return Derivatives(
+                point=ev(u, w), su=ev(u, w, 1, 0), sw=ev(u, w, 0, 1),
+                suu=ev(u, w, 2, 0), suw=ev(u, w, 1, 1), sww=ev(u, w, 0, 2),
+            )
+        u, w = self._check_params(u, w)
+        return Derivatives(*matrix.evaluate_patch_orders(self.patch_form, u, w, SECOND_ORDER))
 
     def normals(self, u: ArrayLike, w: ArrayLike, grid: bool = False) -> FloatArray:
         """Unit normals Su x Sw / |Su x Sw|.
@@ -144,7 +159,9 @@ class Surface:
             if np.any(degenerate):
                 normal[degenerate] = fallback()[degenerate]
             return normal
-        return unit_normals(self.evaluate(u, w, 1, 0), self.evaluate(u, w, 0, 1), fallback)
+        cu, cw = self._check_params(u, w)
+        su, sw = matrix.evaluate_patch_orders(self.patch_form, cu, cw, ((1, 0), (0, 1)))
+        return unit_normals(su, sw, fallback)
 
     def _nudged_normals(self, u: ArrayLike, w: ArrayLike, grid: bool) -> FloatArray:
         u, w = self._check_params(u, w)

@@ -14,6 +14,7 @@ import FreeCAD
 #: Modules whose ``register()`` adds commands, imported when the workbench first activates.
 COMMAND_MODULES: list[str] = [
     "BSplineCAM.gui.commands",
+    "BSplineCAM.gui.cam_commands",
     # >>> toolpath / verify engineers: add your command modules here, e.g.
     # "BSplineCAM.gui.toolpath_commands",
 ]
@@ -31,8 +32,8 @@ SURFACE_COMMANDS: list[str] = [
 # ============================================================================================
 # >>> TOOLPATH AND VERIFY COMMANDS GO HERE (later issues).  Add the command names in toolbar
 # >>> order; each becomes a toolbar and a submenu once the list is non-empty.
-TOOLPATH_COMMANDS: list[str] = []
-VERIFY_COMMANDS: list[str] = []
+TOOLPATH_COMMANDS: list[str] = ["BSplineCAM_Job", "BSplineCAM_PostProcess"]
+VERIFY_COMMANDS: list[str] = ["BSplineCAM_Verify"]
 # ============================================================================================
 
 #: (toolbar title, command names); empty lists are skipped.

@@ -19,7 +19,6 @@ from ..errors import ParameterError
 from .common import (
     CancelFn,
     Direction,
-    Evaluator,
     IsoDirection,
     Monitor,
     Move,
@@ -78,8 +77,7 @@ def generate(
         check_finite(clearance_height, "clearance_height", "mm")
     monitor = Monitor(progress, cancel, strategy.value)
     monitor(0.0)
-    evaluator = Evaluator(surface)
-    dc = DropCutter(surface, tool.radius, evaluator)
+    dc = DropCutter(surface, tool.radius)
     if strategy is Strategy.RASTER:
         from .raster import raster
 
@@ -103,7 +101,7 @@ def generate(
         notes=extra.pop("notes", []),
     )
     toolpath = Toolpath(strategy.value, passes, parameters,
-                        unreachable_regions(evaluator, tool.radius), stats, extra=extra)
+                        unreachable_regions(surface, tool.radius, dc.sign), stats, extra=extra)
     return toolpath.finish(started, clearance_height)
 
 

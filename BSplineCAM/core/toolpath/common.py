@@ -15,9 +15,7 @@ from typing import Any, Callable, NamedTuple, Optional
 
 import numpy as np
 
-from ..basis import DEGREE, KnotLayout
 from ..errors import BSplineCAMError, ParameterError
-from ..matrix import locate, power_rows, span_matrices_cached
 from ..typing import FloatArray
 
 #: Valid range of the chordal tolerance (mm).
@@ -134,30 +132,37 @@ def curved_stepover(radius: float, scallop: float, curvature: FloatArray) -> Flo
     and the stepover is s = rho * theta (Lin & Koren 1996; Suresh & Yang 1994).  As rho grows
     both tend to the flat 2 sqrt(2Rh - h^2).  Where a concave rho <= R the ball cannot follow
     the surface; the flat value is returned there (those regions are reported separately).
+    ``scallop`` may be an array broadcasting against ``curvature``.
     """
-    R, h = float(radius), float(scallop)
+    R = float(radius)
     kappa = np.asarray(curvature, dtype=float)
-    flat = flat_stepover(R, h)
-    out = np.full(kappa.shape, flat)
+    h = np.broadcast_to(np.asarray(scallop, dtype=float), kappa.shape)
+    flat = 2.0 * np.sqrt(np.maximum(2.0 * R * h - h * h, 0.0))
+    out = flat.copy()
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = 1.0 / np.abs(kappa)
         convex = (kappa < 0) & (rho < 1e7)
         concave = (kappa > 0) & (rho > R * (1 + 1e-9)) & (rho < 1e7)
-        r = rho[convex]
-        c = ((r + R) ** 2 + (r + h) ** 2 - R * R) / (2 * (r + R) * (r + h))
+        r, hh = rho[convex], h[convex]
+        c = ((r + R) ** 2 + (r + hh) ** 2 - R * R) / (2 * (r + R) * (r + hh))
         out[convex] = 2 * r * np.arccos(np.clip(c, -1.0, 1.0))
-        r = rho[concave]
-        c = ((r - R) ** 2 + (r - h) ** 2 - R * R) / (2 * (r - R) * (r - h))
+        r, hh = rho[concave], h[concave]
+        c = ((r - R) ** 2 + (r - hh) ** 2 - R * R) / (2 * (r - R) * (r - hh))
         out[concave] = 2 * r * np.arccos(np.clip(c, -1.0, 1.0))
     # Where the arccos loses precision (nearly flat), keep the flat value.
-    out[~np.isfinite(out) | (out <= 0)] = flat
+    bad = ~np.isfinite(out) | (out <= 0)
+    out[bad] = flat[bad]
     return out
 
 
-# -- fast scattered evaluation with derivatives ---------------------------------------------------
+# -- local geometry -------------------------------------------------------------------------------
 @dataclass
 class Jet:
-    """Point, first and second derivatives and the upward unit normal at scattered parameters."""
+    """Point, first and second derivatives and the upward unit normal at scattered parameters.
+
+    Built by :meth:`at` from :meth:`Surface.derivatives` (the cached per-patch matrix form);
+    ``sign`` (+1 or -1) orients the normal sign * Su x Sw up, the side the ball comes from.
+    """
 
     u: FloatArray
     w: FloatArray
@@ -169,6 +174,14 @@ class Jet:
     sww: FloatArray
     sign: float = 1.0
 
+    @classmethod
+    def at(cls, surface: Any, u: FloatArray, w: FloatArray, sign: float = 1.0) -> Jet:
+        """Jet at parameters (u, w), clipped to [0, 1]."""
+        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
+        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
+        d = surface.derivatives(u, w)
+        return cls(u, w, d.point, d.su, d.sw, d.suu, d.suw, d.sww, sign)
+
     @property
     def normal(self) -> FloatArray:
         n = self.sign * np.cross(self.su, self.sw)
@@ -176,77 +189,11 @@ class Jet:
         return n / np.where(length > 0, length, 1.0)
 
 
-class Evaluator:
-    """Scattered evaluation of a cubic B-spline surface and its derivatives, patch by patch.
-
-    Each patch is pre-multiplied into its power-basis coefficients A_ij = M_i P_ij M_j^T (the
-    paper's matrix form, appendix A), so the points of one patch cost one BLAS product with
-    their [W] rows and a 4-term sum with their [U] rows; derivatives differentiate [U] and [W].
-    ``sign`` (+1 or -1) orients the normal sign * Su x Sw up (+z) on average: the side the
-    ball approaches from.
-    """
-
-    def __init__(self, surface: Any):
-        self.surface = surface
-        net = np.asarray(surface.control_points, dtype=float)
-        self.nu, self.nw = net.shape[:2]
-        self.pu, self.pw = self.nu - DEGREE, self.nw - DEGREE
-        mu = span_matrices_cached(self.nu, KnotLayout.parse(surface.knots))
-        mw = span_matrices_cached(self.nw, KnotLayout.parse(surface.knots))
-        coef = np.empty((self.pu, self.pw, 4, 12))
-        for i in range(self.pu):
-            for j in range(self.pw):
-                block = net[i:i + 4, j:j + 4]  # (4, 4, 3)
-                a = np.einsum("ak,klc,bl->bac", mu[i], block, mw[j])  # (b: w-power, a, c)
-                coef[i, j] = a.reshape(4, 12)
-        self.coef = coef
-        pts = surface.grid(9, 9)
-        nz = np.cross(np.gradient(pts, axis=0), np.gradient(pts, axis=1))[..., 2]
-        self.sign = 1.0 if float(nz.sum()) >= 0 else -1.0
-
-    def _eval(self, u: FloatArray, w: FloatArray, combos: list) -> list:
-        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
-        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
-        m = len(u)
-        iu, su = locate(u, self.nu)
-        iw, sw = locate(w, self.nw)
-        key = iu * self.pw + iw
-        order = np.argsort(key, kind="stable")
-        key, su, sw = key[order], su[order], sw[order]
-        bounds = np.searchsorted(key, np.arange(self.pu * self.pw + 1))
-        patches = np.flatnonzero(np.diff(bounds))
-        coef_t = self.coef.reshape(-1, 4, 12).transpose(0, 2, 1)  # (patch, 12 = (a, c), 4 = b)
-        xt = {}
-        for q in sorted({q for _, q in combos}):
-            rw_t = np.ascontiguousarray(power_rows(sw, q, self.pw).T)  # (4, m)
-            buf = np.empty((12, m))
-            for patch in patches:
-                lo, hi = bounds[patch], bounds[patch + 1]
-                np.matmul(coef_t[patch], rw_t[:, lo:hi], out=buf[:, lo:hi])
-            xt[q] = buf
-        rows = {}
-        out = []
-        for p, q in combos:
-            if p not in rows:
-                rows[p] = np.ascontiguousarray(power_rows(su, p, self.pu).T)  # (4, m)
-            ru, buf = rows[p], xt[q]
-            acc = np.empty((m, 3))
-            for c in range(3):
-                total = buf[c] * ru[0]
-                for a in range(1, 4):
-                    total += buf[3 * a + c] * ru[a]
-                acc[order, c] = total
-            out.append(acc)
-        return out
-
-    def points(self, u: FloatArray, w: FloatArray) -> FloatArray:
-        return self._eval(u, w, [(0, 0)])[0]
-
-    def jet(self, u: FloatArray, w: FloatArray) -> Jet:
-        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
-        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
-        p, su, sw, suu, suw, sww = self._eval(u, w, [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)])
-        return Jet(u, w, p, su, sw, suu, suw, sww, self.sign)
+def upward_sign(surface: Any) -> float:
+    """+1 if Su x Sw points up (+z) on average over the surface, else -1."""
+    pts = surface.grid(9, 9)
+    nz = np.cross(np.gradient(pts, axis=0), np.gradient(pts, axis=1))[..., 2]
+    return 1.0 if float(nz.sum()) >= 0 else -1.0
 
 
 def normal_curvature(jet: Jet, direction: FloatArray) -> FloatArray:
@@ -341,11 +288,13 @@ def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
     return out, len(unique)
 
 
-def unreachable_regions(evaluator: Evaluator, radius: float, samples: int = 201) -> list[Region]:
+def unreachable_regions(surface: Any, radius: float, sign: float | None = None,
+                        samples: int = 201) -> list[Region]:
     """Regions whose largest concave principal curvature exceeds 1/R, on a parameter grid."""
     u = np.linspace(0.0, 1.0, samples)
     uu, ww = np.meshgrid(u, u, indexing="ij")
-    jet = evaluator.jet(uu.ravel(), ww.ravel())
+    sign = upward_sign(surface) if sign is None else sign
+    jet = Jet.at(surface, uu.ravel(), ww.ravel(), sign)
     _, kmax = principal_curvatures(jet)
     kmax = kmax.reshape(samples, samples)
     mask = kmax > 1.0 / radius

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..typing import FloatArray
-from .common import Evaluator
+from .common import Jet, upward_sign
 
 #: Queries handled per chunk: bounds the (queries x candidates) temporaries.
 QUERY_CHUNK = 1024
@@ -42,11 +42,10 @@ class DropCutter:
     >>> tip_z, u, w = dc.heights(xy)          # xy: (m, 2) mm -> tip heights (mm), contacts
     """
 
-    def __init__(self, surface: Any, radius: float, evaluator: Evaluator | None = None,
-                 spacing: float | None = None):
+    def __init__(self, surface: Any, radius: float, spacing: float | None = None):
         self.surface = surface
         self.radius = float(radius)
-        self.evaluator = evaluator or Evaluator(surface)
+        self.sign = upward_sign(surface)
         # Dense sample: about R/4 between samples, so a seed lies within the basin of the
         # maximum that Newton then converges to (and cells hold a bounded number of samples).
         spacing = self.radius / 4.0 if spacing is None else float(spacing)
@@ -77,6 +76,14 @@ class DropCutter:
         gap = max(np.linalg.norm(np.diff(coarse, axis=0), axis=-1).max() * 32 / (self.n_u - 1),
                   np.linalg.norm(np.diff(coarse, axis=1), axis=-1).max() * 32 / (self.n_w - 1))
         self.margin = gap * gap / self.radius
+
+    def jet(self, u: FloatArray, w: FloatArray) -> Jet:
+        """Surface jet at (u, w) (clipped to [0, 1]) with the normal oriented upwards."""
+        return Jet.at(self.surface, u, w, self.sign)
+
+    def points(self, u: FloatArray, w: FloatArray) -> FloatArray:
+        """Surface points at (u, w), clipped to [0, 1] (mm)."""
+        return self.surface.evaluate(np.clip(u, 0.0, 1.0), np.clip(w, 0.0, 1.0))
 
     def _cells(self, xy: FloatArray) -> tuple[np.ndarray, np.ndarray]:
         c = np.floor((xy - self.lo) / self.cell).astype(np.intp) + 2
@@ -135,7 +142,7 @@ class DropCutter:
 
     # -- refinement -------------------------------------------------------------------------
     def _objective(self, q: FloatArray, u: FloatArray, w: FloatArray) -> FloatArray:
-        p = self.evaluator.points(u, w)
+        p = self.points(u, w)
         d2 = ((p[:, :2] - q) ** 2).sum(axis=1)
         R2 = self.radius ** 2
         return np.where(d2 < R2, p[:, 2] + np.sqrt(np.maximum(R2 - d2, 0.0)), -np.inf)
@@ -152,7 +159,7 @@ class DropCutter:
             if len(active) == 0:
                 break
             qa = q[active]
-            jet = self.evaluator.jet(u[active], w[active])
+            jet = self.jet(u[active], w[active])
             D = jet.p[:, :2] - qa
             h = np.sqrt(np.maximum(R2 - (D * D).sum(axis=1), 1e-300))
             Du, Dw = jet.su[:, :2], jet.sw[:, :2]
@@ -239,6 +246,26 @@ class DropCutter:
         tip = c - self.radius
         tip[~np.isfinite(tip)] = np.nan
         return tip, u, w
+
+    def slopes(self, xy: FloatArray, u: FloatArray, w: FloatArray) -> FloatArray:
+        """Gradient (dz/dx, dz/dy) of the tip height at ``xy`` from its contacts (u, w).
+
+        By the envelope theorem the derivative of max_p f(p, q) is that of f at the maximiser:
+        grad c = (p_xy - q) / sqrt(R^2 - |p_xy - q|^2) with p the contact point.  Exact where
+        the contact is unique; at a crease (two contacts) it is one of the one-sided values.
+        """
+        q = np.asarray(xy, dtype=float).reshape(-1, 2)
+        d = self.points(u, w)[:, :2] - q
+        h = np.sqrt(np.maximum(self.radius ** 2 - np.einsum("ij,ij->i", d, d), 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return d / h[:, None]
+
+    def heights_and_slopes(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Tip heights (mm; NaN off the surface) and their gradients (NaN there too)."""
+        tip, u, w = self.heights(xy)
+        grad = self.slopes(xy, u, w)
+        grad[~np.isfinite(tip)] = np.nan
+        return tip, grad
 
 
 def brute_force_heights(surface: Any, radius: float, xy: FloatArray, samples: int = 801,

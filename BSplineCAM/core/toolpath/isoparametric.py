@@ -7,7 +7,8 @@ elsewhere (concave radius below R, or a neighbouring wall), so nothing is gouged
 iso-curve is placed where the surface distance across the pass reaches the curvature-adjusted
 stepover s (:func:`common.curved_stepover`): dw = s / |Sw . t| with t the unit tangent across
 the pass, taken at its smallest along both curves.  Points along a pass are refined at chord
-midpoints and thinned by Douglas–Peucker to tolerance / 2 in 3-D.
+midpoints and thinned by Douglas–Peucker to tolerance / 2 in 3-D; then each chord is checked
+against the exact drop-cutter and its ends lifted where it would dip (:mod:`chords`).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..typing import FloatArray
+from .chords import lift_chords, sample_chords
 from .common import (
     Direction,
     IsoDirection,
@@ -38,7 +40,7 @@ def _cl(dc: DropCutter, along: FloatArray, fixed: FloatArray, iso: IsoDirection,
         radius: float) -> tuple[FloatArray, FloatArray]:
     """Tip points (m, 3) and how far each was lifted to the drop-cutter height (mm)."""
     u, w = _uw(along, fixed, iso)
-    jet = dc.evaluator.jet(u, w)
+    jet = dc.jet(u, w)
     cl = jet.p + radius * jet.normal
     cl[:, 2] -= radius
     drop = dc.heights(cl[:, :2])[0]
@@ -51,7 +53,7 @@ def _allowed_step(dc: DropCutter, tool: ToolParameters, along: FloatArray, fixed
                   iso: IsoDirection) -> float:
     """Largest parameter step across the pass keeping the scallop <= h along this curve."""
     u, w = _uw(along, np.full(len(along), fixed), iso)
-    jet = dc.evaluator.jet(u, w)
+    jet = dc.jet(u, w)
     n = jet.normal
     tangent = jet.su if iso is IsoDirection.U else jet.sw
     cross_d = jet.sw if iso is IsoDirection.U else jet.su
@@ -92,9 +94,10 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
     cl, lift = _cl(dc, t, f, iso, tool.radius)
     monitor(0.7)
     half = 0.5 * tool.tolerance
+    fresh = np.ones(len(t), bool)  # intervals not yet checked start or end at these
     for _ in range(6):
         ok = lines[:-1] == lines[1:]
-        idx = np.flatnonzero(ok & (np.diff(t) > 1e-9))
+        idx = np.flatnonzero(ok & (np.diff(t) > 1e-9) & (fresh[:-1] | fresh[1:]))
         tm = 0.5 * (t[idx] + t[idx + 1])
         cm, lm = _cl(dc, tm, f[idx], iso, tool.radius)
         dev = np.linalg.norm(cm - 0.5 * (cl[idx] + cl[idx + 1]), axis=1)
@@ -106,14 +109,21 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
         f = np.concatenate([f, f[idx][bad]])
         cl = np.concatenate([cl, cm[bad]])
         lift = np.concatenate([lift, lm[bad]])
+        fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
         order = np.lexsort((t, lines))
         lines, t, f, cl, lift = lines[order], t[order], f[order], cl[order], lift[order]
+        fresh = fresh[order]
     monitor(0.9)
     starts = np.concatenate([[0], np.flatnonzero(np.diff(lines)) + 1, [len(lines)]])
     keep = simplify(cl, starts, half, "distance")
+    raw = [cl[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+    samples = sample_chords(dc.heights_and_slopes, raw, [p[:, 2] for p in raw], step)
+    lift_stats = lift_chords(dc.heights_and_slopes, samples)
+    vxy, vz, vline = samples.vertices()
+    cuts = np.flatnonzero(np.diff(vline)) + 1
     passes = []
-    for k, (a, b) in enumerate(zip(starts[:-1], starts[1:])):
-        p = cl[a:b][keep[a:b]]
+    for k, (pxy, pz) in enumerate(zip(np.split(vxy, cuts), np.split(vz, cuts))):
+        p = np.column_stack([pxy, pz])
         passes.append(p[::-1] if direction is Direction.ZIGZAG and k % 2 else p)
     steps = np.diff(fixed)
     lifted = int((lift > tool.tolerance).sum())
@@ -121,5 +131,5 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
     return passes, {
         "stepover_min_mm": float("nan"), "stepover_max_mm": float("nan"),
         "parameter_step_min": float(steps.min()), "parameter_step_max": float(steps.max()),
-        "iso_values": fixed, "lifted_points": lifted, "notes": notes,
+        "iso_values": fixed, "lifted_points": lifted, "notes": notes, "chord_lift": lift_stats,
     }

@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 
 from ..typing import FloatArray
+from .chords import ChordSamples, lift_chords
 from .common import (
     Direction,
-    Evaluator,
     Monitor,
     ToolParameters,
     curved_stepover,
@@ -36,14 +36,42 @@ from .dropcutter import DropCutter
 REFINE_ROUNDS = 6
 
 
+def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: FloatArray,
+                           across: FloatArray, along: FloatArray) -> FloatArray:
+    """Largest XY distance between passes (mm) leaving cusps at most ``scallop`` high, measured
+    vertically as a Z-map (and the verification) sees them.
+
+    Work in the vertical plane across the passes.  There the surface is a curve z(y) of slope
+    p = tan(slope across) and z'' = kappa_n (1 + p^2)^(3/2) / cos(phi) (Meusnier; kappa_n the
+    normal curvature along the curve's tangent, phi between the curve's principal normal and
+    the surface normal n).  A ball moving along a path inclined by beta (the slope along the
+    pass) sweeps a cylinder whose section is an ellipse, R across and R / cos(beta) vertically;
+    scaling Z by cos(beta) turns it into the circle of radius R and the curve into one of
+    slope p cos(beta) and z'' cos(beta), with vertical cusps scaled alike.  There the circular
+    cusp formula (:func:`curved_stepover`) applies with the normal cusp
+    h_n = h cos(beta) / sqrt(1 + (p cos(beta))^2), which stands h cos(beta) above the scaled
+    curve, i.e. h above the real one.
+    """
+    nz = np.clip(n[:, 2], 1e-3, 1.0)
+    p = -(n[:, :2] @ across) / nz  # slope across
+    ta = -(n[:, :2] @ along) / nz  # slope along
+    cos_b = 1.0 / np.sqrt(1.0 + ta * ta)
+    sec = np.sqrt(1.0 + p * p)
+    cos_phi = np.clip((nz - p * (n[:, :2] @ across)) / sec, 1e-3, 1.0)
+    z2 = kappa * sec ** 3 / cos_phi * cos_b
+    p2 = p * cos_b
+    sec2 = np.sqrt(1.0 + p2 * p2)
+    h_n = scallop * cos_b / sec2
+    return curved_stepover(radius, h_n, z2 / sec2 ** 3) / sec2
+
+
 class RasterPlanner:
     """State shared by the passes of one raster: frame, drop-cutter and sampling steps."""
 
     def __init__(self, surface: Any, tool: ToolParameters, angle_deg: float,
                  dropcutter: DropCutter | None = None):
         self.tool = tool
-        self.evaluator = dropcutter.evaluator if dropcutter else Evaluator(surface)
-        self.dc = dropcutter or DropCutter(surface, tool.radius, self.evaluator)
+        self.dc = dropcutter or DropCutter(surface, tool.radius)
         theta = math.radians(angle_deg)
         self.along = np.array([math.cos(theta), math.sin(theta)])
         self.across = np.array([-math.sin(theta), math.cos(theta)])
@@ -73,14 +101,14 @@ class RasterPlanner:
         XY stepover (mm) keeping the scallop <= h there, sorted by the former."""
         dc, tool = self.dc, self.tool
         uu, ww = np.meshgrid(dc.u, dc.w, indexing="ij")
-        jet = self.evaluator.jet(uu.ravel(), ww.ravel())
+        jet = dc.jet(uu.ravel(), ww.ravel())
         n = jet.normal
         c = self.across
-        nz = np.maximum(n[:, 2], 1e-3)
+        nz = np.clip(n[:, 2], 1e-3, 1.0)
         tz = -(n[:, 0] * c[0] + n[:, 1] * c[1]) / nz
         t = np.column_stack([np.full(len(tz), c[0]), np.full(len(tz), c[1]), tz])
         kappa = normal_curvature(jet, t)
-        xy = curved_stepover(tool.radius, tool.scallop, kappa) / np.sqrt(1.0 + tz * tz)
+        xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, c, self.along)
         xy = np.maximum(xy, 0.02 * tool.flat_stepover)
         b_off = (jet.p[:, :2] + tool.radius * n[:, :2]) @ c
         order = np.argsort(b_off)
@@ -120,9 +148,10 @@ class RasterPlanner:
         b = np.asarray(offsets)
         z, u, w = self._heights(a, b[line], monitor, 0.0, 0.6)
         half = 0.5 * self.tool.tolerance
+        fresh = np.ones(len(a), bool)  # intervals not yet checked start at these samples
         for r in range(REFINE_ROUNDS):
             ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
-            idx = np.flatnonzero(ok & (np.diff(a) > 1e-6))
+            idx = np.flatnonzero(ok & (np.diff(a) > 1e-6) & (fresh[:-1] | fresh[1:]))
             if len(idx) == 0:
                 break
             am = 0.5 * (a[idx] + a[idx + 1])
@@ -137,8 +166,10 @@ class RasterPlanner:
             z = np.concatenate([z, zm[bad]])
             u = np.concatenate([u, um[bad]])
             w = np.concatenate([w, wm[bad]])
+            fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
             order = np.lexsort((a, line))
             line, a, z, u, w = line[order], a[order], z[order], u[order], w[order]
+            fresh = fresh[order]
         return line, a, z, u, w
 
     def _heights(self, a: FloatArray, b: FloatArray, monitor: Monitor, f0: float, f1: float):
@@ -167,13 +198,22 @@ def raster(surface: Any, tool: ToolParameters, angle_deg: float, direction: Dire
     runs = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:])
             if hi - lo >= 2 and np.isfinite(z[lo])]
     passes: list = []
+    lift_stats: dict = {}
     if runs:
         idx = np.concatenate([np.arange(lo, hi) for lo, hi in runs])
-        pts = np.column_stack([plan._xy(a[idx], bvals[line[idx]]), z[idx]])
+        xy = plan._xy(a[idx], bvals[line[idx]])
+        pts = np.column_stack([xy, z[idx]])
         starts = np.cumsum([0] + [hi - lo for lo, hi in runs])
         keep = simplify(pts, starts, 0.5 * tool.tolerance, "vertical")
-        for (lo, _hi), s0, s1 in zip(runs, starts[:-1], starts[1:]):
-            passes.append((int(line[lo]), pts[s0:s1][keep[s0:s1]]))
+        run_id = np.repeat(np.arange(len(runs)), np.diff(starts))
+        samples = ChordSamples(a[idx], xy, z[idx], plan.dc.slopes(xy, _u[idx], _w[idx]),
+                               run_id, keep, z[idx].copy())
+        monitor(0.85)
+        lift_stats = lift_chords(plan.dc.heights_and_slopes, samples)
+        vxy, vz, vline = samples.vertices()
+        cuts = np.flatnonzero(np.diff(vline)) + 1
+        for (lo, _hi), pxy, pz in zip(runs, np.split(vxy, cuts), np.split(vz, cuts)):
+            passes.append((int(line[lo]), np.column_stack([pxy, pz])))
     monitor(1.0)
     if direction is Direction.ZIGZAG:
         ordered = []
@@ -190,5 +230,6 @@ def raster(surface: Any, tool: ToolParameters, angle_deg: float, direction: Dire
         "stepover_max_mm": float(steps.max()) if len(steps) else float("nan"),
         "line_offsets_mm": bvals.tolist(),
         "angle_frame": (plan.along.tolist(), plan.across.tolist()),
+        "chord_lift": lift_stats,
     }
     return ordered, extra

@@ -5,8 +5,10 @@ At tip height z the ball touches the surface without cutting exactly where the d
 height c(x, y) - R equals z, so each waterline is a level set of the exact drop-cutter field
 (the offset surface S + R n with its folds resolved by the max).  Levels are found by
 marching squares (Lorensen & Cline 1987) on a grid of exact heights, each crossing is
-polished on its grid edge by regula falsi on the exact drop-cutter, and chords whose
-midpoint would have the tool below the exact height by more than the tolerance are split.
+polished on its grid edge by regula falsi on the exact drop-cutter, thinned by Douglas–Peucker
+to tolerance / 2 in XY, and every chord is checked against the exact drop-cutter: where the
+ball would dip below the level (a chord across a convex contour) the vertices are pushed
+outwards (:func:`push_out`).
 The step-down follows the scallop on walls: adjacent contours a slope alpha apart along the
 surface are dz / sin(alpha) apart, so dz = s sin(alpha) with s the curvature-adjusted
 stepover; walls shallower than ``min_slope`` are left to a raster pass (reported in notes).
@@ -20,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..typing import FloatArray
+from .chords import CLEARANCE, chord_excess, sample_chords
 from .common import Monitor, ToolParameters, curved_stepover, normal_curvature, simplify
 from .dropcutter import DropCutter
 
@@ -36,7 +39,7 @@ def level_heights(dc: DropCutter, tool: ToolParameters, min_slope: float,
                   z_top: float, z_bottom: float) -> list[float]:
     """Tip heights of the waterlines, top down (mm), from scallop-limited step-downs."""
     uu, ww = np.meshgrid(dc.u, dc.w, indexing="ij")
-    jet = dc.evaluator.jet(uu.ravel(), ww.ravel())
+    jet = dc.jet(uu.ravel(), ww.ravel())
     n = jet.normal
     sin_a = np.sqrt(np.clip(1.0 - n[:, 2] ** 2, 0.0, 1.0))
     steep = sin_a >= math.sin(min_slope)
@@ -175,44 +178,82 @@ def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Mon
     xy = p0 + t[:, None] * (p1 - p0)
     pts = np.column_stack([xy, zl])
     starts = np.cumsum([0] + [len(p) for p in polylines])
-    pts, starts = _split_chords(dc, pts, starts, tool.tolerance)
-    monitor(0.9)
+    monitor(0.8)
     keep = simplify(pts, starts, 0.5 * tool.tolerance, "planar")
     passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+    step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
+    passes, push_stats = push_out(dc, passes, step)
+    monitor(0.95)
     steps = -np.diff(levels) if len(levels) > 1 else np.array([np.nan])
     return passes, {
         "levels": levels, "stepover_min_mm": float(np.nanmin(steps)),
-        "stepover_max_mm": float(np.nanmax(steps)),
+        "stepover_max_mm": float(np.nanmax(steps)), "chord_push": push_stats,
         "notes": [f"walls below {math.degrees(min_slope):g} degrees are not finished by "
                   "waterline; pair with a raster pass"],
     }
 
 
-def _split_chords(dc: DropCutter, pts: FloatArray, starts: np.ndarray,
-                  tolerance: float) -> tuple[FloatArray, np.ndarray]:
-    """Insert contour points where a chord midpoint has the exact height above the level by
-    more than ``tolerance`` (the tool would dip into the surface there)."""
-    for _ in range(4):
-        same = np.ones(len(pts) - 1, bool)
-        same[starts[1:-1] - 1] = False
-        mid = 0.5 * (pts[:-1, :2] + pts[1:, :2])
-        level = pts[:-1, 2]
-        zm = dc.heights(mid)[0]
-        bad = same & np.isfinite(zm) & (zm - level > tolerance)
-        idx = np.flatnonzero(bad)
-        if len(idx) == 0:
+def push_out(dc: DropCutter, passes: list, step: float,
+             iterations: int = 6) -> tuple[list, dict]:
+    """Move waterline vertices outwards (downhill, in XY) until no chord at the level has the
+    exact drop-cutter height above it: a chord across a convex contour lies inside the offset.
+
+    A chord whose worst point is ``e`` above the level, where the height falls at rate
+    |grad . m| across the chord (m its unit XY normal, pointing downhill), is shifted by
+    (e + CLEARANCE) / |grad . m|; a shared vertex moves along the bisector of its chords'
+    normals far enough for both.  Repeated until no chord dips more than ``DIP_LIMIT``.
+    """
+    passes = [np.array(p, dtype=float) for p in passes]
+    moved_max = 0.0
+    worst = np.inf
+    it = 0
+    for it in range(1, iterations + 1):
+        s = sample_chords(dc.heights_and_slopes, passes, [p[:, 2] for p in passes], step)
+        check = chord_excess(dc.heights_and_slopes, s)
+        worst = float(np.max(check.excess, initial=-np.inf))
+        if worst <= 0.0:
             break
-        q = mid[idx]
-        lv = level[idx]
-        for _newton in range(3):
-            eps = 1e-3
-            zq = dc.heights(q)[0]
-            gx = (dc.heights(q + [eps, 0.0])[0] - zq) / eps
-            gy = (dc.heights(q + [0.0, eps])[0] - zq) / eps
-            g2 = np.maximum(gx * gx + gy * gy, 1e-12)
-            q = q - ((zq - lv) / g2)[:, None] * np.column_stack([gx, gy])
-        new = np.column_stack([q, lv])
-        pts = np.insert(pts, idx + 1, new, axis=0)
-        shift = np.searchsorted(idx + 1, starts, side="right")
-        starts = starts + shift
-    return pts, starts
+        vxy, _, vline = s.vertices()
+        gv = s.grad[s.vertex]
+        same = np.append(vline[1:] == vline[:-1], False)
+        nxt = np.minimum(np.arange(len(vxy)) + 1, len(vxy) - 1)
+        d = vxy[nxt] - vxy
+        length = np.hypot(d[:, 0], d[:, 1])
+        normal = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(length, 1e-300)[:, None]
+        grad = np.where(np.isfinite(check.grad), check.grad,
+                        0.5 * (np.nan_to_num(gv) + np.nan_to_num(gv[nxt])))
+        rate = np.einsum("ij,ij->i", grad, normal)
+        normal *= -np.sign(np.where(rate == 0, 1.0, rate))[:, None]  # downhill
+        rate = np.maximum(np.abs(rate), 1e-3)
+        need = same & np.isfinite(check.excess) & (check.excess > -CLEARANCE)
+        shift = np.where(need, (np.maximum(check.excess, 0.0) + CLEARANCE) / rate, 0.0)
+        # Vertex r takes chord r (r -> r+1) and chord r-1 (r-1 -> r) of the same line.
+        prev = np.append(False, same[:-1])
+        m1 = np.where(need[:, None], normal, 0.0)
+        m0 = np.zeros_like(m1)
+        s0 = np.zeros(len(vxy))
+        m0[1:] = np.where(prev[1:, None] & need[:-1, None], normal[:-1], 0.0)
+        s0[1:] = np.where(prev[1:], shift[:-1], 0.0)
+        both = m0 + m1
+        norm = np.hypot(both[:, 0], both[:, 1])
+        direction = both / np.where(norm > 0, norm, 1.0)[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c1 = np.einsum("ij,ij->i", direction, m1)
+            c0 = np.einsum("ij,ij->i", direction, m0)
+            amount = np.fmax(np.where(c1 > 0.1, shift / c1, 0.0),
+                             np.where(c0 > 0.1, s0 / c0, 0.0))
+        amount = np.where(norm > 0, amount, 0.0)
+        move = direction * amount[:, None]
+        # Closed contours repeat their first vertex at the end: move both copies alike.
+        firsts = np.flatnonzero(np.append(True, vline[1:] != vline[:-1]))
+        lasts = np.append(firsts[1:] - 1, len(vline) - 1)
+        closed = np.hypot(*(vxy[firsts] - vxy[lasts]).T) < 1e-9
+        fc, lc = firsts[closed], lasts[closed]
+        joint = move[fc] + move[lc]
+        move[fc] = joint
+        move[lc] = joint
+        moved_max = max(moved_max, float(np.hypot(move[:, 0], move[:, 1]).max(initial=0.0)))
+        new = vxy + move
+        cuts = np.flatnonzero(np.diff(vline)) + 1
+        passes = [np.column_stack([q, p[:, 2]]) for q, p in zip(np.split(new, cuts), passes)]
+    return passes, {"max_push_mm": moved_max, "worst_dip_mm": worst, "iterations": it}

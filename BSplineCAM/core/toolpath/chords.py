@@ -1,0 +1,287 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""One-sided chords: straight moves between cutter locations that never dip below the exact
+cutter-location (CL) height.
+
+On a convex stretch the chord between two points of the CL curve lies below the curve, so a
+straight move would let the ball cut into the part by up to the sag.  Each chord is checked
+against the exact drop-cutter: along it the CL height z is known exactly at samples, with its
+slope from the contact point (envelope theorem, :meth:`DropCutter.slopes`).  Between samples
+the cubic Hermite interpolant (error O(d^4 z'''') / 384, de Boor, "A Practical Guide to
+Splines", ch. IV) locates each chord's largest excess z - chord; that point is evaluated with
+the exact drop-cutter and, where Hermite and exact values disagree by more than
+``MODEL_ERROR``, inserted as a sample and the chord examined again.  Intervals whose slopes
+cannot be trusted (a wall steeper than ``MAX_SLOPE``, a contact on the ball's rim) are
+bisected with exact samples instead.
+
+:func:`lift_chords` (raster, iso-parametric) then lifts each chord's end vertices by its
+excess plus ``CLEARANCE`` (a vertex shared by two chords takes the larger lift) and checks
+again, until no chord dips more than ``DIP_LIMIT``.  Waterlines keep their Z and push their
+vertices outwards instead (:mod:`waterline`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..typing import FloatArray
+
+#: A chord may dip below the exact CL height by at most this (mm): numerically zero.
+DIP_LIMIT = 1e-7
+#: Each lift clears a chord's worst point by this much (mm), covering the model error.
+CLEARANCE = 5e-8
+#: Largest disagreement (mm) between the Hermite model and the exact height at a chord's
+#: worst point before the point becomes a sample and the chord is examined again.
+MODEL_ERROR = 2e-8
+#: Largest |grad z| at which the Hermite model of the CL height is trusted.
+MAX_SLOPE = 20.0
+#: Intervals whose modelled maximum lies within this (mm) of the chord's best are evaluated.
+NEAR = 1e-5
+#: Intervals shorter than this (mm) are not split further.
+MIN_SPLIT = 1e-5
+#: Rounds of sample insertion per check.
+ROUNDS = 10
+
+#: query(xy) -> (tip heights (m,), gradients (m, 2)), NaN where the ball meets no surface.
+QueryFn = Callable[[FloatArray], "tuple[FloatArray, FloatArray]"]
+
+
+@dataclass
+class ChordSamples:
+    """Exact CL samples of polylines, back to back.
+
+    ``pos`` (mm) increases along each line and is linear in XY along every chord; ``vertex``
+    marks the polyline's vertices (first and last sample of each line included); ``zv`` holds
+    the chord height at the vertices (z plus any lift; ignored elsewhere).
+    """
+
+    pos: FloatArray
+    xy: FloatArray
+    z: FloatArray
+    grad: FloatArray
+    line: np.ndarray
+    vertex: np.ndarray
+    zv: FloatArray
+
+    def insert(self, after: np.ndarray, pos: FloatArray, xy: FloatArray, z: FloatArray,
+               grad: FloatArray) -> None:
+        """Add exact non-vertex samples, each inside the interval from sample ``after[i]`` to
+        ``after[i] + 1``, keeping the order by (line, pos)."""
+        if len(pos) == 0:
+            return
+        order = np.lexsort((pos, after))
+        at = after[order] + 1
+        self.pos = np.insert(self.pos, at, pos[order])
+        self.xy = np.insert(self.xy, at, xy[order], axis=0)
+        self.z = np.insert(self.z, at, z[order])
+        self.grad = np.insert(self.grad, at, grad[order], axis=0)
+        self.line = np.insert(self.line, at, self.line[after[order]])
+        self.vertex = np.insert(self.vertex, at, False)
+        self.zv = np.insert(self.zv, at, z[order])
+
+    def vertices(self) -> tuple[FloatArray, FloatArray, np.ndarray]:
+        """XY, chord heights and line of the vertices, in order."""
+        v = self.vertex
+        return self.xy[v], self.zv[v], self.line[v]
+
+
+@dataclass
+class ChordCheck:
+    """Per vertex rank r (the chord from vertex r to r + 1): the largest excess of the exact
+    CL height over the chord (mm; -inf where r ends its line) and, where that point had to be
+    evaluated between samples, its XY and height gradient (NaN where it is a sample)."""
+
+    excess: FloatArray
+    where: FloatArray
+    grad: FloatArray
+    unresolved: int
+
+
+def _hermite_max(z0, z1, m0, m1, c0, c1):
+    """Max over tau in [0, 1] of H(tau) - (c0 + tau (c1 - c0)) and its tau, H the cubic
+    Hermite interpolant of values z0, z1 and end slopes m0, m1 (per unit tau)."""
+    a3 = 2.0 * z0 + m0 - 2.0 * z1 + m1
+    a2 = -3.0 * z0 - 2.0 * m0 + 3.0 * z1 - m1
+    a1 = m0 - (c1 - c0)
+    a0 = z0 - c0
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        disc = np.sqrt(np.maximum(a2 * a2 - 3.0 * a3 * a1, 0.0))
+        cubic = np.abs(a3) > 1e-14 * (np.abs(a2) + np.abs(a1) + 1e-300)
+        r1 = np.where(cubic, (-a2 + disc) / (3.0 * a3), -a1 / (2.0 * a2))
+        r2 = np.where(cubic, (-a2 - disc) / (3.0 * a3), np.nan)
+    tau = np.column_stack([np.zeros_like(z0), np.ones_like(z0), r1, r2])
+    tau = np.where((tau >= 0.0) & (tau <= 1.0), tau, np.nan)
+    tau[:, :2] = (0.0, 1.0)
+    g = ((a3[:, None] * tau + a2[:, None]) * tau + a1[:, None]) * tau + a0[:, None]
+    g = np.where(np.isnan(g), -np.inf, g)
+    best = np.argmax(g, axis=1)
+    rows = np.arange(len(z0))
+    return g[rows, best], tau[rows, best]
+
+
+def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> ChordCheck:
+    """Largest exact CL height above each chord (see the module docstring); inserts into
+    ``s`` the samples it had to evaluate."""
+    nvert = int(s.vertex.sum())
+    done_excess = np.full(nvert, -np.inf)
+    done_where = np.full((nvert, 2), np.nan)
+    done_grad = np.full((nvert, 2), np.nan)
+    resolved = np.zeros(nvert, bool)
+    unresolved = 0
+    for r in range(rounds + 1):
+        n = len(s.pos)
+        idx = np.arange(n)
+        va = np.maximum.accumulate(np.where(s.vertex, idx, 0))
+        vb = np.minimum.accumulate(np.where(s.vertex, idx, n - 1)[::-1])[::-1]
+        rank = np.cumsum(s.vertex) - 1
+        k = np.flatnonzero(s.line[:-1] == s.line[1:])
+        k = k[~resolved[rank[va[k]]]]  # intervals of chords still open
+        a, b = va[k], vb[k + 1]
+        cid = rank[a]
+        span = s.pos[b] - s.pos[a]
+        span = np.where(span > 0, span, 1.0)
+        c0 = s.zv[a] + (s.pos[k] - s.pos[a]) / span * (s.zv[b] - s.zv[a])
+        c1 = s.zv[a] + (s.pos[k + 1] - s.pos[a]) / span * (s.zv[b] - s.zv[a])
+        z0, z1 = s.z[k], s.z[k + 1]
+        d = s.xy[k + 1] - s.xy[k]
+        g0, g1 = s.grad[k], s.grad[k + 1]
+        m0 = np.einsum("ij,ij->i", g0, d)
+        m1 = np.einsum("ij,ij->i", g1, d)
+        finite = np.isfinite(z0) & np.isfinite(z1)
+        steep = np.maximum(np.abs(g0).max(axis=1), np.abs(g1).max(axis=1))
+        reliable = finite & np.isfinite(m0) & np.isfinite(m1) & (steep <= MAX_SLOPE)
+        gh = np.full(len(k), -np.inf)
+        tau = np.full(len(k), np.nan)
+        if reliable.any():
+            gh[reliable], tau[reliable] = _hermite_max(z0[reliable], z1[reliable], m0[reliable],
+                                                       m1[reliable], c0[reliable], c1[reliable])
+        ends = np.fmax(np.where(np.isfinite(z0), z0 - c0, -np.inf),
+                       np.where(np.isfinite(z1), z1 - c1, -np.inf))
+        length = np.hypot(d[:, 0], d[:, 1])
+        # Unreliable intervals: bounded by their exact ends once too short to split.
+        rough = finite & ~reliable
+        gh[rough] = ends[rough]
+        todo = ~resolved[cid]
+        split = rough & todo & (length > MIN_SPLIT)
+        # Best interval of every chord still open.
+        best_excess = np.full(nvert, -np.inf)
+        np.maximum.at(best_excess, cid, np.fmax(gh, ends))
+        # Query every interval whose modelled maximum lies inside it, above its exact ends,
+        # and near the chord's best: a second bump may hide a larger model error.
+        cand = reliable & todo & (gh > ends + 0.5 * MODEL_ERROR)
+        cand &= gh >= best_excess[cid] - NEAR
+        cand_idx = np.flatnonzero(cand)
+        new_after, new_pos, new_xy = [], [], []
+        if r < rounds and len(cand_idx):
+            kk = k[cand_idx]
+            t = tau[cand_idx]
+            q = s.xy[kk] + t[:, None] * d[cand_idx]
+            zq, gq = query(q)
+            cq = c0[cand_idx] + t * (c1[cand_idx] - c0[cand_idx])
+            exact = np.where(np.isfinite(zq), zq - cq, -np.inf)
+            err = np.abs(gh[cand_idx] - exact)
+            ok = (err <= MODEL_ERROR) | (length[cand_idx] * np.minimum(t, 1 - t) <= MIN_SPLIT)
+            ch = cid[cand_idx]
+            # A chord is resolved when all its candidates matched the model.
+            failed = np.zeros(nvert, bool)
+            failed[ch[~ok]] = True
+            bound = np.full(nvert, -np.inf)
+            np.maximum.at(bound, ch, exact + err)
+            order = np.lexsort((-exact, ch))
+            head = order[np.r_[True, ch[order][1:] != ch[order][:-1]]]
+            okc = np.unique(ch[~failed[ch]])
+            done_excess[okc] = np.fmax(best_excess[okc], bound[okc])
+            done_where[ch[head]] = q[head]
+            done_grad[ch[head]] = gq[head]
+            resolved[okc] = True
+            # Every evaluated point becomes a sample: the next check starts from it.
+            inside = length[cand_idx] * np.minimum(t, 1 - t) > MIN_SPLIT
+            new_after.append(kk[inside])
+            new_pos.append(s.pos[kk[inside]]
+                           + t[inside] * (s.pos[kk[inside] + 1] - s.pos[kk[inside]]))
+            new_xy.append(q[inside])
+            s_insert = (zq[inside], gq[inside])
+        else:
+            s_insert = (np.empty(0), np.empty((0, 2)))
+        # Chords with no candidate (their worst point is a sample or a rough end) are done
+        # once no rough interval is left to split.
+        has_split = np.zeros(nvert, bool)
+        has_split[cid[split]] = True
+        has_cand = np.zeros(nvert, bool)
+        has_cand[cid[cand_idx]] = True
+        chords = np.zeros(nvert, bool)
+        chords[cid] = True
+        finish = chords & ~resolved & ~has_cand & ~has_split
+        if r == rounds:
+            unresolved = int((chords & ~resolved & ~finish).sum())
+            finish = chords & ~resolved
+        done_excess[finish] = best_excess[finish]
+        resolved[finish] = True
+        split_pos = split & (r < rounds)
+        ks = k[split_pos]
+        mid_xy = 0.5 * (s.xy[ks] + s.xy[ks + 1])
+        zs, gs = query(mid_xy) if len(ks) else (np.empty(0), np.empty((0, 2)))
+        s.insert(np.concatenate(new_after + [ks]).astype(np.intp),
+                 np.concatenate(new_pos + [0.5 * (s.pos[ks] + s.pos[ks + 1])]),
+                 np.concatenate(new_xy + [mid_xy]).reshape(-1, 2),
+                 np.concatenate([s_insert[0], zs]),
+                 np.concatenate([s_insert[1], gs]).reshape(-1, 2))
+        if resolved[chords].all():
+            break
+    return ChordCheck(done_excess, done_where, done_grad, unresolved)
+
+
+def lift_chords(query: QueryFn, s: ChordSamples, iterations: int = 4) -> dict:
+    """Raise the vertices in ``s.zv`` until every chord clears the exact CL height.
+
+    Each chord's end vertices are lifted by its excess plus ``CLEARANCE`` (shared vertices take
+    the larger lift, which only raises the neighbouring chord); the check is repeated until no
+    chord dips more than ``DIP_LIMIT``.  Returns statistics (largest lift in mm, iterations).
+    """
+    z0 = s.zv[s.vertex].copy()
+    worst = np.inf
+    it = 0
+    unresolved = 0
+    for it in range(1, iterations + 1):
+        check = chord_excess(query, s)
+        exc = check.excess
+        unresolved = check.unresolved
+        worst = float(np.max(exc, initial=-np.inf))
+        if worst <= 0.0 or (worst <= DIP_LIMIT and it == iterations):
+            break
+        lift = np.where(np.isfinite(exc), np.maximum(exc + CLEARANCE, 0.0), 0.0)
+        vertex_lift = lift.copy()
+        line_v = s.line[s.vertex]
+        same = line_v[1:] == line_v[:-1]
+        vertex_lift[1:] = np.maximum(vertex_lift[1:], np.where(same, lift[:-1], 0.0))
+        if not vertex_lift.any():
+            break
+        s.zv[s.vertex] += vertex_lift
+    return {"max_lift_mm": float(np.max(s.zv[s.vertex] - z0, initial=0.0)),
+            "worst_dip_mm": worst, "iterations": it, "unresolved_chords": unresolved}
+
+
+def sample_chords(query: QueryFn, polylines: list, zv: list, step: float) -> ChordSamples:
+    """Exact CL samples along the chords of ``polylines`` ((n, 2+) XY arrays), at most
+    ``step`` mm apart, vertices included; ``zv`` gives each polyline's vertex heights."""
+    pos, xy, line, vertex, zvs = [], [], [], [], []
+    for k, (p, zp) in enumerate(zip(polylines, zv)):
+        p = np.asarray(p, dtype=float)[:, :2]
+        seg = np.hypot(*np.diff(p, axis=0).T)
+        n = np.maximum(np.ceil(seg / step).astype(int), 1)
+        chord = np.repeat(np.arange(len(seg)), n)
+        frac = np.concatenate([np.arange(m) / m for m in n])
+        start = np.concatenate([[0.0], np.cumsum(seg)])
+        pos.append(np.concatenate([start[chord] + frac * seg[chord], start[-1:]]))
+        xy.append(np.concatenate([p[chord] + frac[:, None] * (p[chord + 1] - p[chord]), p[-1:]]))
+        line.append(np.full(len(chord) + 1, k))
+        vertex.append(np.concatenate([frac == 0.0, [True]]))
+        zfull = np.full(len(chord) + 1, np.nan)
+        zfull[vertex[-1]] = zp
+        zvs.append(zfull)
+    xy_all = np.concatenate(xy)
+    z, grad = query(xy_all)
+    return ChordSamples(np.concatenate(pos), xy_all, z, grad, np.concatenate(line),
+                        np.concatenate(vertex), np.concatenate(zvs))

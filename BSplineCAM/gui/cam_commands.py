@@ -1,0 +1,451 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The machining commands: a job with the finishing op, post-processing, and verification.
+
+* ``BSplineCAM_Job``: a task panel asks the tool, scallop, tolerance, strategy and feeds, then
+  one transaction makes the surface solid, adds a Path/CAM Job with a ball-end tool controller
+  and the finishing op, and computes it (progress in the status bar, Esc interrupts); any
+  failure or interruption aborts the transaction, so the document is left as it was.
+* ``BSplineCAM_PostProcess``: a post (linuxcnc, grbl, fanuc, mach3_mach4) and a file; the
+  program is checked by LinuxCNC's ``rs274`` when installed, the result in the report view.
+* ``BSplineCAM_Verify``: the selected job's program (posted to a temporary linuxcnc file), or
+  a chosen G-code file on the selected surface, simulated from its text; the simulated part
+  appears coloured by deviation and the metrics go to the report view.
+
+Like :mod:`.commands`, the work runs through ``FreeCADGui.doCommand`` inside a transaction;
+dialogs go through replaceable ``ask_*`` functions (tests answer them).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import os
+from collections.abc import Iterator
+from pathlib import Path
+
+import FreeCAD
+import FreeCADGui
+from PySide import QtGui
+
+from ..app import compat
+from ..app.surface_feature import is_surface
+from ..core.toolpath.common import ToolpathCancelled
+from . import commands
+from .commands import BaseCommand, obj_ref, transaction, wait_cursor
+from .messages import report_error, show_info
+from .resources import icon
+
+GCODE_FILTER = "G-code (*.ngc *.nc *.gcode *.tap *.txt);;All files (*)"
+#: File suffix suggested per post-processor.
+POST_SUFFIX = {"linuxcnc": ".ngc", "grbl": ".nc", "fanuc": ".nc", "mach3_mach4": ".tap"}
+
+
+# -- dialogs (tests replace these) -----------------------------------------------------------
+def ask_post(posts: list[str]) -> str:
+    """Post-processor chosen from ``posts`` ('' when cancelled)."""
+    name, ok = QtGui.QInputDialog.getItem(FreeCADGui.getMainWindow(), "Post-process",
+                                          "Post-processor:", posts, 0, False)
+    return str(name) if ok else ""
+
+
+def ask_tool_diameter() -> float:
+    """Ball-end diameter (mm) of a program chosen from a file (0 when cancelled)."""
+    value, ok = QtGui.QInputDialog.getDouble(FreeCADGui.getMainWindow(), "Verify G-code",
+                                             "Ball-end tool diameter (mm):", 6.0, 0.01, 1000.0, 3)
+    return float(value) if ok else 0.0
+
+
+# -- selection -------------------------------------------------------------------------------
+def is_job(obj) -> bool:
+    return all(hasattr(obj, name) for name in ("Operations", "Tools", "Model", "Stock"))
+
+
+def is_finishing_op(obj) -> bool:
+    return type(getattr(obj, "Proxy", None)).__name__ == "ObjectSurfaceFinish"
+
+
+def selected_job():
+    """The job of the one selected job or finishing op (None otherwise; cheap)."""
+    selection = FreeCADGui.Selection.getSelection()
+    if len(selection) != 1:
+        return None
+    obj = selection[0]
+    if is_job(obj):
+        return obj
+    if is_finishing_op(obj):
+        from ..app.verify_feature import job_of
+
+        return job_of(obj)
+    return None
+
+
+def selected_surface():
+    selection = FreeCADGui.Selection.getSelection()
+    return selection[0] if len(selection) == 1 and is_surface(selection[0]) else None
+
+
+def gui_ref(obj) -> str:
+    return f"Gui.getDocument({obj.Document.Name!r}).getObject({obj.Name!r})"
+
+
+# -- Path GUI pieces (view providers), FreeCAD 0.20 and 1.0 -----------------------------------
+_GUI_MODULES = {
+    "job": ("PathScripts.PathJobGui", "Path.Main.Gui.Job"),
+    "icon": ("PathScripts.PathIconViewProvider", "Path.Base.Gui.IconViewProvider"),
+}
+
+
+def path_gui(role: str):
+    old, new = _GUI_MODULES[role]
+    return importlib.import_module(new if compat.is_freecad_1() else old)
+
+
+class FinishOpViewProvider:
+    """Icon of the finishing op in the job's tree; the op is edited in the property view."""
+
+    def __init__(self, vobj) -> None:
+        vobj.Proxy = self
+
+    def attach(self, vobj) -> None:
+        self.ViewObject = vobj
+
+    def getIcon(self) -> str:  # noqa: N802 - FreeCAD API
+        return icon("job")
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state) -> None:
+        return None
+
+    def dumps(self):
+        return None
+
+    def loads(self, state) -> None:
+        return None
+
+
+def attach_job_view_providers(job, op) -> None:
+    """What CAM's own job command does in the GUI: the job's tree and icons, tool bit hidden."""
+    if job.ViewObject is not None and job.ViewObject.Proxy is None:
+        job.ViewObject.Proxy = path_gui("job").ViewProvider(job.ViewObject)
+        job.ViewObject.addExtension("Gui::ViewProviderGroupExtensionPython")
+        job.ViewObject.Proxy.deleteOnReject = False
+    for tc in job.Tools.Group:
+        bit = getattr(tc, "Tool", None)
+        if bit is not None and bit.ViewObject is not None:
+            if bit.ViewObject.Proxy is None:
+                path_gui("icon").Attach(bit.ViewObject, "ToolBit")
+            bit.ViewObject.Visibility = False
+    if op.ViewObject is not None:
+        FinishOpViewProvider(op.ViewObject)
+
+
+# -- the job ---------------------------------------------------------------------------------
+@contextlib.contextmanager
+def app_toolbit_factory() -> Iterator[None]:
+    """CAM's GUI tool-bit factory (0.20) opens and *commits* a transaction of its own, which
+    would commit half of ours; the app factory it wraps makes the same bit without that."""
+    toolbit = compat.cam_module("toolbit")
+    saved = getattr(toolbit, "Factory", None)
+    plain = getattr(toolbit, "ToolBitFactory", None)
+    if saved is None or plain is None or type(saved) is plain:
+        yield
+        return
+    toolbit.Factory = plain()
+    try:
+        yield
+    finally:
+        toolbit.Factory = saved
+
+
+def create_job(surface, params, cutting) -> tuple:
+    """One transaction: solid model, job, ball-end controller, finishing op, computed.
+
+    Raises (and aborts, leaving the document as it was) if the op fails or is interrupted.
+    """
+    doc = surface.Document
+    before = {o.Name for o in doc.Objects}
+    with wait_cursor(), app_toolbit_factory(), transaction("BSplineCAM job", doc):
+        cut = (f"cam.Cutting(horizontal_feed={cutting.horizontal_feed!r}, "
+               f"vertical_feed={cutting.vertical_feed!r}, "
+               f"spindle_speed={cutting.spindle_speed!r}, rapid={cutting.rapid!r})")
+        FreeCADGui.doCommand("from BSplineCAM.app import cam, finishing_op")
+        FreeCADGui.doCommand(f"surface = {obj_ref(surface)}")
+        if not surface.MakeSolid:
+            FreeCADGui.doCommand("surface.MakeSolid = True")
+            FreeCADGui.doCommand("surface.recompute()")
+        FreeCADGui.doCommand(f"job = cam.make_job(surface, {params.tool_diameter!r}, {cut})")
+        FreeCADGui.doCommand("op = finishing_op.Create('SurfaceFinish', parentJob=job)")
+        FreeCADGui.doCommand("op.Surface = surface")
+        for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
+                            ("Tolerance", params.tolerance), ("Angle", params.angle),
+                            ("Direction", params.direction),
+                            ("IsoDirection", params.iso_direction)):
+            FreeCADGui.doCommand(f"op.{prop} = {value!r}")
+        made = [o for o in doc.Objects if o.Name not in before]
+        job = next(o for o in made if is_job(o))
+        op = next(o for o in made if is_finishing_op(o))
+        attach_job_view_providers(job, op)
+        FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
+        check_op(op)
+    FreeCADGui.doCommand(f"{gui_ref(surface)}.Visibility = False")  # the job's clone shows it
+    return job, op
+
+
+def check_op(op) -> None:
+    """Raise if the op's computation failed or was interrupted (its toolpath is unusable)."""
+    status = op.getStatusString() if hasattr(op, "getStatusString") else ""
+    if "interrupted" in status:
+        raise ToolpathCancelled(f"{op.Label}: {status}; nothing was changed")
+    report = json.loads(op.Report or "{}")
+    if not op.isValid() or "error" in report or not op.Path.Commands:
+        why = report.get("error") or status or "no toolpath was produced"
+        raise ValueError(f"{op.Label}: {why}")
+
+
+class JobPanel:
+    """Task panel of the job's parameters; OK validates, computes, and closes on success."""
+
+    #: The panel last opened (for scripting and tests; not saved).
+    last: JobPanel | None = None
+
+    def __init__(self, surface) -> None:
+        from ..app.finishing_op import DIRECTIONS, ISO_DIRECTIONS, STRATEGIES
+
+        self.surface = surface
+        self.job = self.op = None
+        self.form = QtGui.QWidget()
+        self.form.setWindowTitle(f"Machining job for {surface.Label}")
+        self.form.setWindowIcon(QtGui.QIcon(icon("job")))
+        layout = QtGui.QFormLayout(self.form)
+
+        def spin(value, low, high, decimals, suffix, step):
+            box = QtGui.QDoubleSpinBox()
+            box.setRange(low, high)
+            box.setDecimals(decimals)
+            box.setSingleStep(step)
+            box.setSuffix(suffix)
+            box.setValue(value)
+            return box
+
+        def combo(items, current):
+            box = QtGui.QComboBox()
+            box.addItems(items)
+            box.setCurrentIndex(items.index(current))
+            return box
+
+        self.tool = spin(6.0, 0.0, 100.0, 3, " mm", 0.5)
+        self.scallop = spin(0.01, 0.0, 10.0, 4, " mm", 0.005)
+        self.tolerance = spin(0.002, 0.0, 1.0, 4, " mm", 0.001)
+        self.strategy = combo(STRATEGIES, "raster")
+        self.angle = spin(0.0, -360.0, 360.0, 2, " °", 15.0)
+        self.direction = combo(DIRECTIONS, "zigzag")
+        self.iso_direction = combo(ISO_DIRECTIONS, "u")
+        self.horizontal_feed = spin(1200.0, 0.0, 100000.0, 1, " mm/min", 100.0)
+        self.vertical_feed = spin(400.0, 0.0, 100000.0, 1, " mm/min", 50.0)
+        self.spindle = spin(12000.0, 0.0, 100000.0, 0, " rpm", 500.0)
+        for label, widget, tip in (
+            ("Ball-end diameter", self.tool, "Diameter of the ball-end cutter"),
+            ("Scallop height", self.scallop, "Largest cusp left between passes"),
+            ("Tolerance", self.tolerance, "Chordal tolerance along a pass"),
+            ("Strategy", self.strategy, "raster (drop-cutter), waterline or isoparametric"),
+            ("Raster angle", self.angle, "Direction of raster passes in the XY plane"),
+            ("Direction", self.direction, "zigzag or one-way raster passes"),
+            ("Iso direction", self.iso_direction, "Parameter followed by isoparametric passes"),
+            ("Horizontal feed", self.horizontal_feed, "Cutting feed"),
+            ("Vertical feed", self.vertical_feed, "Plunge feed"),
+            ("Spindle speed", self.spindle, "Spindle speed (forward)"),
+        ):
+            widget.setToolTip(tip)
+            layout.addRow(label, widget)
+        self.message = QtGui.QLabel("")
+        self.message.setWordWrap(True)
+        self.message.setStyleSheet("color: #b00000")
+        layout.addRow(self.message)
+        JobPanel.last = self
+
+    def parameters(self) -> tuple:
+        """(FinishingParameters, Cutting) from the form; ValueError names a bad field."""
+        from ..app.cam import Cutting
+        from ..app.pipeline import FinishingParameters
+        from ..core.toolpath.common import ToolParameters
+
+        ToolParameters.validate(self.tool.value(), self.scallop.value(), self.tolerance.value())
+        params = FinishingParameters(
+            tool_diameter=self.tool.value(), scallop=self.scallop.value(),
+            tolerance=self.tolerance.value(), strategy=self.strategy.currentText(),
+            angle=self.angle.value(), direction=self.direction.currentText(),
+            iso_direction=self.iso_direction.currentText())
+        cutting = Cutting(horizontal_feed=self.horizontal_feed.value(),
+                          vertical_feed=self.vertical_feed.value(),
+                          spindle_speed=self.spindle.value())
+        cutting.validate()
+        return params, cutting
+
+    def getStandardButtons(self) -> int:  # noqa: N802 - FreeCAD API
+        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+
+    def accept(self) -> bool:
+        """Validate, compute; the panel stays open (with the reason) when anything fails."""
+        try:
+            params, cutting = self.parameters()
+            self.job, self.op = create_job(self.surface, params, cutting)
+        except ToolpathCancelled as exc:
+            self.message.setText(f"Interrupted: {exc}")
+            FreeCAD.Console.PrintWarning(f"BSplineCAM job: {exc}\n")
+            return False
+        except Exception as exc:  # noqa: BLE001 - a message, the panel stays for a retry
+            text = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
+            self.message.setText(text)
+            report_error("Machining job", text)
+            return False
+        FreeCADGui.Control.closeDialog()
+        report = json.loads(self.op.Report or "{}")
+        show_info("Machining job", f"{self.job.Label}: {report.get('passes', '?')} passes, "
+                  f"{report.get('cutting_length_mm', 0):.0f} mm of cutting")
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(self.job)
+        return True
+
+    def reject(self) -> bool:
+        FreeCADGui.Control.closeDialog()
+        return True
+
+
+class MakeJob(BaseCommand):
+    name = "BSplineCAM_Job"
+    pixmap = "job"
+    menu_text = "Machining job..."
+    tool_tip = ("Make a Path/CAM job finishing the selected surface with a ball end: tool, "
+                "scallop height, tolerance, strategy and feeds in a task panel")
+
+    def active(self) -> bool:
+        return selected_surface() is not None and not FreeCADGui.Control.activeDialog()
+
+    def run(self) -> None:
+        FreeCADGui.Control.showDialog(JobPanel(selected_surface()))
+
+
+# -- post-processing -------------------------------------------------------------------------
+def tool_table(job) -> dict[int, float]:
+    return {int(tc.ToolNumber): float(tc.Tool.Diameter) for tc in job.Tools.Group}
+
+
+class PostProcess(BaseCommand):
+    name = "BSplineCAM_PostProcess"
+    pixmap = "post"
+    menu_text = "Post-process..."
+    tool_tip = ("Write the selected job's G-code with a post-processor (linuxcnc, grbl, fanuc, "
+                "mach3_mach4) and check it with LinuxCNC's rs274")
+
+    #: rs274's verdict on the last program written (dict, for scripting and tests).
+    last_check: dict | None = None
+
+    def active(self) -> bool:
+        return selected_job() is not None
+
+    def run(self) -> None:
+        from .. import rs274
+
+        job = selected_job()
+        available = set(compat.available_posts())
+        posts = [p for p in compat.POST_PROCESSORS if p in available]
+        post = ask_post(posts)
+        if not post:
+            return
+        path = commands.ask_save_file(f"G-code ({post})", GCODE_FILTER,
+                                      f"{job.Label}{POST_SUFFIX.get(post, '.nc')}")
+        if not path:
+            return
+        with wait_cursor(), transaction("Post-process", job.Document):
+            FreeCADGui.doCommand("from BSplineCAM.app import cam")
+            FreeCADGui.doCommand(f"cam.post_process({obj_ref(job)}, {post!r}, {path!r})")
+        if not os.path.isfile(path):
+            raise OSError(f"{path}: nothing was written")
+        lines = len(Path(path).read_text(encoding="utf-8").splitlines())
+        FreeCAD.Console.PrintMessage(f"BSplineCAM: {job.Label} posted by {post} to {path} "
+                                     f"({lines} lines)\n")
+        if not rs274.available():
+            PostProcess.last_check = None
+            FreeCAD.Console.PrintWarning("BSplineCAM: rs274 (LinuxCNC) is not installed; the "
+                                         "program was not checked\n")
+            return
+        with wait_cursor():
+            result = rs274.check(path, tool_table(job))
+        PostProcess.last_check = result.as_dict()
+        if result.ok:
+            show_info("rs274", f"{os.path.basename(path)} OK: {result.feeds} feeds, "
+                      f"{result.traverses} rapids, {result.arcs} arcs")
+        else:
+            FreeCAD.Console.PrintError(f"rs274 rejects {path}: {result.message}\n")
+
+
+# -- verification ----------------------------------------------------------------------------
+class Verify(BaseCommand):
+    name = "BSplineCAM_Verify"
+    pixmap = "verify"
+    menu_text = "Verify G-code..."
+    tool_tip = ("Simulate the selected job's program (or a G-code file on the selected "
+                "surface) on a Z-map and show the part coloured by deviation: blue material "
+                "left, green on design, red gouge; metrics in the report view")
+
+    def active(self) -> bool:
+        return selected_job() is not None or selected_surface() is not None
+
+    def run(self) -> None:
+        job = selected_job()
+        surface = None if job is not None else selected_surface()
+        if job is None and surface is None:
+            raise ValueError("select a job, a finishing op, or a surface and a G-code file")
+        doc = (job or surface).Document
+        before = {o.Name for o in doc.Objects}
+        if job is not None:
+            call = f"verify_feature.verify_job({obj_ref(job)})"
+        else:
+            path = commands.ask_open_file("G-code to verify", GCODE_FILTER)
+            if not path:
+                return
+            diameter = ask_tool_diameter()
+            if not diameter > 0:
+                return
+            call = f"verify_feature.verify_file({obj_ref(surface)}, {path!r}, {diameter!r})"
+        with wait_cursor(), transaction("Verify G-code", doc):
+            FreeCADGui.doCommand("from BSplineCAM.app import verify_feature")
+            FreeCADGui.doCommand(f"verification = {call}")
+        made = [o for o in doc.Objects if o.Name not in before]
+        for obj in hidden_by_verification(job, surface):
+            FreeCADGui.doCommand(f"{gui_ref(obj)}.Visibility = False")
+        result = next((o for o in made if o.TypeId == "Mesh::FeaturePython"), None)
+        if result is not None:
+            metrics = json.loads(result.Metrics)
+            show_info("Verification", f"gouge max {metrics['gouge_max_mm']:.4f} mm, scallop "
+                      f"max {metrics['scallop_max_mm']:.4f} mm, coverage "
+                      f"{100 * metrics['coverage']:.1f} %")
+            FreeCADGui.Selection.clearSelection()
+            FreeCADGui.Selection.addSelection(result)
+
+
+def hidden_by_verification(job, surface) -> list:
+    """What would hide the simulated part: the design, the job's model, stock and paths."""
+    hide = []
+    if job is not None:
+        hide += list(job.Model.Group) + [job.Stock] + list(job.Operations.Group)
+        hide += [o.Surface for o in job.Operations.Group if getattr(o, "Surface", None)]
+    if surface is not None:
+        hide.append(surface)
+    return [o for o in hide if o is not None and o.ViewObject is not None
+            and o.ViewObject.Visibility]
+
+
+#: The machining commands by toolbar: (toolpath commands, verify commands).
+TOOLPATH = (MakeJob, PostProcess)
+VERIFY = (Verify,)
+
+
+def register() -> list[str]:
+    """Register the commands with FreeCAD (idempotent); return their names."""
+    for command in (*TOOLPATH, *VERIFY):
+        FreeCADGui.addCommand(command.name, command())
+    return [command.name for command in (*TOOLPATH, *VERIFY)]

@@ -1,0 +1,214 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""BSplineCAM's raster op against FreeCAD's own 3D Surface op (OpenCAMLib) on the case study.
+
+Both ops sit in one job on the same model and tool (6 mm ball by default) and aim at the same
+scallop height (0.01 mm by default): the raster by its curvature-aware stepover, the 3D
+Surface op by the flat stepover 2 sqrt(2Rh - h^2) (see :mod:`BSplineCAM.app.surface3d`).
+Each op's first recompute is timed; each is posted alone with linuxcnc, checked by rs274 and
+simulated from its G-code text with :func:`BSplineCAM.core.verify.verify`.
+
+Needs FreeCAD 0.20 with OpenCAMLib; run inside freecadcmd:
+
+    freecadcmd -c "import runpy, sys; sys.argv=['x', '--scallop', '0.01', '--json', 'out.json'];
+                   runpy.run_path('benchmarks/toolpath.py', run_name='__main__')"
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from BSplineCAM import Surface, rs274  # noqa: E402
+from BSplineCAM.app import cam, compat, pipeline, surface3d  # noqa: E402
+from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulate import Tool  # noqa: E402
+from BSplineCAM.core.verify import verify  # noqa: E402
+
+FreeCAD = compat.ensure_freecad()
+CASE_STUDY = ROOT / "examples" / "case-study.json"
+#: Table rows: (label, key in a result, format).
+ROWS = (
+    ("time (s)", "seconds", "{:.2f}"),
+    ("gouge max (mm)", "gouge_max_mm", "{:.4f}"),
+    ("largest scallop (mm)", "scallop_max_mm", "{:.4f}"),
+    ("scallop p99 (mm)", "scallop_p99_mm", "{:.4f}"),
+    ("coverage", "coverage", "{:.4f}"),
+    ("moves", "moves", "{:d}"),
+    ("cutting length (mm)", "cutting_length_mm", "{:.0f}"),
+    ("  of which vertical (mm)", "vertical_feed_mm", "{:.0f}"),
+    ("rs274", "rs274", "{}"),
+)
+
+#: Rows that get a FreeCAD / BSplineCAM ratio.
+RATIOS = ("seconds", "moves", "cutting_length_mm", "vertical_feed_mm")
+
+
+def timed_recompute(doc, op) -> float:
+    """Seconds of the document recompute that computes ``op`` (just added, so still touched)."""
+    start = time.perf_counter()
+    doc.recompute()
+    seconds = time.perf_counter() - start
+    if not op.Path.Commands:
+        raise RuntimeError(f"{op.Label} produced no path")
+    return seconds
+
+
+def post_alone(job, op, path: Path) -> str:
+    """Post ``op`` alone (the job's other ops made inactive meanwhile) with linuxcnc."""
+    others = [o for o in job.Operations.Group if o is not op]
+    states = [o.Active for o in others]
+    try:
+        for other in others:
+            other.Active = False
+        op.Active = True
+        return cam.post_process(job, "linuxcnc", path)
+    finally:
+        for other, state in zip(others, states):
+            other.Active = state
+
+
+def measure(surface: Surface, text: str, path: Path, diameter: float, cell: float) -> dict:
+    """rs274's verdict and the simulation's metrics of one posted program."""
+    result = {}
+    if rs274.available():
+        check = rs274.check(path, {1: diameter})
+        result["rs274"] = "ok" if check.ok else f"FAILED: {check.message}"
+    else:
+        result["rs274"] = "not installed"
+    program = read_gcode(text)
+    metrics = verify(surface, program, Tool(diameter), cell=cell).metrics
+    keys = (
+        "gouge_max_mm",
+        "gouge_cells",
+        "scallop_max_mm",
+        "scallop_p99_mm",
+        "scallop_mean_mm",
+        "edge_scallop_max_mm",
+        "edge_gouge_max_mm",
+        "coverage",
+        "cutting_length_mm",
+        "rapid_length_mm",
+        "machining_time_s",
+    )
+    result.update({k: metrics[k] for k in keys})
+    result["rapid_collisions"] = len(metrics["rapid_collisions"])
+    feeds = program.kind != MoveKind.RAPID
+    lateral = np.hypot(*(program.end[:, :2] - program.start[:, :2]).T)
+    result["vertical_feed_mm"] = float(program.lengths()[feeds & (lateral < 1e-9)].sum())
+    result["moves"] = len(program)
+    result["feed_moves"] = int((program.kind != MoveKind.RAPID).sum())
+    return result
+
+
+def run(args: argparse.Namespace) -> dict:
+    if not compat.opencamlib_available():
+        raise SystemExit("this benchmark needs OpenCAMLib (FreeCAD 0.20's Python: import ocl)")
+    surface = Surface.from_json(CASE_STUDY)
+    params = pipeline.FinishingParameters(
+        tool_diameter=args.diameter,
+        scallop=args.scallop,
+        tolerance=args.tolerance,
+        strategy="raster",
+    )
+    out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bsplinecam-bench-"))
+    out.mkdir(parents=True, exist_ok=True)
+    doc = FreeCAD.newDocument("BSplineCAMBenchmark")
+    try:
+        _, job, ours = pipeline.build_job(surface, params, cam.Cutting(), doc)
+        results = {"bsplinecam": {"seconds": timed_recompute(doc, ours)}}
+        theirs = surface3d.add_freecad_surface_op(
+            job,
+            args.scallop,
+            args.diameter,
+            tolerance=args.tolerance,
+            pattern=args.pattern,
+            sample_interval=args.sample_interval,
+        )
+        results["freecad_3d_surface"] = {"seconds": timed_recompute(doc, theirs)}
+        if json.loads(ours.Report or "{}").get("error"):
+            raise RuntimeError(ours.Report)
+        for key, op in (("bsplinecam", ours), ("freecad_3d_surface", theirs)):
+            path = out / f"{key}.ngc"
+            text = post_alone(job, op, path)
+            results[key].update(measure(surface, text, path, args.diameter, args.cell))
+            results[key]["program"] = str(path)
+        return {
+            "surface": CASE_STUDY.name,
+            "freecad": ".".join(map(str, compat.freecad_version())),
+            "tool_diameter_mm": args.diameter,
+            "scallop_mm": args.scallop,
+            "tolerance_mm": args.tolerance,
+            "cell_mm": args.cell,
+            "freecad_op": {
+                "ScanType": theirs.ScanType,
+                "LayerMode": theirs.LayerMode,
+                "CutPattern": theirs.CutPattern,
+                "CutPatternAngle": theirs.CutPatternAngle,
+                "StepOver_percent": theirs.StepOver,
+                "stepover_mm": args.diameter * theirs.StepOver / 100.0,
+                "SampleInterval_mm": theirs.SampleInterval.Value,
+                "LinearDeflection_mm": theirs.LinearDeflection.Value,
+                "BoundaryAdjustment_mm": theirs.BoundaryAdjustment.Value,
+                "Base": [f"{o.Label}.{s}" for o, subs in theirs.Base for s in subs],
+            },
+            "bsplinecam_report": json.loads(ours.Report),
+            "speedup": results["freecad_3d_surface"]["seconds"] / results["bsplinecam"]["seconds"],
+            **results,
+        }
+    finally:
+        FreeCAD.closeDocument(doc.Name)
+
+
+def table(figures: dict) -> str:
+    ours, theirs = figures["bsplinecam"], figures["freecad_3d_surface"]
+    lines = [
+        f"case study, {figures['tool_diameter_mm']:g} mm ball, scallop "
+        f"{figures['scallop_mm']:g} mm, FreeCAD {figures['freecad']}",
+        f"{'':24}{'BSplineCAM raster':>20}{'FreeCAD 3D Surface':>20}{'ratio':>10}",
+    ]
+    for label, key, fmt in ROWS:
+        a, b = ours[key], theirs[key]
+        ratio = f"{b / a:.2f}" if key in RATIOS and a else ""
+        lines.append(f"{label:24}{fmt.format(a):>20}{fmt.format(b):>20}{ratio:>10}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--diameter", type=float, default=6.0, help="ball diameter (mm)")
+    parser.add_argument("--scallop", type=float, default=0.01, help="scallop height (mm)")
+    parser.add_argument("--tolerance", type=float, default=0.002, help="chordal tolerance (mm)")
+    parser.add_argument("--cell", type=float, default=0.1, help="simulation cell (mm)")
+    parser.add_argument(
+        "--pattern",
+        choices=surface3d.CUT_PATTERNS,
+        default="ZigZag",
+        help="the 3D Surface op's CutPattern",
+    )
+    parser.add_argument(
+        "--sample-interval",
+        type=float,
+        default=None,
+        help="the 3D Surface op's SampleInterval (mm; default sqrt(8 R tol))",
+    )
+    parser.add_argument("--out", help="folder for the two programs (default: a temporary one)")
+    parser.add_argument("--json", help="write the figures to this JSON file")
+    args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    figures = run(args)
+    print(table(figures))
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1, sort_keys=True) + "\n")
+
+
+if __name__ == "__main__":
+    main()
