@@ -18,6 +18,7 @@ from ..core import Surface
 from ..core.basis import KnotLayout
 from ..core.errors import NetError
 from .compat import ensure_freecad
+from .proxy import StatelessProxy
 
 FreeCAD = ensure_freecad()
 
@@ -53,7 +54,7 @@ PROPERTIES: tuple[tuple[str, str, str, str, int, object], ...] = (
 )
 
 
-class SurfaceFeature:
+class SurfaceFeature(StatelessProxy):
     """Proxy of the B-spline surface object: properties in, exact Part shape out."""
 
     Type = TYPE_NAME
@@ -97,19 +98,6 @@ class SurfaceFeature:
 
     def onDocumentRestored(self, obj) -> None:  # noqa: N802 - FreeCAD API
         self.ensure_properties(obj)
-
-    # proxies hold no state: both pickling protocols return None (0.20 and 1.0)
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state) -> None:
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state) -> None:
-        return None
 
 
 def is_surface(obj) -> bool:

@@ -30,6 +30,7 @@ from ..core.gcode import read_gcode
 from ..core.simulate import Tool
 from ..core.verify import Verification, verify
 from . import cam, compat
+from .proxy import StatelessProxy
 
 FreeCAD = compat.ensure_freecad()
 
@@ -64,7 +65,7 @@ PROPERTIES: tuple[tuple[str, str, str, str], ...] = (
 OFF_FOOTPRINT = 1e9
 
 
-class VerificationFeature:
+class VerificationFeature(StatelessProxy):
     """Proxy of the simulated-part mesh: properties only, no recomputation (a snapshot)."""
 
     Type = TYPE_NAME
@@ -89,18 +90,6 @@ class VerificationFeature:
 
     def onDocumentRestored(self, obj) -> None:  # noqa: N802 - FreeCAD API
         self.ensure_properties(obj)
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state) -> None:
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state) -> None:
-        return None
 
 
 def is_verification(obj) -> bool:

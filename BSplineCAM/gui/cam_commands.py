@@ -29,6 +29,7 @@ import FreeCADGui
 from PySide import QtGui
 
 from ..app import compat
+from ..app.proxy import StatelessProxy
 from ..app.surface_feature import is_surface
 from ..core.toolpath.common import ToolpathCancelled
 from . import commands
@@ -101,7 +102,7 @@ def path_gui(role: str):
     return importlib.import_module(new if compat.is_freecad_1() else old)
 
 
-class FinishOpViewProvider:
+class FinishOpViewProvider(StatelessProxy):
     """Icon of the finishing op in the job's tree; the op is edited in the property view."""
 
     def __init__(self, vobj) -> None:
@@ -112,18 +113,6 @@ class FinishOpViewProvider:
 
     def getIcon(self) -> str:  # noqa: N802 - FreeCAD API
         return icon("job")
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state) -> None:
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state) -> None:
-        return None
 
 
 def attach_job_view_providers(job, op) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import FreeCAD
 import FreeCADGui
 
+from ..app.proxy import StatelessProxy
 from .resources import icon
 
 #: (type, name, group, tooltip, default) of the view properties.
@@ -47,7 +48,7 @@ def net_line_indices(rows: int, cols: int) -> list[int]:
     return indices
 
 
-class SurfaceViewProvider:
+class SurfaceViewProvider(StatelessProxy):
     """Draws the control net beside Part's rendering; double-click opens the net editor."""
 
     def __init__(self, vobj) -> None:
@@ -145,19 +146,6 @@ class SurfaceViewProvider:
 
     def getIcon(self) -> str:  # noqa: N802 - FreeCAD API
         return icon("surface")
-
-    # no state worth saving: Coin nodes are rebuilt by attach
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state) -> None:
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state) -> None:
-        return None
 
 
 def attach_view_provider(obj) -> None:

@@ -16,6 +16,7 @@ import json
 import FreeCAD
 import numpy as np
 
+from ..app.proxy import StatelessProxy
 from .resources import icon
 
 MODE = "Deviation"
@@ -68,7 +69,7 @@ def deviation_colours(deviation: np.ndarray, band: float, scallop: float,
     return out
 
 
-class VerificationViewProvider:
+class VerificationViewProvider(StatelessProxy):
     """Per-vertex deviation colours on the simulated part's mesh and a colour bar."""
 
     def __init__(self, vobj) -> None:
@@ -221,18 +222,6 @@ class VerificationViewProvider:
 
     def getIcon(self) -> str:  # noqa: N802 - FreeCAD API
         return icon("verify")
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state) -> None:
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state) -> None:
-        return None
 
 
 def attach_view_provider(obj) -> None:
