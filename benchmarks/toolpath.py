@@ -174,7 +174,7 @@ def table(figures: dict) -> str:
     lines = [
         f"case study, {figures['tool_diameter_mm']:g} mm ball, scallop "
         f"{figures['scallop_mm']:g} mm, FreeCAD {figures['freecad']}",
-        f"{'':24}{'BSplineCAM raster':>20}{'FreeCAD 3D Surface':>20}{'ratio':>10}",
+        f"{'':24}{'BSplineCAM raster':>20}{'FreeCAD 3D Surface':>20}{'FC/ours':>10}",
     ]
     for label, key, fmt in ROWS:
         a, b = ours[key], theirs[key]

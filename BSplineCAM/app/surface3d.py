@@ -14,8 +14,8 @@
   sampled every sqrt(8 R tol) mm sags at most tol between samples (capped at R/2), so both
   ops sample along a pass at the same density (FreeCAD's default is 1 mm);
 * ``BoundaryEnforcement`` on and ``BoundaryAdjustment`` = R: PathSurface keeps the ball
-  centre R inside the face's outline when enforcing, the adjustment pushes it back out onto
-  the outline, where the BSplineCAM raster's ball centres end too;
+  centre R inside the face's outline when enforcing, the adjustment pushes it back out to
+  the outline (within LinearDeflection), where the BSplineCAM raster's ball centres end too;
 * heights and depths from the job (its setup sheet's expressions), the job's tool controller.
 """
 

@@ -85,11 +85,12 @@ class SurfaceViewProvider(StatelessProxy):
             self._update_net(obj)
 
     def onChanged(self, vobj, prop: str) -> None:  # noqa: N802 - FreeCAD API
-        if hasattr(self, "switch") and prop.startswith(("ShowControlNet", "ControlNet")):
+        if hasattr(self, "switch") and prop.startswith(("ShowControlNet", "ControlNet", "Visibility")):
             self._update_style(vobj)
 
     def _update_style(self, vobj) -> None:
-        show = bool(getattr(vobj, "ShowControlNet", True))
+        # the net hangs off the root node, outside the display modes: hide it with the object
+        show = bool(getattr(vobj, "ShowControlNet", True)) and bool(getattr(vobj, "Visibility", True))
         self.switch.whichChild = 0 if show else -1
         r, g, b = tuple(getattr(vobj, "ControlNetColor", (0.85, 0.2, 0.15)))[:3]
         self.color.rgb.setValue(r, g, b)
