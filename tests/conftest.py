@@ -29,6 +29,10 @@ def random_net(rng: np.random.Generator, rows: int = 7, cols: int = 9) -> np.nda
     net[..., :2] += rng.normal(scale=0.5, size=net[..., :2].shape)
     return net
 
-#: Modules that run inside FreeCAD (``tools/test.sh`` hands them to freecadcmd), not in pytest.
-FREECAD_MODULES = ["TestBSplineCAMExact.py", "TestBSplineCAMFeature.py", "TestBSplineCAMGui.py", "TestBSplineCAMJob.py"]
-collect_ignore = FREECAD_MODULES
+#: Modules that run inside FreeCAD (listed in freecad_modules.txt) or its GUI, not in pytest.
+FREECAD_MODULES = [
+    line.strip() + ".py"
+    for line in (Path(__file__).parent / "freecad_modules.txt").read_text().splitlines()
+    if line.strip() and not line.startswith("#")
+]
+collect_ignore = [*FREECAD_MODULES, "TestBSplineCAMGui.py", "gui_run_tests.py"]

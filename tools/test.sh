@@ -14,10 +14,7 @@ cd "$root"
 logs="$root/build/test-logs"
 mkdir -p "$logs"
 export PYTHONDONTWRITEBYTECODE=1
-FREECAD_MODULES=(TestBSplineCAMExact)
-for m in TestBSplineCAMFeature TestBSplineCAMJob; do
-  [ -f "tests/$m.py" ] && FREECAD_MODULES+=("$m")
-done
+mapfile -t FREECAD_MODULES < <(grep -v '^#' tests/freecad_modules.txt | grep -v '^\s*$')
 
 total_pass=0
 total_fail=0
