@@ -1,6 +1,10 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Time the finishing strategies on the case study (6 mm ball, 0.01 mm scallop by default).
 
+With ``--verify`` each toolpath is also posted as plain G-code (G21 G90, G0/G1 with F,
+4 decimals, M2) and simulated against the design (:func:`BSplineCAM.core.verify.verify`),
+reporting the largest gouge and scallop.
+
 Run with the project venv:  .venv/bin/python benchmarks/toolpath_core.py [--scallop 0.01]
 """
 
@@ -16,7 +20,21 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from BSplineCAM.core import Surface  # noqa: E402
-from BSplineCAM.core.toolpath import generate  # noqa: E402
+from BSplineCAM.core.gcode import read_gcode  # noqa: E402
+from BSplineCAM.core.simulate import Tool  # noqa: E402
+from BSplineCAM.core.toolpath import generate, to_moves  # noqa: E402
+from BSplineCAM.core.verify import verify  # noqa: E402
+
+
+def gcode(toolpath, feed: float = 1000.0) -> str:
+    """A minimal program: G0 for rapids, G1 with F for feeds, 4 decimals."""
+    lines = ["G21 G90"]
+    for m in to_moves(toolpath):
+        word = "G0" if m.kind == "rapid" else "G1"
+        tail = "" if m.kind == "rapid" else f" F{feed:g}"
+        lines.append(f"{word} X{m.x:.4f} Y{m.y:.4f} Z{m.z:.4f}{tail}")
+    lines.append("M2")
+    return "\n".join(lines) + "\n"
 
 
 def main() -> None:
@@ -25,17 +43,24 @@ def main() -> None:
     parser.add_argument("--scallop", type=float, default=0.01)
     parser.add_argument("--tolerance", type=float, default=0.002)
     parser.add_argument("--strategies", default="raster,waterline,isoparametric")
+    parser.add_argument("--angle", type=float, default=0.0, help="raster angle (degrees)")
+    parser.add_argument("--verify", action="store_true", help="simulate and measure (slow)")
     args = parser.parse_args()
     surface = Surface.from_json(ROOT / "examples" / "case-study.json")
     results = {}
     for strategy in args.strategies.split(","):
         start = time.perf_counter()
-        tp = generate(surface, strategy, args.diameter, args.scallop, args.tolerance)
+        tp = generate(surface, strategy, args.diameter, args.scallop, args.tolerance,
+                      angle=args.angle)
         results[strategy] = {
             "seconds": round(time.perf_counter() - start, 3), "passes": tp.stats.passes,
             "moves": tp.stats.moves, "cutting_length_mm": round(tp.stats.cutting_length_mm, 1),
             "unreachable_regions": len(tp.unreachable),
         }
+        if args.verify:
+            m = verify(surface, read_gcode(gcode(tp)), Tool(args.diameter), cell=0.1).metrics
+            results[strategy].update(gouge_max_mm=m["gouge_max_mm"],
+                                     scallop_max_mm=m["scallop_max_mm"])
     print(json.dumps(results, indent=1))
 
 

@@ -193,24 +193,49 @@ def test_raster_stepover_on_ridge_follows_curvature():
     lines = -np.asarray(tp.extra["line_offsets_mm"])  # across = -x for 90 degrees
     mid = np.argmin(np.abs(lines - 20.0))
     step = abs(lines[mid + 1] - lines[mid])
-    expected = float(curved_stepover(R, h, np.array([-1.0 / RHO]))[0])
-    assert step == pytest.approx(expected, rel=0.02)
-    assert expected < flat_stepover(R, h)  # convex: cusps grow, passes close up
+    contact_arc = float(curved_stepover(R, h, np.array([-1.0 / RHO]))[0])
+    # the passes are spaced by their ball centres, on the offset circle of radius rho + R
+    assert step == pytest.approx(contact_arc * (RHO + R) / RHO, rel=0.02)
+    assert contact_arc < flat_stepover(R, h)  # convex: cusps grow, contacts close up
+
+
+def chord_points(passes, rng, per_chord: int = 3) -> np.ndarray:
+    """Random points on the straight moves of ``passes``, plus their midpoints and quarters."""
+    a = np.concatenate([p[:-1] for p in passes])
+    b = np.concatenate([p[1:] for p in passes])
+    t = np.concatenate([rng.uniform(0.0, 1.0, (len(a), per_chord)),
+                        np.tile([0.25, 0.5, 0.75], (len(a), 1))], axis=1)
+    return (a[:, None] + t[..., None] * (b - a)[:, None]).reshape(-1, 3)
+
+
+def test_raster_chords_on_ridge_never_below_scipy_reference(rng):
+    """Passes across a convex ridge: every chord stays on or above the exact cutter-location
+    height of the SciPy reference (a chord between two exact points would dip)."""
+    R = 3.0
+    tp = generate(parabolic_cylinder(), "raster", tool_diameter=2 * R, scallop=0.05,
+                  tolerance=0.01)
+    pts = chord_points(tp.passes[::6], rng, 1)
+    pts = pts[(pts[:, 0] > 1.0) & (pts[:, 0] < 39.0)][::7]
+    ref = np.array([parabola_reference(x, R) for x in pts[:, 0]])
+    assert np.all(pts[:, 2] >= ref - 1e-6)
+    assert np.all(pts[:, 2] <= ref + 0.01 + 1e-9)  # and within the tolerance above it
+    assert tp.extra["chord_lift"]["max_lift_mm"] > 1e-4  # the ridge needed lifting
 
 
 def test_raster_chords_never_below_exact_cl(case, case_raster, rng):
     dc = DropCutter(case, 3.0)
+    tol = case_raster.parameters["tolerance"]
     passes = case_raster.passes[::7]
-    a = np.concatenate([p[:-1] for p in passes])
-    b = np.concatenate([p[1:] for p in passes])
-    t = rng.uniform(0.0, 1.0, (len(a), 3))
-    pts = (a[:, None] + t[..., None] * (b - a)[:, None]).reshape(-1, 3)
+    pts = chord_points(passes, rng)
     z = dc.heights(pts[:, :2])[0]
     ok = np.isfinite(z)
-    assert np.all(pts[ok, 2] >= z[ok] - case_raster.parameters["tolerance"] - 1e-9)
-    # and every vertex is on the exact cutter-location surface
+    assert np.all(pts[ok, 2] >= z[ok] - 1e-6)  # one-sided: never below the exact CL height
+    assert np.all(pts[ok, 2] <= z[ok] + tol + 1e-9)
+    # every vertex lies on the exact cutter-location surface or lifted at most tol above it
     verts = np.concatenate(passes)
-    np.testing.assert_allclose(verts[:, 2], dc.heights(verts[:, :2])[0], atol=1e-9)
+    exact = dc.heights(verts[:, :2])[0]
+    assert np.all(verts[:, 2] >= exact - 1e-9)
+    assert np.all(verts[:, 2] <= exact + 0.5 * tol + 1e-6)
 
 
 def test_raster_scallop_brute_force(case, case_raster):
@@ -249,7 +274,7 @@ def test_raster_scallop_brute_force(case, case_raster):
             bottom = np.where(d2 < R * R, near[None, :, 2] + R - np.sqrt(np.maximum(R * R - d2, 0)),
                               np.inf).min(axis=1)
             left = (bottom - q[:, 2]) * nz[chunk:chunk + 200]
-            assert left.min() > -tol  # the ball never cuts deeper than the chordal tolerance
+            assert left.min() > -1e-6  # the ball never cuts into the surface
             worst = max(worst, float(left.max()))
     assert worst <= h + tol
     assert worst > 0.5 * h  # and the stepover is not needlessly small
@@ -292,14 +317,18 @@ def test_waterline_on_exact_levels(case):
     tp = generate(case, "waterline", tool_diameter=6.0, scallop=0.05, tolerance=0.01)
     dc = DropCutter(case, 3.0)
     tol = 0.01
+    rng = np.random.default_rng(7)
     for p in tp.passes[::5]:
         assert np.ptp(p[:, 2]) == 0.0
         z = dc.heights(p[:, :2])[0]
         ok = np.isfinite(z)
-        np.testing.assert_allclose(z[ok], p[ok, 2], atol=1e-5)
-        mid = 0.5 * (p[:-1] + p[1:])
-        zm = dc.heights(mid[:, :2])[0]
-        assert np.all(zm[np.isfinite(zm)] <= mid[np.isfinite(zm), 2] + tol + 1e-9)
+        # on the level or pushed outwards (downhill), by at most the tolerance in height
+        assert np.all(z[ok] <= p[ok, 2] + 1e-7)
+        assert np.all(z[ok] >= p[ok, 2] - tol)
+        pts = chord_points([p], rng)
+        zc = dc.heights(pts[:, :2])[0]
+        ok = np.isfinite(zc)
+        assert np.all(zc[ok] <= pts[ok, 2] + 1e-6)  # no chord cuts into the offset
     levels = np.asarray(tp.extra["levels"])
     assert np.all(-np.diff(levels) <= flat_stepover(3.0, 0.05) + 1e-9)
 
@@ -317,6 +346,10 @@ def test_isoparametric_plane_and_case(case):
     z = dc.heights(pts[:, :2])[0]
     ok = np.isfinite(z)
     assert np.all(pts[ok, 2] >= z[ok] - 1e-7)  # offset points never gouge
+    pts = chord_points(tp.passes[::9], np.random.default_rng(3))
+    z = dc.heights(pts[:, :2])[0]
+    ok = np.isfinite(z)
+    assert np.all(pts[ok, 2] >= z[ok] - 1e-6)  # nor do the chords between them
 
 
 # -- API: validation, progress, cancel, moves ---------------------------------------------------

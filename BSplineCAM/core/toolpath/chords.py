@@ -30,6 +30,8 @@ from ..typing import FloatArray
 
 #: A chord may dip below the exact CL height by at most this (mm): numerically zero.
 DIP_LIMIT = 1e-7
+#: Excess (mm) below which a chord is left alone: rounding of exact coincidence (planes).
+NEGLIGIBLE = 1e-9
 #: Each lift clears a chord's worst point by this much (mm), covering the model error.
 CLEARANCE = 5e-8
 #: Largest disagreement (mm) between the Hermite model and the exact height at a chord's
@@ -233,25 +235,61 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
     return ChordCheck(done_excess, done_where, done_grad, unresolved)
 
 
-def lift_chords(query: QueryFn, s: ChordSamples, iterations: int = 4) -> dict:
+def _split_worst(s: ChordSamples, chords: np.ndarray) -> int:
+    """Make the highest exact sample above each chord in ``chords`` (vertex ranks) a vertex
+    on the CL surface; returns how many were added."""
+    n = len(s.pos)
+    idx = np.arange(n)
+    va = np.maximum.accumulate(np.where(s.vertex, idx, 0))
+    vb = np.minimum.accumulate(np.where(s.vertex, idx, n - 1)[::-1])[::-1]
+    inner = np.flatnonzero(~s.vertex & (va < idx) & (vb > idx))
+    a, b = va[inner], vb[inner]
+    cid = (np.cumsum(s.vertex) - 1)[a]
+    span = np.where(s.pos[b] > s.pos[a], s.pos[b] - s.pos[a], 1.0)
+    chord = s.zv[a] + (s.pos[inner] - s.pos[a]) / span * (s.zv[b] - s.zv[a])
+    g = np.where(np.isfinite(s.z[inner]), s.z[inner] - chord, -np.inf)
+    want = np.zeros(int(s.vertex.sum()), bool)
+    want[chords] = True
+    sel = want[cid] & (g > 0)
+    inner, cid, g = inner[sel], cid[sel], g[sel]
+    order = np.lexsort((-g, cid))
+    head = order[np.r_[True, cid[order][1:] != cid[order][:-1]]] if len(order) else order
+    pick = inner[head]
+    s.vertex[pick] = True
+    s.zv[pick] = s.z[pick]
+    return len(pick)
+
+
+def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
+                iterations: int = 8) -> dict:
     """Raise the vertices in ``s.zv`` until every chord clears the exact CL height.
 
     Each chord's end vertices are lifted by its excess plus ``CLEARANCE`` (shared vertices take
     the larger lift, which only raises the neighbouring chord); the check is repeated until no
-    chord dips more than ``DIP_LIMIT``.  Returns statistics (largest lift in mm, iterations).
+    chord dips more than ``DIP_LIMIT``.  A chord that would need more than ``max_lift`` (mm)
+    first gets its highest exact sample as a new vertex, so the lift, and with it the height
+    of the move above the CL curve, stays bounded.  Returns statistics (largest lift in mm,
+    iterations, vertices added).
     """
-    z0 = s.zv[s.vertex].copy()
     worst = np.inf
     it = 0
     unresolved = 0
+    added = 0
     for it in range(1, iterations + 1):
         check = chord_excess(query, s)
         exc = check.excess
         unresolved = check.unresolved
         worst = float(np.max(exc, initial=-np.inf))
-        if worst <= 0.0 or (worst <= DIP_LIMIT and it == iterations):
+        if worst <= NEGLIGIBLE or (worst <= DIP_LIMIT and it == iterations):
             break
-        lift = np.where(np.isfinite(exc), np.maximum(exc + CLEARANCE, 0.0), 0.0)
+        if max_lift is not None and it < iterations:
+            big = np.flatnonzero(np.isfinite(exc) & (exc > max_lift))
+            if len(big):
+                new = _split_worst(s, big)
+                added += new
+                if new:
+                    continue
+        lift = np.where(np.isfinite(exc) & (exc > NEGLIGIBLE), exc + CLEARANCE, 0.0)
         vertex_lift = lift.copy()
         line_v = s.line[s.vertex]
         same = line_v[1:] == line_v[:-1]
@@ -259,8 +297,10 @@ def lift_chords(query: QueryFn, s: ChordSamples, iterations: int = 4) -> dict:
         if not vertex_lift.any():
             break
         s.zv[s.vertex] += vertex_lift
-    return {"max_lift_mm": float(np.max(s.zv[s.vertex] - z0, initial=0.0)),
-            "worst_dip_mm": worst, "iterations": it, "unresolved_chords": unresolved}
+    v = s.vertex & np.isfinite(s.z)
+    return {"max_lift_mm": float(np.max(s.zv[v] - s.z[v], initial=0.0)),
+            "worst_dip_mm": worst, "iterations": it, "unresolved_chords": unresolved,
+            "vertices_added": added}
 
 
 def sample_chords(query: QueryFn, polylines: list, zv: list, step: float) -> ChordSamples:

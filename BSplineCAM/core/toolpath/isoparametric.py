@@ -60,7 +60,9 @@ def _allowed_step(dc: DropCutter, tool: ToolParameters, along: FloatArray, fixed
     t = np.cross(n, tangent)
     t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
     kappa = normal_curvature(jet, t)
-    s = curved_stepover(tool.radius, tool.scallop, kappa)
+    # Cusps are measured vertically (as a Z-map sees them): h_n along the normal stands
+    # h_n / n_z above the surface, so aim for h_n = h n_z.
+    s = curved_stepover(tool.radius, tool.scallop * np.clip(n[:, 2], 1e-3, 1.0), kappa)
     rate = np.abs(np.einsum("ij,ij->i", cross_d, t))
     return float((s / np.maximum(rate, 1e-12)).min())
 
@@ -118,7 +120,7 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
     keep = simplify(cl, starts, half, "distance")
     raw = [cl[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
     samples = sample_chords(dc.heights_and_slopes, raw, [p[:, 2] for p in raw], step)
-    lift_stats = lift_chords(dc.heights_and_slopes, samples)
+    lift_stats = lift_chords(dc.heights_and_slopes, samples, half)
     vxy, vz, vline = samples.vertices()
     cuts = np.flatnonzero(np.diff(vline)) + 1
     passes = []

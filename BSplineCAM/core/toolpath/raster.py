@@ -50,7 +50,9 @@ def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: 
     slope p cos(beta) and z'' cos(beta), with vertical cusps scaled alike.  There the circular
     cusp formula (:func:`curved_stepover`) applies with the normal cusp
     h_n = h cos(beta) / sqrt(1 + (p cos(beta))^2), which stands h cos(beta) above the scaled
-    curve, i.e. h above the real one.
+    curve, i.e. h above the real one.  The passes are spaced by their ball centres, which lie
+    on the offset curve: the contact arc rho theta becomes (rho - R) theta (concave) or
+    (rho + R) theta (convex).
     """
     nz = np.clip(n[:, 2], 1e-3, 1.0)
     p = -(n[:, :2] @ across) / nz  # slope across
@@ -62,7 +64,11 @@ def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: 
     p2 = p * cos_b
     sec2 = np.sqrt(1.0 + p2 * p2)
     h_n = scallop * cos_b / sec2
-    return curved_stepover(radius, h_n, z2 / sec2 ** 3) / sec2
+    kappa2 = z2 / sec2 ** 3
+    # curved_stepover is the arc between the contacts, rho theta; the passes are spaced by
+    # their ball centres, on the offset curve of radius rho -+ R: (1 - kappa R) rho theta.
+    spacing = curved_stepover(radius, h_n, kappa2) * np.clip(1.0 - kappa2 * radius, 0.0, None)
+    return spacing / sec2
 
 
 class RasterPlanner:
@@ -122,9 +128,12 @@ class RasterPlanner:
         b0, b1 = self.b_range
         lines = [b0]
         b = b0
+        # Convex stretches allow more than the flat stepover (the centres lie on the larger
+        # offset circle): start from the largest value anywhere and shrink to the band's least.
+        widest = min(float(allowed.max(initial=self.tool.flat_stepover)), self.tool.radius)
         while b < b1 - 1e-9:
-            step = self.tool.flat_stepover
-            for _ in range(6):
+            step = widest
+            for _ in range(8):
                 lo, hi = np.searchsorted(b_off, [b - self.gap, b + step + self.gap])
                 need = float(allowed[lo:hi].min()) if hi > lo else step
                 if need >= step * 0.999:
@@ -209,7 +218,7 @@ def raster(surface: Any, tool: ToolParameters, angle_deg: float, direction: Dire
         samples = ChordSamples(a[idx], xy, z[idx], plan.dc.slopes(xy, _u[idx], _w[idx]),
                                run_id, keep, z[idx].copy())
         monitor(0.85)
-        lift_stats = lift_chords(plan.dc.heights_and_slopes, samples)
+        lift_stats = lift_chords(plan.dc.heights_and_slopes, samples, 0.5 * tool.tolerance)
         vxy, vz, vline = samples.vertices()
         cuts = np.flatnonzero(np.diff(vline)) + 1
         for (lo, _hi), pxy, pz in zip(runs, np.split(vxy, cuts), np.split(vz, cuts)):

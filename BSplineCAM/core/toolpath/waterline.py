@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..typing import FloatArray
-from .chords import CLEARANCE, chord_excess, sample_chords
+from .chords import CLEARANCE, NEGLIGIBLE, chord_excess, sample_chords
 from .common import Monitor, ToolParameters, curved_stepover, normal_curvature, simplify
 from .dropcutter import DropCutter
 
@@ -211,7 +211,7 @@ def push_out(dc: DropCutter, passes: list, step: float,
         s = sample_chords(dc.heights_and_slopes, passes, [p[:, 2] for p in passes], step)
         check = chord_excess(dc.heights_and_slopes, s)
         worst = float(np.max(check.excess, initial=-np.inf))
-        if worst <= 0.0:
+        if worst <= NEGLIGIBLE:
             break
         vxy, _, vline = s.vertices()
         gv = s.grad[s.vertex]
@@ -225,7 +225,7 @@ def push_out(dc: DropCutter, passes: list, step: float,
         rate = np.einsum("ij,ij->i", grad, normal)
         normal *= -np.sign(np.where(rate == 0, 1.0, rate))[:, None]  # downhill
         rate = np.maximum(np.abs(rate), 1e-3)
-        need = same & np.isfinite(check.excess) & (check.excess > -CLEARANCE)
+        need = same & np.isfinite(check.excess) & (check.excess > NEGLIGIBLE)
         shift = np.where(need, (np.maximum(check.excess, 0.0) + CLEARANCE) / rate, 0.0)
         # Vertex r takes chord r (r -> r+1) and chord r-1 (r-1 -> r) of the same line.
         prev = np.append(False, same[:-1])
