@@ -182,7 +182,8 @@ def test_raster_flat_stepover_and_heights():
     for p in tp.passes:
         np.testing.assert_allclose(p[:, 2], 5.0, atol=1e-9)
         assert len(p) == 2  # a straight pass needs one move
-    assert tp.stats.moves == len(tp.passes)
+    assert sum(len(p) - 1 for p in tp.passes) == len(tp.passes)
+    assert all(link is not None and len(link) == 2 for link in tp.links)  # straight stay-down links
 
 
 def test_raster_stepover_on_ridge_follows_curvature():
@@ -394,7 +395,9 @@ def test_progress_and_cancel():
 
 
 def test_moves_helper():
-    tp = generate(plane(), "raster", tool_diameter=6.0, scallop=0.5, clearance_height=20.0)
+    tp = generate(plane(), "raster", tool_diameter=6.0, scallop=0.5, clearance_height=20.0,
+                  direction="oneway")
+    assert tp.links == []  # one-way passes start at the far side: every link retracts
     moves = to_moves(tp)
     assert moves[0].kind == "rapid" and moves[0].z == 20.0
     assert moves[-1].kind == "rapid" and moves[-1].z == 20.0
@@ -414,9 +417,30 @@ def test_moves_helper():
 def test_stats(case_raster):
     st_ = case_raster.stats
     assert st_.passes == len(case_raster.passes)
-    assert st_.moves == sum(len(p) - 1 for p in case_raster.passes)
-    length = sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in case_raster.passes)
+    cut = [*case_raster.passes, *(lk for lk in case_raster.links if lk is not None)]
+    assert st_.moves == sum(len(p) - 1 for p in cut)
+    length = sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in cut)
     assert st_.cutting_length_mm == pytest.approx(length)
     assert st_.seconds > 0
     assert case_raster.parameters["tool_diameter"] == 6.0
     assert case_raster.clearance_height > max(p[:, 2].max() for p in case_raster.passes)
+
+
+def test_zigzag_links_stay_down_and_never_gouge(case, case_raster):
+    """Each zig-zag gap is fed along a link joining the passes, on or above the exact CL."""
+    tp = case_raster
+    assert len(tp.links) == len(tp.passes) - 1
+    assert all(link is not None for link in tp.links)
+    dc = DropCutter(case, 3.0)
+    for k, link in enumerate(tp.links):
+        np.testing.assert_allclose(link[0, :2], tp.passes[k][-1, :2], atol=1e-12)
+        np.testing.assert_allclose(link[-1, :2], tp.passes[k + 1][0, :2], atol=1e-12)
+        assert link[0, 2] >= tp.passes[k][-1, 2] - 1e-12
+    t = np.linspace(0.0, 1.0, 9)[1:-1]
+    for link in tp.links[::7]:
+        a, b = link[:-1], link[1:]
+        pts = (a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]).reshape(-1, 3)
+        z, _, _ = dc.heights(pts[:, :2])
+        assert np.nanmax(z - pts[:, 2]) <= 1e-6
+    moves = to_moves(tp)
+    assert sum(m.kind == "rapid" for m in moves) == 3  # in once, out once

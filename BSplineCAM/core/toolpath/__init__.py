@@ -38,6 +38,9 @@ from .common import (
 )
 from .dropcutter import DropCutter
 
+#: Longest stay-down link between zig-zag passes, in tool radii; longer gaps retract.
+STAY_DOWN_LINK = 2.0
+
 
 def generate(
     surface: Any,
@@ -102,7 +105,13 @@ def generate(
     )
     toolpath = Toolpath(strategy.value, passes, parameters,
                         unreachable_regions(surface, tool.radius, dc.sign), stats, extra=extra)
-    return toolpath.finish(started, clearance_height)
+    toolpath.finish(started, clearance_height)
+    if direction is Direction.ZIGZAG and strategy is not Strategy.WATERLINE:
+        from .links import stay_down_links
+
+        toolpath.links = stay_down_links(dc, toolpath.passes, STAY_DOWN_LINK * tool.radius, tool.tolerance)
+        toolpath.finish(started, clearance_height)
+    return toolpath
 
 
 __all__ = [

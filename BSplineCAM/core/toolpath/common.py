@@ -397,8 +397,10 @@ class ToolpathStats:
 class Toolpath:
     """Finishing passes as tool-TIP positions (mm, model coordinates), in machining order.
 
-    ``passes`` is a list of (n, 3) float arrays, each cut as straight feed moves; linking
-    between passes (retract, rapid, plunge) is left to :func:`to_moves` or the app layer.
+    ``passes`` is a list of (n, 3) float arrays, each cut as straight feed moves.  ``links``
+    (when not empty) holds, per gap between consecutive passes, a stay-down feed polyline from
+    one pass's end to the next one's start, or None where the tool retracts; :func:`to_moves`
+    turns both into moves.
     """
 
     strategy: str
@@ -408,6 +410,7 @@ class Toolpath:
     stats: ToolpathStats
     clearance_height: float = float("nan")
     extra: dict = field(default_factory=dict)
+    links: list = field(default_factory=list)
 
     def finish(self, started: float, clearance_height: float | None) -> Toolpath:
         self.passes = [np.ascontiguousarray(p, dtype=float) for p in self.passes if len(p) >= 2]
@@ -415,8 +418,10 @@ class Toolpath:
         st.passes = len(self.passes)
         st.moves = int(sum(len(p) - 1 for p in self.passes))
         st.points = int(sum(len(p) for p in self.passes))
+        cut = [*self.passes, *(lk for lk in self.links if lk is not None)]
+        st.moves = int(sum(len(p) - 1 for p in cut))
         st.cutting_length_mm = float(
-            sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in self.passes))
+            sum(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in cut))
         top = max((float(p[:, 2].max()) for p in self.passes), default=0.0)
         if clearance_height is None:
             self.clearance_height = top + 5.0
@@ -444,7 +449,9 @@ class Move(NamedTuple):
 def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
              safe_height: float | None = None) -> list[Move]:
     """Flat list of moves: per pass rapid to clearance above the start, rapid down to the safe
-    height, feed down to the start, feed along the pass, rapid back up to clearance.
+    height, feed down to the start, feed along the pass, rapid back up to clearance.  Where the
+    toolpath has a stay-down link to the next pass, the tool feeds along it instead of
+    retracting.
 
     ``clearance_height`` (absolute Z, mm; default the toolpath's) must clear every pass;
     ``safe_height`` (absolute Z, mm) is where the rapid descent stops and the plunge feed starts
@@ -463,16 +470,24 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
             raise ParameterError(f"safe_height ({safe_height:g} mm) must not exceed "
                                  f"clearance_height ({clear:g} mm)")
     moves: list[Move] = []
-    for p in toolpath.passes:
+    links = toolpath.links or [None] * max(len(toolpath.passes) - 1, 0)
+    linked = False
+    for k, p in enumerate(toolpath.passes):
         x0, y0, z0 = (float(v) for v in p[0])
-        moves.append(Move("rapid", x0, y0, clear))
-        approach = min(clear, z0 + 1.0) if safe_height is None else max(safe_height, z0)
-        if approach < clear:
-            moves.append(Move("rapid", x0, y0, approach))
-        if approach > z0:
-            moves.append(Move("feed", x0, y0, z0))
+        if not linked:
+            moves.append(Move("rapid", x0, y0, clear))
+            approach = min(clear, z0 + 1.0) if safe_height is None else max(safe_height, z0)
+            if approach < clear:
+                moves.append(Move("rapid", x0, y0, approach))
+            if approach > z0:
+                moves.append(Move("feed", x0, y0, z0))
         moves.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in p[1:])
-        moves.append(Move("rapid", float(p[-1, 0]), float(p[-1, 1]), clear))
+        link = links[k] if k < len(links) else None
+        linked = link is not None
+        if linked:
+            moves.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in link[1:])
+        else:
+            moves.append(Move("rapid", float(p[-1, 0]), float(p[-1, 1]), clear))
     return moves
 
 
