@@ -46,7 +46,11 @@ def level_heights(dc: DropCutter, tool: ToolParameters, min_slope: float,
     # Steepest-descent direction in the tangent plane: across the waterlines.
     down = np.column_stack([n[:, 0] * n[:, 2], n[:, 1] * n[:, 2], n[:, 2] ** 2 - 1.0])
     kappa = normal_curvature(jet, down)
-    dz = curved_stepover(tool.radius, tool.scallop, kappa) * sin_a
+    # The scallop is held vertically (as the machined part is measured): h·n_z along the
+    # normal.  curved_stepover spaces the contact points; the levels space ball centres, which
+    # sit on a circle of radius rho - R·sign about the centre of curvature: factor 1 - R·kappa.
+    contact = curved_stepover(tool.radius, tool.scallop * np.clip(n[:, 2], 0.05, 1.0), kappa)
+    dz = contact * np.clip(1.0 - tool.radius * kappa, 0.05, None) * sin_a
     z_off = jet.p[:, 2] + tool.radius * (n[:, 2] - 1.0)
     order = np.argsort(z_off[steep])
     zs, dzs = z_off[steep][order], dz[steep][order]
