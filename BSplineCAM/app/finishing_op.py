@@ -19,6 +19,7 @@ import numpy as np
 from ..core import Surface
 from ..core.toolpath import common as toolpath_common
 from . import compat
+from .proxy import add_missing_properties
 
 FreeCAD = compat.ensure_freecad()
 import Path  # noqa: E402  (FreeCAD's Path module, 0.20 and 1.0)
@@ -28,6 +29,20 @@ OBJECT_VERSION = "1"
 STRATEGIES = [s.value for s in toolpath_common.Strategy]
 DIRECTIONS = [d.value for d in toolpath_common.Direction]
 ISO_DIRECTIONS = [d.value for d in toolpath_common.IsoDirection]
+
+
+#: (type, name, group, tooltip, flags, default) of the operation's own properties.
+PROPERTIES = (
+    ("App::PropertyLink", "Surface", "Surface", "BSplineCAM surface to machine (default: the job's model)", 0, None),
+    ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z) or isoparametric", 0, STRATEGIES),
+    ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature", 0, 0.01),
+    ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass", 0, 0.002),
+    ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane", 0, None),
+    ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes", 0, DIRECTIONS),
+    ("App::PropertyEnumeration", "IsoDirection", "Surface", "Parameter followed by iso-parametric passes", 0, ISO_DIRECTIONS),
+    ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)", 0, None),
+    ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
+)
 
 
 class ObjectSurfaceFinish(OpBase.ObjectOp):
@@ -41,30 +56,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
 
     @staticmethod
     def ensure_properties(obj) -> None:
-        spec = [
-            ("App::PropertyLink", "Surface", "Surface", "BSplineCAM surface to machine (default: the job's model)"),
-            ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z) or isoparametric"),
-            ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature"),
-            ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass"),
-            ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane"),
-            ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes"),
-            ("App::PropertyEnumeration", "IsoDirection", "Surface", "Parameter followed by iso-parametric passes"),
-            ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)"),
-            ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation"),
-        ]
-        for kind, name, group, tip in spec:
-            if not hasattr(obj, name):
-                obj.addProperty(kind, name, group, tip)
-                if name == "Strategy":
-                    obj.Strategy = STRATEGIES
-                elif name == "Direction":
-                    obj.Direction = DIRECTIONS
-                elif name == "IsoDirection":
-                    obj.IsoDirection = ISO_DIRECTIONS
-                elif name == "ScallopHeight":
-                    obj.ScallopHeight = 0.01
-                elif name == "Tolerance":
-                    obj.Tolerance = 0.002
+        add_missing_properties(obj, PROPERTIES)
         for name in ("Report", "Version"):
             obj.setEditorMode(name, 1)
         obj.Version = OBJECT_VERSION

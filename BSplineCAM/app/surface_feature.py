@@ -18,7 +18,7 @@ from ..core import Surface
 from ..core.basis import KnotLayout
 from ..core.errors import NetError
 from .compat import ensure_freecad
-from .proxy import StatelessProxy
+from .proxy import StatelessProxy, add_missing_properties
 
 FreeCAD = ensure_freecad()
 
@@ -41,7 +41,7 @@ PROPERTIES: tuple[tuple[str, str, str, str, int, object], ...] = (
      "Number of control-point columns (w direction)", 0, None),
     ("App::PropertyEnumeration", "Knots", "Control net",
      "uniform: the paper's unclamped knots; clamped: the surface reaches the corner points",
-     0, None),
+     0, KNOT_LAYOUTS),
     ("App::PropertyBool", "MakeSolid", "Shape",
      "Close the surface down to a base plane (the model of a CAM job)", 0, False),
     ("App::PropertyDistance", "BaseOffset", "Shape",
@@ -66,14 +66,7 @@ class SurfaceFeature(StatelessProxy):
     @staticmethod
     def ensure_properties(obj) -> None:
         """Add any property missing (new objects, and documents from older versions)."""
-        for kind, name, group, tip, flags, default in PROPERTIES:
-            if hasattr(obj, name):
-                continue
-            obj.addProperty(kind, name, group, tip, flags)
-            if name == "Knots":
-                obj.Knots = KNOT_LAYOUTS
-            elif default is not None:
-                setattr(obj, name, default)
+        add_missing_properties(obj, PROPERTIES)
         for name in ("Version", "CrossCheck"):
             obj.setEditorMode(name, 1)  # read-only in the property editor
         if obj.Version != OBJECT_VERSION:

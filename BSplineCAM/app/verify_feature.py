@@ -30,7 +30,7 @@ from ..core.gcode import read_gcode
 from ..core.simulate import Tool
 from ..core.verify import Verification, verify
 from . import cam, compat
-from .proxy import StatelessProxy
+from .proxy import StatelessProxy, add_missing_properties
 
 FreeCAD = compat.ensure_freecad()
 
@@ -76,10 +76,9 @@ class VerificationFeature(StatelessProxy):
 
     @staticmethod
     def ensure_properties(obj) -> None:
-        for kind, name, group, tip in PROPERTIES:
-            if not hasattr(obj, name):
-                flags = 0 if name in ("Surface", "Job") else PROP_READONLY | PROP_OUTPUT
-                obj.addProperty(kind, name, group, tip, flags)
+        add_missing_properties(obj, [
+            (kind, name, group, tip, 0 if name in ("Surface", "Job") else PROP_READONLY | PROP_OUTPUT, None)
+            for kind, name, group, tip in PROPERTIES])
         for name in ("Deviation",):
             obj.setEditorMode(name, 2)  # hidden: thousands of numbers
         if obj.Version != OBJECT_VERSION:
