@@ -33,10 +33,14 @@ def cadquery_python() -> str:
 
 
 def freecad_in_process() -> bool:
-    """True when FreeCAD is (or can be) imported here without touching cadquery."""
+    """True when FreeCAD is loaded here, or this is FreeCAD's own Python and it loads.
+
+    Any other interpreter (the cadquery venv) reaches FreeCAD through a worker, so that
+    FreeCAD's libraries never load into a Python they were not built for.
+    """
     if "FreeCAD" in sys.modules:
         return True
-    if "OCP" in sys.modules:
+    if "OCP" in sys.modules or os.path.realpath(sys.executable) != os.path.realpath(freecad_python()):
         return False
     try:
         from .app.compat import ensure_freecad
