@@ -406,8 +406,8 @@ class TestCamCommands(CamTestCase):
         self.assertFalse(is_active("BSplineCAM_PostProcess"))
 
     def test_job_panel_validation_and_interruption(self) -> None:
+        from BSplineCAM.app import progress
         from BSplineCAM.core.toolpath.common import ToolpathCancelled
-        from BSplineCAM.gui import progress
 
         surface = self.new_surface()
         names = [o.Name for o in self.doc.Objects]

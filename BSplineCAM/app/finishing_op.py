@@ -163,7 +163,7 @@ def progress_reporter(obj):
     """Progress shown in the GUI (when up) as FreeCAD's progress indicator; None headless."""
     if not FreeCAD.GuiUp:
         return None
-    from ..gui.progress import op_progress
+    from .progress import op_progress
 
     return op_progress(obj)
 

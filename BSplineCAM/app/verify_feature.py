@@ -329,7 +329,7 @@ def _progress_reporter(message: str):
     """FreeCAD's progress bar when the GUI is up (cancellable); a no-op headless."""
     if not FreeCAD.GuiUp:
         return _no_progress
-    from ..gui.progress import StatusProgress
+    from .progress import StatusProgress
 
     return StatusProgress(message)
 

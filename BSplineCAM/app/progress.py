@@ -1,6 +1,9 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Progress of long computations in FreeCAD's status bar, interruptible with its cancel button.
 
+App layer: ``Base.ProgressIndicator`` is FreeCAD's own sequencer, not FreeCADGui; callers use it
+only when the GUI is up (headless it would merely print).
+
 FreeCAD's sequencer (``Base.ProgressIndicator``) shows a progress bar and, while it runs, lets
 the user abort: ``next(True)`` then raises.  The core's callbacks take a fraction in [0, 1].
 """
