@@ -28,11 +28,18 @@ from typing import Any
 
 import numpy as np
 
+from .. import matrix
 from ..typing import FloatArray
 from .common import Jet, upward_sign
 
 #: Queries handled per chunk: bounds the (queries x candidates) temporaries.
 QUERY_CHUNK = 1024
+#: Derivative orders of a jet: point, Su, Sw, Suu, Suw, Sww.
+JET_ORDERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
+#: Predicted gain (mm) of a Newton step below which a maximum counts as found.
+CONVERGED = 1e-14
+#: Samples within this many grid steps of the best seed belong to its basin.
+NEIGHBOURHOOD = 2
 
 
 class DropCutter:
@@ -46,6 +53,7 @@ class DropCutter:
         self.surface = surface
         self.radius = float(radius)
         self.sign = upward_sign(surface)
+        self.form = surface.patch_form
         # Dense sample: about R/4 between samples, so a seed lies within the basin of the
         # maximum that Newton then converges to (and cells hold a bounded number of samples).
         spacing = self.radius / 4.0 if spacing is None else float(spacing)
@@ -91,8 +99,8 @@ class DropCutter:
 
     # -- seeds ------------------------------------------------------------------------------
     def seeds(self, q: FloatArray) -> tuple[np.ndarray, np.ndarray, FloatArray]:
-        """Best sample index and best index outside its 3-sample neighbourhood (-1 if none),
-        and the best sampled centre height (-inf where no surface lies within R)."""
+        """Best sample index and the best sampled peak outside its neighbourhood (-1 if
+        none), and the best sampled centre height (-inf where no surface lies within R)."""
         m = len(q)
         best = np.full(m, -1)
         second = np.full(m, -1)
@@ -127,50 +135,78 @@ class DropCutter:
             value[sl] = f[rows_, a]
             ci, cj = self.si[idx], self.sj[idx]
             bi, bj = ci[rows_, a], cj[rows_, a]
-            near = np.abs(ci - bi[:, None]) <= 3
-            near &= np.abs(cj - bj[:, None]) <= 3
+            near = np.abs(ci - bi[:, None]) <= NEIGHBOURHOOD
+            near &= np.abs(cj - bj[:, None]) <= NEIGHBOURHOOD
             f[near] = -np.inf
             a2 = np.argmax(f, axis=1)
             value2 = f[rows_, a2]
             # A second basin is worth polishing only if its sample could beat the best after
-            # refinement: sampling error of a maximum is below ~ spacing^2 / R.
+            # refinement (sampling error of a maximum is below ~ spacing^2 / R) and is a peak
+            # of the sampled maximand: a sample with a higher grid neighbour lies on the flank
+            # of the best's basin (every higher sample is within the best's neighbourhood).
             has2 = value2 >= value[sl] - self.margin
+            i2, j2 = ci[rows_, a2], cj[rows_, a2]
+            has2[has2] = self._sampled_peak(qq[has2], i2[has2], j2[has2], value2[has2])
             found = np.isfinite(value[sl])
             best[sl] = np.where(found, bi * self.n_w + bj, -1)
-            second[sl] = np.where(has2, ci[rows_, a2] * self.n_w + cj[rows_, a2], -1)
+            second[sl] = np.where(has2, i2 * self.n_w + j2, -1)
         return best, second, value
 
+    def _sampled_peak(self, q: FloatArray, i: np.ndarray, j: np.ndarray,
+                      value: FloatArray) -> np.ndarray:
+        """True where no grid neighbour of sample (i, j) has a higher maximand for query q."""
+        di = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
+        dj = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
+        ni = np.clip(i[:, None] + di, 0, self.n_u - 1)
+        nj = np.clip(j[:, None] + dj, 0, self.n_w - 1)
+        p = self.samples[ni * self.n_w + nj]  # (m, 8, 3)
+        d2 = (p[..., 0] - q[:, :1]) ** 2 + (p[..., 1] - q[:, 1:]) ** 2
+        R2 = self.radius * self.radius
+        f = np.where(d2 <= R2, p[..., 2] + np.sqrt(np.maximum(R2 - d2, 0.0)), -np.inf)
+        return ~(f > value[:, None]).any(axis=1)
+
     # -- refinement -------------------------------------------------------------------------
-    def _objective(self, q: FloatArray, u: FloatArray, w: FloatArray) -> FloatArray:
-        p = self.points(u, w)
-        d2 = ((p[:, :2] - q) ** 2).sum(axis=1)
+    def _jets(self, u: FloatArray, w: FloatArray) -> list[FloatArray]:
+        """Point, Su, Sw, Suu, Suw, Sww at (u, w) already in [0, 1], each (m, 3)."""
+        return matrix.evaluate_patch_orders(self.form, u, w, JET_ORDERS)
+
+    def _maximand(self, q: FloatArray, p: FloatArray) -> FloatArray:
+        """f = p_z + sqrt(R^2 - |p_xy - q|^2) for surface points p (-inf outside the ball)."""
+        d2 = (p[:, 0] - q[:, 0]) ** 2 + (p[:, 1] - q[:, 1]) ** 2
         R2 = self.radius ** 2
         return np.where(d2 < R2, p[:, 2] + np.sqrt(np.maximum(R2 - d2, 0.0)), -np.inf)
 
     def refine(self, q: FloatArray, u: FloatArray, w: FloatArray,
                iterations: int = 30) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Projected Newton ascent of f(u, w) from (u, w); returns (centre z, u, w)."""
+        """Projected Newton ascent of f(u, w) from (u, w); returns (centre z, u, w).
+
+        The jet is evaluated at each trial point, so an accepted full step carries its
+        derivatives into the next iteration; a point stops once the quadratic model predicts
+        no gain above ``CONVERGED`` (mm), after that last step, or once a step gains nothing.
+        """
         R2 = self.radius ** 2
-        u, w = u.copy(), w.copy()
-        fval = self._objective(q, u, w)
+        u, w = _unit(u), _unit(w)
+        jet = self._jets(u, w)
+        fval = self._maximand(q, jet[0])
         active = np.flatnonzero(np.isfinite(fval))
+        jet = [a[active] for a in jet]
         trust = 3.0 * np.array(self.param_step)
         for _ in range(iterations):
             if len(active) == 0:
                 break
             qa = q[active]
-            jet = self.jet(u[active], w[active])
-            D = jet.p[:, :2] - qa
+            p, su, sw, suu, suw, sww = jet
+            D = p[:, :2] - qa
             h = np.sqrt(np.maximum(R2 - (D * D).sum(axis=1), 1e-300))
-            Du, Dw = jet.su[:, :2], jet.sw[:, :2]
+            Du, Dw = su[:, :2], sw[:, :2]
             dDu = (D * Du).sum(1)
             dDw = (D * Dw).sum(1)
-            gu = jet.su[:, 2] - dDu / h
-            gw = jet.sw[:, 2] - dDw / h
+            gu = su[:, 2] - dDu / h
+            gw = sw[:, 2] - dDw / h
             h3 = h ** 3
-            Huu = jet.suu[:, 2] - ((Du * Du).sum(1) + (D * jet.suu[:, :2]).sum(1)) / h - dDu * dDu / h3
-            Hww = jet.sww[:, 2] - ((Dw * Dw).sum(1) + (D * jet.sww[:, :2]).sum(1)) / h - dDw * dDw / h3
-            Huw = jet.suw[:, 2] - ((Du * Dw).sum(1) + (D * jet.suw[:, :2]).sum(1)) / h - dDu * dDw / h3
+            Huu = suu[:, 2] - ((Du * Du).sum(1) + (D * suu[:, :2]).sum(1)) / h - dDu * dDu / h3
+            Hww = sww[:, 2] - ((Dw * Dw).sum(1) + (D * sww[:, :2]).sum(1)) / h - dDw * dDw / h3
+            Huw = suw[:, 2] - ((Du * Dw).sum(1) + (D * suw[:, :2]).sum(1)) / h - dDu * dDw / h3
             ua, wa = u[active], w[active]
             fix_u = ((ua <= 0.0) & (gu < 0)) | ((ua >= 1.0) & (gu > 0))
             fix_w = ((wa <= 0.0) & (gw < 0)) | ((wa >= 1.0) & (gw > 0))
@@ -194,30 +230,51 @@ class DropCutter:
             shrink = np.where(ratio > 1.0, 1.0 / np.maximum(ratio, 1e-300), 1.0)
             du *= shrink
             dw *= shrink
+            # Newton decrement: at a concave maximum the model's gain is the step's gain.
+            model_gain = gu * du + gw * dw
+            model_gain += 0.5 * (Huu * du * du + 2.0 * Huw * du * dw + Hww * dw * dw)
+            go = ~(concave & (shrink == 1.0) & (model_gain < CONVERGED))
+            if not go.all():
+                # Converged: take the last Newton step without evaluating it, so the contact
+                # (and the slope it gives) is exact too; the value may lag by < CONVERGED.
+                done = active[~go]
+                u[done], w[done] = _unit(ua[~go] + du[~go]), _unit(wa[~go] + dw[~go])
+                active, ua, wa, du, dw, qa = (a[go] for a in (active, ua, wa, du, dw, qa))
+                jet = [a[go] for a in jet]
+                if len(active) == 0:
+                    break
             f0 = fval[active]
-            step = np.ones(len(active))
-            accepted = np.zeros(len(active), bool)
-            nu_, nw_ = ua.copy(), wa.copy()
-            fnew = f0.copy()
-            todo = np.arange(len(active))
-            for _halving in range(8):
+            cu, cw = _unit(ua + du), _unit(wa + dw)
+            trial = self._jets(cu, cw)
+            fc = self._maximand(qa, trial[0])
+            full = fc >= f0
+            nu_, nw_ = np.where(full, cu, ua), np.where(full, cw, wa)
+            fnew = np.where(full, fc, f0)
+            # Backtracking for the rest, on points alone.
+            halved = np.zeros(len(active), bool)
+            todo = np.flatnonzero(~full)
+            step = 0.5
+            for _halving in range(7):
                 if len(todo) == 0:
                     break
-                cu = np.clip(ua[todo] + step[todo] * du[todo], 0.0, 1.0)
-                cw = np.clip(wa[todo] + step[todo] * dw[todo], 0.0, 1.0)
-                fc = self._objective(qa[todo], cu, cw)
-                good = fc >= f0[todo]
+                hu, hw = _unit(ua[todo] + step * du[todo]), _unit(wa[todo] + step * dw[todo])
+                fh = self._maximand(qa[todo], matrix.evaluate_patches(self.form, hu, hw))
+                good = fh >= f0[todo]
                 sel = todo[good]
-                nu_[sel], nw_[sel], fnew[sel] = cu[good], cw[good], fc[good]
-                accepted[sel] = True
+                nu_[sel], nw_[sel], fnew[sel] = hu[good], hw[good], fh[good]
+                halved[sel] = True
                 todo = todo[~good]
-                step[todo] *= 0.5
-            moved = np.hypot(*(np.stack([(nu_ - ua), (nw_ - wa)]) /
-                               np.array(self.param_step)[:, None]))
+                step *= 0.5
+            moved = np.hypot((nu_ - ua) / self.param_step[0], (nw_ - wa) / self.param_step[1])
             u[active], w[active], fval[active] = nu_, nw_, fnew
             # Converged: no accepted step, or a step below 1e-9 of the sample spacing.
-            still = accepted & (moved > 1e-9) & (fnew - f0 > 1e-13)
+            still = (full | halved) & (moved > 1e-9) & (fnew - f0 > 1e-13)
+            jet = [np.where(full[:, None], t, j) for t, j in zip(trial, jet)]
+            if halved.any():
+                for j, fresh in zip(jet, self._jets(nu_[halved], nw_[halved])):
+                    j[halved] = fresh
             active = active[still]
+            jet = [a[still] for a in jet]
         return fval, u, w
 
     def centre_heights(self, xy: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -266,6 +323,11 @@ class DropCutter:
         grad = self.slopes(xy, u, w)
         grad[~np.isfinite(tip)] = np.nan
         return tip, grad
+
+
+def _unit(t: FloatArray) -> FloatArray:
+    """t clamped to [0, 1] (a new array; cheaper than np.clip on small arrays)."""
+    return np.minimum(np.maximum(t, 0.0), 1.0)
 
 
 def brute_force_heights(surface: Any, radius: float, xy: FloatArray, samples: int = 801,

@@ -34,6 +34,10 @@ from .dropcutter import DropCutter
 
 #: Rounds of midpoint refinement along a pass.
 REFINE_ROUNDS = 6
+#: CL slopes (|dz/dx|, |dz/dy|) up to which the cubic Hermite midpoint screens an interval.
+GENTLE = 1.0
+#: Fraction of the midpoint allowance (tol / 2) below which a screened interval is left alone.
+SCREEN = 0.25
 
 
 def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: FloatArray,
@@ -156,11 +160,19 @@ class RasterPlanner:
         a = np.concatenate([p[1] for p in pieces])
         b = np.asarray(offsets)
         z, u, w = self._heights(a, b[line], monitor, 0.0, 0.6)
+        slope, steep = self._along_slopes(a, b[line], u, w)
         half = 0.5 * self.tool.tolerance
         fresh = np.ones(len(a), bool)  # intervals not yet checked start at these samples
         for r in range(REFINE_ROUNDS):
             ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
             idx = np.flatnonzero(ok & (np.diff(a) > 1e-6) & (fresh[:-1] | fresh[1:]))
+            # Screen by the cubic Hermite midpoint, whose chord deviation is d (m0 - m1) / 8:
+            # where both slopes are gentle (its error d^4 z^(4) / 384 is then below 1e-4 tol)
+            # and it predicts less than SCREEN * tol / 2, no exact midpoint is needed.
+            d = a[idx + 1] - a[idx]
+            predicted = np.abs(d * (slope[idx] - slope[idx + 1])) / 8.0
+            smooth = ~(steep[idx] | steep[idx + 1]) & (predicted <= SCREEN * half)
+            idx = idx[~smooth]
             if len(idx) == 0:
                 break
             am = 0.5 * (a[idx] + a[idx + 1])
@@ -170,16 +182,27 @@ class RasterPlanner:
             bad &= np.isfinite(zm)
             if not bad.any():
                 break
+            sm, stm = self._along_slopes(am[bad], b[lm[bad]], um[bad], wm[bad])
             line = np.concatenate([line, lm[bad]])
             a = np.concatenate([a, am[bad]])
             z = np.concatenate([z, zm[bad]])
             u = np.concatenate([u, um[bad]])
             w = np.concatenate([w, wm[bad]])
+            slope = np.concatenate([slope, sm])
+            steep = np.concatenate([steep, stm])
             fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
             order = np.lexsort((a, line))
             line, a, z, u, w = line[order], a[order], z[order], u[order], w[order]
-            fresh = fresh[order]
+            slope, steep, fresh = slope[order], steep[order], fresh[order]
         return line, a, z, u, w
+
+    def _along_slopes(self, a: FloatArray, b: FloatArray, u: FloatArray,
+                      w: FloatArray) -> tuple[FloatArray, np.ndarray]:
+        """Slope of the CL height along the pass, and where the CL surface is too steep (or
+        has no height) for a cubic model of it to be trusted."""
+        grad = self.dc.slopes(self._xy(a, b), u, w)
+        steep = ~(np.abs(grad).max(axis=1) <= GENTLE)  # NaN counts as steep
+        return np.nan_to_num(grad @ self.along), steep
 
     def _heights(self, a: FloatArray, b: FloatArray, monitor: Monitor, f0: float, f1: float):
         """Drop-cutter heights in chunks, reporting progress between f0 and f1."""
