@@ -4,14 +4,17 @@
 from __future__ import annotations
 
 import math
+import re
 import shutil
 import subprocess
+from unittest import mock
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from BSplineCAM.core import gcode
 from BSplineCAM.core.gcode import (
     GcodeError,
     MoveKind,
@@ -131,6 +134,46 @@ def test_unknown_start_not_a_move() -> None:
     prog = read_gcode("G21 G90\nG0 Z10\nG0 X5 Y5\nG1 Z0 F100\nM2\n")
     assert len(prog) == 1
     np.testing.assert_allclose(prog.start[0], [5, 5, 10])
+
+
+_COORD = st.floats(-200, 200, allow_nan=False).map(lambda v: f"{v:.4f}")
+_SIMPLE_LINE = st.tuples(
+    st.sampled_from(["", "G0", "G00", "G1", "G01", "g1"]),
+    st.lists(st.tuples(st.sampled_from("XYZ"), _COORD), max_size=3, unique_by=lambda t: t[0]),
+    st.sampled_from(["", "F250", "F1200.5"]),
+    st.sampled_from(["", "N10 ", "N20"]),
+    st.sampled_from(["", " (note)", " ; plunge", "  "]),
+).map(lambda t: f"{t[3]}{t[0]} {' '.join(a + v for a, v in sorted(t[1]))} {t[2]}{t[4]}")
+_MODE_LINE = st.sampled_from(["G90", "G91", "G20", "G21", "F300", "G17", ""])
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.one_of(_SIMPLE_LINE, _MODE_LINE), min_size=1, max_size=40),
+       st.sampled_from([None, "G1 X1 F0", "G10 X1", "G1 X1 E2", "G0 X1 X2"]), st.integers(0, 40),
+       st.sampled_from(["G21", "G20"]))
+def test_plain_move_lines_read_as_by_the_general_path(lines: list[str], bad: str | None,
+                                                       where: int, units: str) -> None:
+    """The shortcut for plain G0/G1 lines gives the same program (or the same error) as the
+    general word-by-word interpreter, which it bypasses."""
+    if bad is not None:
+        lines.insert(where, bad)
+    text = f"{units} G90 F100\nG0 X0 Y0 Z5\n" + "\n".join(lines) + "\nM2\n"
+
+    def read() -> object:
+        try:
+            return read_gcode(text)
+        except GcodeError as exc:
+            return str(exc)
+
+    fast = read()
+    with mock.patch.object(gcode, "_SIMPLE_MOVE", re.compile(r"(?!)")):
+        general = read()
+    if isinstance(general, str) or isinstance(fast, str):
+        assert fast == general
+        return
+    for name in ("kind", "start", "end", "feed", "line", "plane"):
+        np.testing.assert_array_equal(getattr(fast, name), getattr(general, name), err_msg=name)
+    assert fast.converted_from_inches == general.converted_from_inches
 
 
 @settings(max_examples=60, deadline=None)

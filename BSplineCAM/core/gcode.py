@@ -111,6 +111,13 @@ _M_IGNORED = {0, 1, 3, 4, 5, 7, 8, 9}
 _AXES = "XYZ"
 _NO_CENTRE = (math.nan, math.nan, math.nan)
 _FAST_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
+_NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)"
+#: The line most programs are made of: [N..] [G0|G1] [X..] [Y..] [Z..] [F..], upper case, in
+#: this order; read by :meth:`_State.simple_move` without the general word handling.
+_SIMPLE_MOVE = re.compile(
+    rf"\s*(?:N\d+\s*)?(?:G0?([01])(?![\d.])\s*)?(?:X({_NUMBER})\s*)?(?:Y({_NUMBER})\s*)?"
+    rf"(?:Z({_NUMBER})\s*)?(?:F({_NUMBER})\s*)?"
+)
 
 
 def read_gcode(text: str, source: str = "program", require_end: bool = True) -> Program:
@@ -121,7 +128,11 @@ def read_gcode(text: str, source: str = "program", require_end: bool = True) -> 
     state = _State(source)
     lines = text.splitlines()
     percent_open = False
+    simple = _SIMPLE_MOVE.fullmatch
     for lineno, raw in enumerate(lines, start=1):
+        match = simple(raw)
+        if match is not None and state.simple_move(match.groups(), lineno):
+            continue
         stripped = raw.strip()
         if stripped.startswith("%"):
             if stripped.strip("% \t"):
@@ -296,6 +307,37 @@ class _State:
             raise self.error("arc words I/J/K/R without G2/G3")
         if 2 in m_codes or 30 in m_codes:
             self.ended = True
+
+    def simple_move(self, words: tuple[str | None, ...], lineno: int) -> bool:
+        """Execute a plain G0/G1 line from its (G, X, Y, Z, F) words, when nothing about it
+        needs the general path (absolute mode, known position, a feed for G1); returns
+        whether it did.  The result is the same as :meth:`execute` would give."""
+        g, x, y, z, f = words
+        motion = self.motion if g is None else int(g)
+        position = self.position
+        if (not self.absolute or motion not in (0, 1) or (x is None and y is None and z is None)
+                or None in position):
+            return False
+        feed = self.feed
+        if f is not None:
+            feed = float(f) * self.scale
+            if not feed > 0:
+                return False
+        if motion == 1 and not math.isfinite(feed):
+            return False
+        scale = self.scale
+        target = [position[0] if x is None else float(x) * scale,
+                  position[1] if y is None else float(y) * scale,
+                  position[2] if z is None else float(z) * scale]
+        self.lineno = lineno
+        self.moves_seen = True
+        self.motion = motion
+        self.feed = feed
+        self.position = target
+        if target != position:
+            self.moves.append((motion, tuple(position), tuple(target), _NO_CENTRE, self.plane,
+                               math.nan if motion == 0 else feed, lineno))
+        return True
 
     def _target(self, values: dict[str, float]) -> list[float | None]:
         target = list(self.position)
