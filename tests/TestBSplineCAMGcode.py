@@ -118,7 +118,10 @@ def test_inches_converted() -> None:
     ("G21\nG0 X0 Y0 Z0\nG1 X1\nM2\n", "line 3: G1 with no feed rate"),
     ("G21\nG0 X0 Y0 Z0\nG2 X10 Y0 I4 J0 F100\nM2\n", "line 3: radius to the arc's end"),
     ("G21\nG0 X0 Y0 Z0\nG2 X10 Y0 R2 F100\nM2\n", "line 3: arc radius R2 is smaller"),
-    ("G21\nG0 X0 Y0 Z0\nG1 X#1 F100\nM2\n", "line 3: parameters and expressions"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X1 F#1\nM2\n", "line 3: parameters and expressions are not supported in F"),
+    ("G21\n#1=5\nM2\n", "line 2: parameters and expressions are not supported"),
+    ("G21\nG0 X0 Y0 Z0\nG0 X[1\nM2\n", "line 3: parameters and expressions are not supported"),
+    ("G21\nG0 X0 Y0 Z0\nG28 G1 X1\nM2\n", "line 3: G28 and a motion code on one line"),
     ("G21\nG0 X0 Y0 Z0\nG81 X1 Y1 Z-1 R1 F100\nM2\n", "line 3: canned cycle G81"),
     ("G21\nG0 X0 Y0 Z0 A5\nM2\n", "line 2: axis word A"),
     ("G21\nX1\nM2\n", "line 2: axis words without a motion mode"),
@@ -128,6 +131,58 @@ def test_inches_converted() -> None:
 def test_errors_name_the_line(text: str, message: str) -> None:
     with pytest.raises(GcodeError, match=message.replace("(", r"\(").replace(")", r"\)")):
         read_gcode(text, "prog.ngc")
+
+
+# FreeCAD 1.0's fanuc post around a tool change: home Z, then a tool-length offset whose
+# value lives in the controller's parameters.
+FANUC_TOOL_CHANGE = """G17 G54 G40 G49 G80 G90
+G21
+G28 G91 Z0
+G90 G0 X0 Y0 Z20
+M05
+G28 G91 Z0
+M6 T1
+G91 G0 G43 G54 Z-[#[2000+#4120]] H#4120
+G90
+M3 S10000
+G0 X10 Y10
+G0 Z5
+G1 Z0 F100
+G1 X20 F300
+G28 X15 Y10
+G0 X1 Y1 Z30
+M2
+"""
+
+
+def test_home_and_parameter_axes_make_the_position_unknown() -> None:
+    """G28 sends axes to the machine's home, an expression sets an axis to a value only the
+    controller knows: no move is simulated from there until every axis is set again."""
+    prog = read_gcode(FANUC_TOOL_CHANGE)
+    assert list(prog.kind) == [MoveKind.LINE, MoveKind.LINE, MoveKind.RAPID]
+    np.testing.assert_allclose(prog.start[0], [10, 10, 5])
+    np.testing.assert_allclose(prog.end[1], [20, 10, 0])
+    np.testing.assert_allclose(prog.end[2], [15, 10, 0])  # the intermediate point of G28
+    assert list(prog.line) == [13, 14, 15]
+    assert any("line 6: G28 sends Z" in w for w in prog.warnings), prog.warnings
+    assert any("line 8: Z is set by an expression" in w for w in prog.warnings), prog.warnings
+
+
+@pytest.mark.skipif(RS274 is None, reason="LinuxCNC rs274 not installed")
+def test_fanuc_tool_change_is_a_valid_program(tmp_path) -> None:
+    """LinuxCNC accepts the block, so refusing it would be the reader's fault."""
+    ngc = tmp_path / "fanuc.ngc"
+    ngc.write_text(FANUC_TOOL_CHANGE)
+    table = tmp_path / "tool.tbl"
+    table.write_text("T1 P1 D6 Z0 ;\n")
+    proc = subprocess.run([RS274, "-t", str(table), "-g", str(ngc)], capture_output=True,
+                          text=True, input="", timeout=60, check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    theirs = read_canonical(proc.stdout)
+    ours = read_gcode(FANUC_TOOL_CHANGE)
+    # the feeds, which start from a position set by the program, agree exactly
+    np.testing.assert_allclose(ours.end[ours.kind == MoveKind.LINE],
+                               theirs.end[theirs.kind == MoveKind.LINE], atol=1e-4)
 
 
 def test_unknown_start_not_a_move() -> None:

@@ -339,19 +339,26 @@ def cam_dialogs(post: str = "", save_path: str = "", open_path: str = "",
 
 
 def count_colours(image, step: int = 4) -> dict[str, int]:
-    """Pixels (every ``step``-th) that are white, green, blue, red or grey in a QImage."""
+    """Pixels (every ``step``-th) that are white, green, blue or red in a QImage.
+
+    Colours are told by hue, so the shading of a FreeCAD version's lights (1.0 renders darker
+    than 0.20) does not change the class; grey and near-black pixels count as none.
+    """
     counts = {"white": 0, "green": 0, "blue": 0, "red": 0}
     for x in range(0, image.width(), step):
         for y in range(0, image.height(), step):
             c = QtGui.QColor(image.pixel(x, y))
-            r, g, b = c.red(), c.green(), c.blue()
-            if r > 245 and g > 245 and b > 245:
+            if c.red() > 245 and c.green() > 245 and c.blue() > 245:
                 counts["white"] += 1
-            elif g > r + 40 and g > b + 40:
+                continue
+            hue, sat, val = c.hsvHue(), c.hsvSaturation(), c.value()
+            if sat < 90 or val < 40 or hue < 0:
+                continue
+            if 75 <= hue <= 165:
                 counts["green"] += 1
-            elif b > r + 40 and b > g + 40:
+            elif 195 <= hue <= 260:
                 counts["blue"] += 1
-            elif r > g + 60 and r > b + 60:
+            elif hue <= 15 or hue >= 345:
                 counts["red"] += 1
     return counts
 

@@ -34,7 +34,7 @@ LOCK="$ROOT.lock"
 SUITE="trixie"
 # Packages installed in the chroot. Changing this list makes `ensure` install
 # the difference into an existing chroot (no full rebuild).
-PACKAGES=(freecad-python3 python3-numpy)
+PACKAGES=(freecad-python3 python3-numpy xvfb xauth linuxcnc-uspace)
 CHROOT_PATH="/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin"
 
 msg() { printf '%s: %s\n' "$PROG" "$*" >&2; }

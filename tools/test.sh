@@ -6,7 +6,8 @@
 #   core-debian  pytest in Debian's python3 (numpy 1.24, the Python FreeCAD 0.20 runs)
 #   freecad-0.20 unittest modules inside freecadcmd 0.20
 #   freecad-1.0  the same modules inside freecadcmd 1.0 (Debian trixie chroot)
-#   gui          the real FreeCAD GUI under Xvfb
+#   gui          the real FreeCAD 0.20 GUI under Xvfb (screenshots in docs/)
+#   gui-1.0      the real FreeCAD 1.0 GUI under Xvfb in the chroot (build/screenshots-1.0/)
 # The last line reads "N passed, N failed" over all tests run.
 set -uo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -69,9 +70,9 @@ BSPLINECAM_REQUIRE_ALL=1 suite core-venv pytest .venv/bin/python -m pytest -p no
 BSPLINECAM_REQUIRE_ALL=0 suite core-debian pytest /usr/bin/python3 -m pytest -p no:cacheprovider tests
 suite freecad-0.20 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
 FREECADCMD="$root/tools/freecad10.sh freecadcmd" suite freecad-1.0 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
-if [ -x tools/run_gui_test.sh ]; then
-  suite gui unittest tools/run_gui_test.sh
-fi
+suite gui unittest tools/run_gui_test.sh
+BSPLINECAM_DOCS="$root/build/screenshots-1.0" suite gui-1.0 unittest \
+  tools/freecad10.sh run env FREECAD=/usr/bin/freecad QT_QPA_PLATFORM=xcb tools/run_gui_test.sh
 
 if [ "${#failed_suites[@]}" -gt 0 ]; then
   echo "failed suites: ${failed_suites[*]}"

@@ -74,6 +74,7 @@ _CAM_MODULES = {
     "job": ("PathScripts.PathJob", "Path.Main.Job"),
     "op": ("PathScripts.PathOp", "Path.Op.Base"),
     "toolbit": ("PathScripts.PathToolBit", "Path.Tool.Bit"),
+    "toolbit_gui": ("PathScripts.PathToolBitGui", "Path.Tool.Gui.Bit"),  # GUI layer only
     "controller": ("PathScripts.PathToolController", "Path.Tool.Controller"),
     "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface"),
     "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils"),
@@ -88,7 +89,8 @@ POST_PROCESSORS = ("linuxcnc", "grbl", "fanuc", "mach3_mach4")
 
 
 def cam_module(role: str):
-    """The machining module playing ``role`` (job, op, toolbit, controller, surface_op)."""
+    """The machining module playing ``role`` (job, op, toolbit, toolbit_gui, controller,
+    surface_op, utils)."""
     ensure_freecad()
     if role not in _CAM_MODULES:
         raise KeyError(f"unknown CAM module role {role!r}")

@@ -3,8 +3,8 @@
 
 Covers what the linuxcnc, grbl, fanuc and mach3_mach4 posts write: G0/G1/G2/G3 (arcs by
 I/J/K offsets or R), G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, F, S, T, M3/M4/M5, M6,
-M7/M8/M9, G43 H, G54..G59, G40/G49/G80/G94/G98/G99/G61/G64, G4 dwell, N numbers, ( ) and ;
-comments, % and M2/M30.  The semantics follow LinuxCNC's RS274NGC interpreter (Kramer, Proctor
+M7/M8/M9, G43 H, G54..G59, G40/G49/G80/G94/G98/G99/G61/G64, G4 dwell, G28/G30 (return to the
+machine's home through an intermediate point), N numbers, ( ) and ; comments, % and M2/M30.  The semantics follow LinuxCNC's RS274NGC interpreter (Kramer, Proctor
 & Messina, "The NIST RS274NGC Interpreter - Version 3", NISTIR 6556, 2000): words on one line
 are executed in the order of section 3.8, not in the order written.  Anything else raises
 :class:`GcodeError` naming the line, so a program is never half-understood.
@@ -12,7 +12,12 @@ are executed in the order of section 3.8, not in the order written.  Anything el
 A program in inches (G20) is converted to millimetres word by word;
 ``Program.converted_from_inches`` records that it happened.  The machine position is unknown
 until the program sets every axis: no move is recorded from an unknown start (rs274 would
-assume the origin, which lies inside the stock of most parts).
+assume the origin, which lies inside the stock of most parts).  The same holds after G28/G30
+(the home position is the machine's, not the program's) and after an axis word whose value is
+a parameter expression, such as the tool-length line of FreeCAD 1.0's fanuc post,
+``G91 G0 G43 G54 Z-[#[2000+#4120]] H#4120``: that axis is unknown until the program sets it
+again, and ``Program.warnings`` says so.  Parameter assignments (``#1=...``) and expressions
+in other words are refused.
 """
 
 from __future__ import annotations
@@ -100,7 +105,12 @@ class Segments:
 # ---------------------------------------------------------------------------------------------
 # reading
 
-_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))|(.)")
+#: Stands for the value of a parameter expression (unknown to the reader) once it is masked.
+_UNKNOWN_MARK = "?"
+#: Innermost pieces of an expression: a numbered parameter, a parameter of a marker, a bracket
+#: holding no bracket.
+_INNER_EXPRESSION = re.compile(r"#\d+|#\?|\[[^\[\]]*\]")
+_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+|\?))|(.)")
 _COMMENT = re.compile(r"\([^()]*\)")
 
 #: G codes accepted without effect on the geometry (cutter compensation off, tool length,
@@ -177,11 +187,8 @@ def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
     text = "".join(text.split()).upper()
     if text.startswith("/"):
         text = text[1:]
-    for bad in "#[]<>":
-        if bad in text:
-            raise GcodeError(
-                f"{source}: line {lineno}: parameters and expressions are not supported: {text!r}"
-            )
+    if any(c in text for c in "#[]<>"):
+        text = _mask_expressions(text, source, lineno)
     words = _FAST_WORD.findall(text)
     if sum(len(a) + len(b) for a, b in words) == len(text):
         return [(a, float(b)) for a, b in words]
@@ -193,8 +200,27 @@ def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
             if bad.isalpha():
                 raise GcodeError(f"{source}: line {lineno}: word {bad!r} has no number: {rest!r}")
             raise GcodeError(f"{source}: line {lineno}: cannot read {rest!r}")
-        words.append((match.group(1), float(match.group(2))))
+        value = match.group(2)
+        unknown = value.lstrip("+-") == _UNKNOWN_MARK
+        words.append((match.group(1), math.nan if unknown else float(value)))
     return words
+
+
+def _mask_expressions(text: str, source: str, lineno: int) -> str:
+    """Replace each parameter expression used as a word's value (``#4120``, ``[#[2000+#1]]``)
+    by a marker read as an unknown value; anything else with ``#``, brackets or ``<>`` (an
+    assignment, a named parameter, a stray bracket) is refused."""
+    masked = text
+    while True:
+        reduced = _INNER_EXPRESSION.sub(_UNKNOWN_MARK, masked)
+        if reduced == masked:
+            break
+        masked = reduced
+    if any(c in masked for c in "#[]<>=") or re.search(r"(?<![A-Z+-])" + re.escape(_UNKNOWN_MARK), masked):
+        raise GcodeError(
+            f"{source}: line {lineno}: parameters and expressions are not supported: {text!r}"
+        )
+    return masked
 
 
 class _State:
@@ -229,6 +255,8 @@ class _State:
         g_codes: list[float] = []
         m_codes: list[int] = []
         for letter, value in words:
+            if letter in "GM" and math.isnan(value):
+                raise self.error(f"parameters and expressions are not supported in {letter}")
             if letter == "G":
                 g_codes.append(round(value, 1))
             elif letter == "M":
@@ -240,6 +268,8 @@ class _State:
             elif letter in "XYZIJKRFSTPHDLQ":
                 if letter in values:
                     raise self.error(f"word {letter} appears twice")
+                if math.isnan(value) and letter not in "XYZHD":
+                    raise self.error(f"parameters and expressions are not supported in {letter}")
                 values[letter] = value
             elif letter in "ABCUVW":
                 raise self.error(f"axis word {letter} not supported (3-axis programs only)")
@@ -248,8 +278,11 @@ class _State:
             else:
                 raise self.error(f"unknown word {letter}{value:g}")
         motion = None
+        home = None
         for g in g_codes:
-            if g in (0.0, 1.0, 2.0, 3.0):
+            if g in (28.0, 30.0):
+                home = int(g)
+            elif g in (0.0, 1.0, 2.0, 3.0):
                 if motion is not None:
                     raise self.error("two motion codes on one line")
                 motion = int(g)
@@ -293,7 +326,11 @@ class _State:
         if motion is not None:
             self.motion = motion
         has_axes = any(a in values for a in _AXES)
-        if motion is not None or (has_axes and 4.0 not in g_codes):
+        if home is not None:
+            if motion is not None:
+                raise self.error(f"G{home} and a motion code on one line")
+            self._home(home, values)
+        elif motion is not None or (has_axes and 4.0 not in g_codes):
             if 4.0 in g_codes and motion is not None:
                 raise self.error("G4 and a motion on one line")
             if self.motion is None:
@@ -339,10 +376,41 @@ class _State:
                                math.nan if motion == 0 else feed, lineno))
         return True
 
+    def _home(self, code: int, values: dict[str, float]) -> None:
+        """G28/G30: a rapid to the intermediate point the axis words give (if any), then the
+        named axes (all, if none is named) go to the machine's home, unknown to the program."""
+        if any(k in values for k in "IJKR"):
+            raise self.error(f"arc words I/J/K/R with G{code}")
+        named = [a for a, letter in enumerate(_AXES) if letter in values]
+        # An incremental intermediate point from an unknown position is unknown too; the axis
+        # goes home from there all the same.
+        if named and (self.absolute or all(self.position[a] is not None for a in named)):
+            target = self._target(values)
+            start = self.position
+            if None not in start and None not in target and target != start:
+                self.moves.append((0, tuple(start), tuple(target), _NO_CENTRE, self.plane,
+                                   math.nan, self.lineno))
+            self.position = target
+        homed = named or [0, 1, 2]
+        for axis in homed:
+            self.position[axis] = None
+        self.warn(f"G{code} sends {''.join(_AXES[a] for a in homed)} to the machine's home; "
+                  "moves are simulated again once the program sets every axis")
+
+    def warn(self, message: str) -> None:
+        text = f"{self.source}: line {self.lineno}: {message}"
+        if len(self.warnings) < 20 and text not in self.warnings:
+            self.warnings.append(text)
+
     def _target(self, values: dict[str, float]) -> list[float | None]:
         target = list(self.position)
         for axis, letter in enumerate(_AXES):
             if letter not in values:
+                continue
+            if math.isnan(values[letter]):
+                target[axis] = None
+                self.warn(f"{letter} is set by an expression; moves are simulated again once "
+                          "the program sets every axis")
                 continue
             value = values[letter] * self.scale
             if self.absolute:

@@ -114,7 +114,7 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
         source_units=program.source_units, converted_from_inches=program.converted_from_inches,
         tool={"shape": tool.shape.value, "diameter_mm": tool.diameter,
               "corner_radius_mm": tool.corner_radius},
-        program_tools=list(program.tools),
+        program_tools=list(program.tools), program_warnings=list(program.warnings),
     )
     return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics)
 

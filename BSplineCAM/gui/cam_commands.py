@@ -134,8 +134,11 @@ def attach_job_view_providers(job, op) -> None:
 # -- the job ---------------------------------------------------------------------------------
 @contextlib.contextmanager
 def app_toolbit_factory() -> Iterator[None]:
-    """CAM's GUI tool-bit factory (0.20) opens and *commits* a transaction of its own, which
-    would commit half of ours; the app factory it wraps makes the same bit without that."""
+    """CAM's GUI tool-bit factory opens and *commits* a transaction of its own, which would
+    commit half of ours; the app factory it wraps makes the same bit without that.  The GUI
+    module installs its factory when first imported (FreeCAD 1.0 imports it lazily, while
+    the job is being made), so it is imported before the swap."""
+    compat.cam_module("toolbit_gui")
     toolbit = compat.cam_module("toolbit")
     saved = getattr(toolbit, "Factory", None)
     plain = getattr(toolbit, "ToolBitFactory", None)
