@@ -5,10 +5,13 @@ At tip height z the ball touches the surface without cutting exactly where the d
 height c(x, y) - R equals z, so each waterline is a level set of the exact drop-cutter field
 (the offset surface S + R n with its folds resolved by the max).  Levels are found by
 marching squares (Lorensen & Cline 1987) on a grid of exact heights, each crossing is
-polished on its grid edge by regula falsi on the exact drop-cutter, thinned by Douglas–Peucker
-to tolerance / 2 in XY, and every chord is checked against the exact drop-cutter: where the
-ball would dip below the level (a chord across a convex contour) the vertices are pushed
-outwards (:func:`push_out`).
+polished on its grid edge by regula falsi on the exact drop-cutter, points projected onto the
+level are inserted between crossings until the contour follows it to tolerance / 4
+(:func:`densify`), the result is thinned by Douglas–Peucker to tolerance / 2 in XY, and every
+chord is checked against the exact drop-cutter: where the ball would dip below the level (a
+chord across a convex contour) the vertices are pushed outwards (:func:`push_out`).  The push
+is thus bounded by the chordal tolerance; on a wall of slope alpha it lifts the ball by about
+push * tan(alpha), which the scallop budget h + tolerance absorbs.
 The step-down follows the scallop on walls: adjacent contours a slope alpha apart along the
 surface are dz / sin(alpha) apart, so dz = s sin(alpha) with s the curvature-adjusted
 stepover; walls shallower than ``min_slope`` are left to a raster pass (reported in notes).
