@@ -225,22 +225,23 @@ def densify(dc: DropCutter, pts: FloatArray, starts: np.ndarray, gap: float,
         m = 0.5 * (a[:, :2] + b[:, :2])
         half = 0.5 * np.hypot(*(b[:, :2] - a[:, :2]).T)
         q = m.copy()
-        moved = np.zeros(len(idx))
+        good = np.ones(len(idx), bool)
         for k in range(3):
             z, g = dc.heights_and_slopes(q)
             with np.errstate(divide="ignore", invalid="ignore"):
                 step = ((level - z) / np.einsum("ij,ij->i", g, g))[:, None] * g
-            step = np.nan_to_num(step, nan=np.inf)
             norm = np.hypot(step[:, 0], step[:, 1])
+            good &= np.isfinite(norm)  # off the surface, or no gradient to follow
             if k == 0:
                 # Midpoints already within the gap (or off the surface) end their chord.
-                keep = np.isfinite(norm) & (norm > gap)
-                idx, level, m, half, q, step, norm, moved = (
-                    v[keep] for v in (idx, level, m, half, q, step, norm, moved))
+                keep = good & (norm > gap)
+                idx, level, m, half, q, step, norm, good = (
+                    v[keep] for v in (idx, level, m, half, q, step, norm, good))
+            step = np.where(good[:, None], step, 0.0)
             step *= np.minimum(1.0, half / np.maximum(norm, 1e-300))[:, None]
             q = q + step
-            moved = np.hypot(*(q - m).T)
-        ok = np.isfinite(q).all(axis=1) & (norm < 1e-3 * gap) & (moved > gap)
+        # Inserted only where Newton converged (last step tiny) and the point is off the chord.
+        ok = good & (norm < 1e-3 * gap) & (np.hypot(*(q - m).T) > gap)
         active[:] = False
         if not ok.any():
             break
