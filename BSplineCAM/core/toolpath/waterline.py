@@ -5,10 +5,13 @@ At tip height z the ball touches the surface without cutting exactly where the d
 height c(x, y) - R equals z, so each waterline is a level set of the exact drop-cutter field
 (the offset surface S + R n with its folds resolved by the max).  Levels are found by
 marching squares (Lorensen & Cline 1987) on a grid of exact heights, each crossing is
-polished on its grid edge by regula falsi on the exact drop-cutter, thinned by Douglas–Peucker
-to tolerance / 2 in XY, and every chord is checked against the exact drop-cutter: where the
-ball would dip below the level (a chord across a convex contour) the vertices are pushed
-outwards (:func:`push_out`).
+polished on its grid edge by regula falsi on the exact drop-cutter, points projected onto the
+level are inserted between crossings until the contour follows it to tolerance / 4
+(:func:`densify`), the result is thinned by Douglas–Peucker to tolerance / 2 in XY, and every
+chord is checked against the exact drop-cutter: where the ball would dip below the level (a
+chord across a convex contour) the vertices are pushed outwards (:func:`push_out`).  The push
+is thus bounded by the chordal tolerance; on a wall of slope alpha it lifts the ball by about
+push * tan(alpha), which the scallop budget h + tolerance absorbs.
 The step-down follows the scallop on walls: adjacent contours a slope alpha apart along the
 surface are dz / sin(alpha) apart, so dz = s sin(alpha) with s the curvature-adjusted
 stepover; walls shallower than ``min_slope`` are left to a raster pass (reported in notes).
@@ -182,6 +185,7 @@ def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Mon
     xy = p0 + t[:, None] * (p1 - p0)
     pts = np.column_stack([xy, zl])
     starts = np.cumsum([0] + [len(p) for p in polylines])
+    pts, starts = densify(dc, pts, starts, 0.25 * tool.tolerance)
     monitor(0.8)
     keep = simplify(pts, starts, 0.5 * tool.tolerance, "planar")
     passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
@@ -195,6 +199,61 @@ def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Mon
         "notes": [f"walls below {math.degrees(min_slope):g} degrees are not finished by "
                   "waterline; pair with a raster pass"],
     }
+
+
+def densify(dc: DropCutter, pts: FloatArray, starts: np.ndarray, gap: float,
+            rounds: int = 12) -> tuple[FloatArray, np.ndarray]:
+    """Insert level-set points between contour vertices until every chord's midpoint lies
+    within ``gap`` (XY, mm) of the level set.
+
+    Marching squares leaves one vertex per grid edge (up to ~R/4 * sqrt 2 apart); across a
+    convex contour such a chord sags by L^2 / (8 r) in XY, which :func:`push_out` would have
+    to make good by moving the vertices outwards just as far, and on a wall of slope alpha
+    that lifts the ball, and the scallop, by the sag times tan alpha.  Each round projects
+    the midpoints of the chords still too far off onto the level by Newton steps along the
+    exact drop-cutter gradient (clipped to half the chord) and inserts them; only the two
+    halves of a split chord are examined again.
+    """
+    line = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
+    active = line[:-1] == line[1:]  # per chord (i, i + 1)
+    for _ in range(rounds):
+        idx = np.flatnonzero(active)
+        if len(idx) == 0:
+            break
+        a, b = pts[idx], pts[idx + 1]
+        level = a[:, 2]
+        m = 0.5 * (a[:, :2] + b[:, :2])
+        half = 0.5 * np.hypot(*(b[:, :2] - a[:, :2]).T)
+        q = m.copy()
+        good = np.ones(len(idx), bool)
+        for k in range(3):
+            z, g = dc.heights_and_slopes(q)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = ((level - z) / np.einsum("ij,ij->i", g, g))[:, None] * g
+            norm = np.hypot(step[:, 0], step[:, 1])
+            good &= np.isfinite(norm)  # off the surface, or no gradient to follow
+            if k == 0:
+                # Midpoints already within the gap (or off the surface) end their chord.
+                keep = good & (norm > gap)
+                idx, level, m, half, q, step, norm, good = (
+                    v[keep] for v in (idx, level, m, half, q, step, norm, good))
+            step = np.where(good[:, None], step, 0.0)
+            step *= np.minimum(1.0, half / np.maximum(norm, 1e-300))[:, None]
+            q = q + step
+        # Inserted only where Newton converged (last step tiny) and the point is off the chord.
+        ok = good & (norm < 1e-3 * gap) & (np.hypot(*(q - m).T) > gap)
+        active[:] = False
+        if not ok.any():
+            break
+        at = idx[ok] + 1
+        pts = np.insert(pts, at, np.column_stack([q[ok], level[ok]]), axis=0)
+        line = np.insert(line, at, line[at - 1])
+        active = np.insert(active, at, False)
+        new = at + np.arange(len(at))  # positions of the inserted points
+        active[new - 1] = True
+        active[new] = True
+    starts = np.searchsorted(line, np.arange(line[-1] + 2)) if len(line) else starts
+    return pts, starts
 
 
 def push_out(dc: DropCutter, passes: list, step: float,
