@@ -338,6 +338,19 @@ def cam_dialogs(post: str = "", save_path: str = "", open_path: str = "",
         cam_commands.ask_post, cam_commands.ask_tool_diameter = saved
 
 
+def tree_dock(mw):
+    """The dock showing the document tree, brought to the front: "Combo View" in FreeCAD 0.20,
+    a "Model" dock tabbed with "Tasks" in 1.0."""
+    docks = [mw.findChild(QtGui.QDockWidget, name) for name in ("Combo View", "Model")]
+    docks += [d for d in mw.findChildren(QtGui.QDockWidget) if d.findChildren(QtGui.QTreeWidget)]
+    for dock in docks:
+        if dock is not None and dock.findChildren(QtGui.QTreeWidget):
+            dock.show()
+            dock.raise_()
+            return dock
+    return None
+
+
 def count_colours(image, step: int = 4) -> dict[str, int]:
     """Pixels (every ``step``-th) that are white, green, blue or red in a QImage.
 
@@ -578,7 +591,7 @@ class TestCamCommands(CamTestCase):
         for model in job.Model.Group:
             model.ViewObject.Visibility = True
             model.ViewObject.Transparency = 40  # CAM's 80 % leaves it invisible in a picture
-        combo = mw.findChild(QtGui.QDockWidget, "Combo View")
+        combo = tree_dock(mw)
         if combo is not None:
             mw.resizeDocks([combo], [430], QtCore.Qt.Horizontal)
             for tree in combo.findChildren(QtGui.QTreeWidget):
@@ -608,7 +621,7 @@ class TestZScreenshots(GuiTestCase):
         for sub in mdi.subWindowList():
             if sub.windowTitle().startswith("Start page"):
                 sub.close()
-        combo = mw.findChild(QtGui.QDockWidget, "Combo View")
+        combo = tree_dock(mw)
         if combo is not None:
             mw.resizeDocks([combo], [430], QtCore.Qt.Horizontal)
         report = mw.findChild(QtGui.QDockWidget, "Report view")

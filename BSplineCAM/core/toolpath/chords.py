@@ -75,13 +75,24 @@ class ChordSamples:
             return
         order = np.lexsort((pos, after))
         at = after[order] + 1
-        self.pos = np.insert(self.pos, at, pos[order])
-        self.xy = np.insert(self.xy, at, xy[order], axis=0)
-        self.z = np.insert(self.z, at, z[order])
-        self.grad = np.insert(self.grad, at, grad[order], axis=0)
-        self.line = np.insert(self.line, at, self.line[after[order]])
-        self.vertex = np.insert(self.vertex, at, False)
-        self.zv = np.insert(self.zv, at, z[order])
+        n, m = len(self.pos), len(at)
+        # One merge for all arrays (as np.insert would place them, without redoing it 7 times).
+        new_at = at + np.arange(m)
+        old_at = np.arange(n) + np.searchsorted(at, np.arange(n), side="right")
+
+        def merged(old: np.ndarray, added) -> np.ndarray:
+            out = np.empty((n + m,) + old.shape[1:], old.dtype)
+            out[old_at] = old
+            out[new_at] = added
+            return out
+
+        self.pos = merged(self.pos, pos[order])
+        self.xy = merged(self.xy, xy[order])
+        self.z = merged(self.z, z[order])
+        self.grad = merged(self.grad, grad[order])
+        self.line = merged(self.line, self.line[after[order]])
+        self.vertex = merged(self.vertex, False)
+        self.zv = merged(self.zv, z[order])
 
     def vertices(self) -> tuple[FloatArray, FloatArray, np.ndarray]:
         """XY, chord heights and line of the vertices, in order."""
@@ -99,6 +110,16 @@ class ChordCheck:
     where: FloatArray
     grad: FloatArray
     unresolved: int
+
+
+def _max_into(out: FloatArray, keys: np.ndarray, values: FloatArray) -> None:
+    """out[k] = max(out[k], values with key k) for non-decreasing ``keys``: np.maximum.at by
+    segments (much faster on numpy 1.x)."""
+    if len(keys) == 0:
+        return
+    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+    heads = keys[starts]
+    out[heads] = np.maximum(out[heads], np.maximum.reduceat(values, starts))
 
 
 def _hermite_max(z0, z1, m0, m1, c0, c1):
@@ -169,7 +190,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
         split = rough & todo & (length > MIN_SPLIT)
         # Best interval of every chord still open.
         best_excess = np.full(nvert, -np.inf)
-        np.maximum.at(best_excess, cid, np.fmax(gh, ends))
+        _max_into(best_excess, cid, np.fmax(gh, ends))
         # Query every interval whose modelled maximum lies inside it, above its exact ends,
         # and near the chord's best: a second bump may hide a larger model error.
         cand = reliable & todo & (gh > ends + 0.5 * MODEL_ERROR)
@@ -190,7 +211,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
             failed = np.zeros(nvert, bool)
             failed[ch[~ok]] = True
             bound = np.full(nvert, -np.inf)
-            np.maximum.at(bound, ch, exact + err)
+            _max_into(bound, ch, exact + err)
             order = np.lexsort((-exact, ch))
             head = order[np.r_[True, ch[order][1:] != ch[order][:-1]]]
             okc = np.unique(ch[~failed[ch]])

@@ -106,15 +106,19 @@ class DropCutter:
         second = np.full(m, -1)
         value = np.full(m, -np.inf)
         R2 = self.radius * self.radius
+        cx, cy = self._cells(q)
+        rows = np.clip(cy[:, None] + np.arange(-2, 3), 0, self.ncy - 1)  # (m, 5)
+        k0 = rows * self.ncx + np.clip(cx - 2, 0, self.ncx - 1)[:, None]
+        k1 = rows * self.ncx + np.clip(cx + 2, 0, self.ncx - 1)[:, None]
+        lo_all = self.starts[k0]
+        hi_all = self.starts[k1 + 1]
+        # Chunks of queries with alike candidate counts: a chunk is padded to its widest row.
+        sequence = np.argsort((hi_all - lo_all).max(axis=1), kind="stable")
         for start in range(0, m, QUERY_CHUNK):
-            sl = slice(start, start + QUERY_CHUNK)
+            sl = sequence[start:start + QUERY_CHUNK]
             qq = q[sl]
-            cx, cy = self._cells(qq)
-            rows = np.clip(cy[:, None] + np.arange(-2, 3), 0, self.ncy - 1)  # (c, 5)
-            k0 = rows * self.ncx + np.clip(cx - 2, 0, self.ncx - 1)[:, None]
-            k1 = rows * self.ncx + np.clip(cx + 2, 0, self.ncx - 1)[:, None]
-            lo = self.starts[k0]
-            hi = self.starts[k1 + 1]
+            lo = lo_all[sl]
+            hi = hi_all[sl]
             width = int((hi - lo).max(initial=0))
             if width == 0:
                 continue
