@@ -221,7 +221,8 @@ umount_common() {
 # it is mounted, / otherwise.
 chroot_env() {
     local cwd=/ v
-    [[ -d "$ROOT$REPO_ROOT" ]] && mountpoint -q "$ROOT$REPO_ROOT" && cwd="$REPO_ROOT"
+    # The repo is reachable at the same path when bind-mounted itself or under the /tmp bind.
+    [[ -d "$ROOT$REPO_ROOT" && "$REPO_ROOT" -ef "$ROOT$REPO_ROOT" ]] && cwd="$REPO_ROOT"
     local envs=(HOME=/root USER=root LOGNAME=root "PATH=$CHROOT_PATH"
         LANG=C.UTF-8 LC_ALL=C.UTF-8 "TERM=${TERM:-dumb}" QT_QPA_PLATFORM=offscreen)
     for v in $(compgen -e); do

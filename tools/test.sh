@@ -72,7 +72,7 @@ suite freecad-0.20 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
 FREECADCMD="$root/tools/freecad10.sh freecadcmd" suite freecad-1.0 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
 suite gui unittest tools/run_gui_test.sh
 BSPLINECAM_DOCS="$root/build/screenshots-1.0" suite gui-1.0 unittest \
-  tools/freecad10.sh run env FREECAD=/usr/bin/freecad QT_QPA_PLATFORM=xcb tools/run_gui_test.sh
+  tools/freecad10.sh run env FREECAD=/usr/bin/freecad QT_QPA_PLATFORM=xcb "$root/tools/run_gui_test.sh"
 
 if [ "${#failed_suites[@]}" -gt 0 ]; then
   echo "failed suites: ${failed_suites[*]}"
