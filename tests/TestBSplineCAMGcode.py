@@ -122,6 +122,7 @@ def test_inches_converted() -> None:
     ("G21\n#1=5\nM2\n", "line 2: parameters and expressions are not supported"),
     ("G21\nG0 X0 Y0 Z0\nG0 X[1\nM2\n", "line 3: parameters and expressions are not supported"),
     ("G21\nG0 X0 Y0 Z0\nG28 G1 X1\nM2\n", "line 3: G28 and a motion code on one line"),
+    ("G21\nG0 X0 Y0 Z0\nG1 X? F100\nM2\n", "line 3: cannot read"),
     ("G21\nG0 X0 Y0 Z0\nG81 X1 Y1 Z-1 R1 F100\nM2\n", "line 3: canned cycle G81"),
     ("G21\nG0 X0 Y0 Z0 A5\nM2\n", "line 2: axis word A"),
     ("G21\nX1\nM2\n", "line 2: axis words without a motion mode"),

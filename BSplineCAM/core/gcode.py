@@ -4,9 +4,10 @@
 Covers what the linuxcnc, grbl, fanuc and mach3_mach4 posts write: G0/G1/G2/G3 (arcs by
 I/J/K offsets or R), G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1, F, S, T, M3/M4/M5, M6,
 M7/M8/M9, G43 H, G54..G59, G40/G49/G80/G94/G98/G99/G61/G64, G4 dwell, G28/G30 (return to the
-machine's home through an intermediate point), N numbers, ( ) and ; comments, % and M2/M30.  The semantics follow LinuxCNC's RS274NGC interpreter (Kramer, Proctor
-& Messina, "The NIST RS274NGC Interpreter - Version 3", NISTIR 6556, 2000): words on one line
-are executed in the order of section 3.8, not in the order written.  Anything else raises
+machine's home through an intermediate point), N numbers, ( ) and ; comments, % and M2/M30.
+The semantics follow LinuxCNC's RS274NGC interpreter (Kramer, Proctor & Messina, "The NIST
+RS274NGC Interpreter - Version 3", NISTIR 6556, 2000): words on one line are executed in the
+order of section 3.8, not in the order written.  Anything else raises
 :class:`GcodeError` naming the line, so a program is never half-understood.
 
 A program in inches (G20) is converted to millimetres word by word;
@@ -187,6 +188,8 @@ def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
     text = "".join(text.split()).upper()
     if text.startswith("/"):
         text = text[1:]
+    if _UNKNOWN_MARK in text:  # the marker of masked expressions is no G-code character
+        raise GcodeError(f"{source}: line {lineno}: cannot read {text!r}")
     if any(c in text for c in "#[]<>"):
         text = _mask_expressions(text, source, lineno)
     words = _FAST_WORD.findall(text)

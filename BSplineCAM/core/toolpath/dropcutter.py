@@ -14,9 +14,10 @@ ball-end drop cutting"; the inverse-tool-offset view of Kim & Chu).  The maximan
 is maximised over the parameter square [0, 1]^2: an interior maximum is exactly the point
 where the offset surface S + R n passes over q; maxima on the square's sides and corners are
 the ball resting on the surface's boundary edges and corners.  A dense parameter sample
-gives global seeds (the best one and the best one outside its neighbourhood, so a ball
-resting in a concave valley on two walls finds both contacts), and projected Newton with
-backtracking (Nocedal & Wright, section 3.1 and 16.7) polishes each to machine precision.
+gives global seeds (the best one, and the best sampled peak outside its neighbourhood, so a
+ball resting in a concave valley on two walls finds both contacts), and projected Newton with
+backtracking (Nocedal & Wright, section 3.1 and 16.7) polishes each to machine precision,
+stopping on the Newton decrement.
 Every value is evaluated at a real surface point, so it never exceeds the true height; the
 maximum over the polished seeds is taken.
 """
