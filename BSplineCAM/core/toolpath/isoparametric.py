@@ -31,14 +31,26 @@ from .common import (
 )
 from .dropcutter import DropCutter
 
+#: A lift (mm) up to which a tip counts as on the offset curve (the drop-cutter height there
+#: agrees with the offset point up to rounding).
+ON_OFFSET = 1e-9
+#: Fraction of the midpoint allowance (tol / 2) below which a pass interval whose cubic
+#: Hermite model predicts no more is left without an exact midpoint.
+SCREEN = 0.25
+
 
 def _uw(along: FloatArray, fixed: FloatArray, iso: IsoDirection) -> tuple[FloatArray, FloatArray]:
     return (along, fixed) if iso is IsoDirection.U else (fixed, along)
 
 
 def _cl(dc: DropCutter, along: FloatArray, fixed: FloatArray, iso: IsoDirection,
-        radius: float) -> tuple[FloatArray, FloatArray]:
-    """Tip points (m, 3) and how far each was lifted to the drop-cutter height (mm)."""
+        radius: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Tip points (m, 3), how far each was lifted to the drop-cutter height (mm), and the
+    derivative of the offset curve S + R n - R z along the pass (mm per parameter unit).
+
+    The normal's derivative comes from that of N = Su x Sw (n = N / |N|, so
+    n' = (N' - n (n . N')) / |N|), with the second derivatives of the jet.
+    """
     u, w = _uw(along, fixed, iso)
     jet = dc.jet(u, w)
     cl = jet.p + radius * jet.normal
@@ -46,7 +58,16 @@ def _cl(dc: DropCutter, along: FloatArray, fixed: FloatArray, iso: IsoDirection,
     drop = dc.heights(cl[:, :2])[0]
     lift = np.where(np.isfinite(drop), np.maximum(drop - cl[:, 2], 0.0), 0.0)
     cl[:, 2] += lift
-    return cl, lift
+    if iso is IsoDirection.U:
+        s_t, su_t, sw_t = jet.su, jet.suu, jet.suw
+    else:
+        s_t, su_t, sw_t = jet.sw, jet.suw, jet.sww
+    big_n = np.cross(jet.su, jet.sw)
+    length = np.maximum(np.linalg.norm(big_n, axis=1, keepdims=True), 1e-300)
+    dn = np.cross(su_t, jet.sw) + np.cross(jet.su, sw_t)
+    unit = big_n / length
+    dn = jet.sign * (dn - unit * np.einsum("ij,ij->i", unit, dn)[:, None]) / length
+    return cl, lift, s_t + radius * dn
 
 
 def _allowed_step(dc: DropCutter, tool: ToolParameters, along: FloatArray, fixed: float,
@@ -93,15 +114,26 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
     lines = np.repeat(np.arange(len(fixed)), n)
     t = np.tile(along, len(fixed))
     f = np.asarray(fixed)[lines]
-    cl, lift = _cl(dc, t, f, iso, tool.radius)
+    cl, lift, dcl = _cl(dc, t, f, iso, tool.radius)
     monitor(0.7)
     half = 0.5 * tool.tolerance
     fresh = np.ones(len(t), bool)  # intervals not yet checked start or end at these
     for _ in range(6):
         ok = lines[:-1] == lines[1:]
         idx = np.flatnonzero(ok & (np.diff(t) > 1e-9) & (fresh[:-1] | fresh[1:]))
+        # Screen by the cubic Hermite midpoint of the offset curve, off the chord by
+        # dt (c0' - c1') / 8: where neither end was lifted and it predicts less than
+        # SCREEN * tol / 2, no exact midpoint is needed (the chord check below still holds
+        # every chord to the exact drop-cutter height).
+        dt = (t[idx + 1] - t[idx])[:, None]
+        predicted = np.linalg.norm(dt * (dcl[idx] - dcl[idx + 1]), axis=1) / 8.0
+        on_offset = np.maximum(lift[idx], lift[idx + 1]) <= ON_OFFSET
+        smooth = on_offset & (predicted <= SCREEN * half)
+        idx = idx[~smooth]
+        if len(idx) == 0:
+            break
         tm = 0.5 * (t[idx] + t[idx + 1])
-        cm, lm = _cl(dc, tm, f[idx], iso, tool.radius)
+        cm, lm, dm = _cl(dc, tm, f[idx], iso, tool.radius)
         dev = np.linalg.norm(cm - 0.5 * (cl[idx] + cl[idx + 1]), axis=1)
         bad = dev > half
         if not bad.any():
@@ -111,10 +143,11 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
         f = np.concatenate([f, f[idx][bad]])
         cl = np.concatenate([cl, cm[bad]])
         lift = np.concatenate([lift, lm[bad]])
+        dcl = np.concatenate([dcl, dm[bad]])
         fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
         order = np.lexsort((t, lines))
         lines, t, f, cl, lift = lines[order], t[order], f[order], cl[order], lift[order]
-        fresh = fresh[order]
+        dcl, fresh = dcl[order], fresh[order]
     monitor(0.9)
     starts = np.concatenate([[0], np.flatnonzero(np.diff(lines)) + 1, [len(lines)]])
     keep = simplify(cl, starts, half, "distance")
