@@ -25,7 +25,9 @@ from BSplineCAM.core.toolpath import (
     generate,
     to_moves,
 )
+from BSplineCAM.core.toolpath.common import IsoDirection
 from BSplineCAM.core.toolpath.dropcutter import brute_force_heights
+from BSplineCAM.core.toolpath.isoparametric import _cl as iso_cutter_locations
 
 
 def bezier_net(fz, size: float = 40.0) -> np.ndarray:
@@ -351,6 +353,22 @@ def test_isoparametric_plane_and_case(case):
     z = dc.heights(pts[:, :2])[0]
     ok = np.isfinite(z)
     assert np.all(pts[ok, 2] >= z[ok] - 1e-6)  # nor do the chords between them
+
+
+@pytest.mark.parametrize("iso", [IsoDirection.U, IsoDirection.W])
+def test_iso_offset_curve_derivative_matches_finite_differences(case, iso):
+    """The derivative of S + R n - R z along a pass (which screens midpoints) against central
+    differences of the offset points themselves."""
+    dc = DropCutter(case, 3.0)
+    t = np.linspace(0.05, 0.95, 40)
+    fixed = np.full(len(t), 0.37)
+    _, _, derivative = iso_cutter_locations(dc, t, fixed, iso, 3.0)
+    h = 1e-6
+    ahead, lift_a, _ = iso_cutter_locations(dc, t + h, fixed, iso, 3.0)
+    behind, lift_b, _ = iso_cutter_locations(dc, t - h, fixed, iso, 3.0)
+    ahead[:, 2] -= lift_a
+    behind[:, 2] -= lift_b
+    np.testing.assert_allclose(derivative, (ahead - behind) / (2 * h), atol=1e-6 * 120)
 
 
 # -- API: validation, progress, cancel, moves ---------------------------------------------------
