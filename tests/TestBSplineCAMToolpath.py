@@ -386,6 +386,7 @@ def test_iso_offset_curve_derivative_matches_finite_differences(case, iso):
     ({"iso_direction": "v"}, "iso_direction"),
     ({"angle": float("inf")}, "angle"),
     ({"clearance_height": 1.0}, "clearance_height"),
+    ({"scallop": 1e-7, "tolerance": 1e-5}, "million cutter locations"),
     ({"progress": 3}, "progress"),
 ])
 def test_bad_arguments(kwargs, fragment):

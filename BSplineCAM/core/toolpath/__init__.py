@@ -15,6 +15,8 @@ import math
 import time
 from typing import Any
 
+import numpy as np
+
 from ..errors import ParameterError
 from .common import (
     CancelFn,
@@ -40,6 +42,19 @@ from .dropcutter import DropCutter
 
 #: Longest stay-down link between zig-zag passes, in tool radii; longer gaps retract.
 STAY_DOWN_LINK = 2.0
+#: Most cutter locations a toolpath may need (about a quarter of an hour and a few GB): a
+#: scallop or tolerance asking for more is refused up front instead of running for hours.
+MAX_CUTTER_LOCATIONS = 50_000_000
+
+
+def estimated_cutter_locations(surface: Any, tool: ToolParameters) -> float:
+    """Exact cutter locations a finish of the whole surface samples: its area over the flat
+    stepover times the point spacing along a pass, sqrt(8 R tol)."""
+    grid = surface.grid(33, 33)
+    cross = np.cross(np.diff(grid, axis=0)[:, :-1], np.diff(grid, axis=1)[:-1, :])
+    area = float(np.linalg.norm(cross, axis=-1).sum())
+    step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
+    return area / (tool.flat_stepover * step)
 
 
 def generate(
@@ -78,6 +93,13 @@ def generate(
         raise ParameterError(f"min_slope must lie in (0, 90) degrees, got {min_slope:g}")
     if clearance_height is not None:
         check_finite(clearance_height, "clearance_height", "mm")
+    needed = estimated_cutter_locations(surface, tool)
+    if needed > MAX_CUTTER_LOCATIONS:
+        raise ParameterError(
+            f"scallop {tool.scallop:g} mm with tolerance {tool.tolerance:g} mm needs about "
+            f"{needed / 1e6:.0f} million cutter locations on this surface (at most "
+            f"{MAX_CUTTER_LOCATIONS / 1e6:.0f} million): raise the scallop height or the tolerance"
+        )
     monitor = Monitor(progress, cancel, strategy.value)
     monitor(0.0)
     dc = DropCutter(surface, tool.radius)
