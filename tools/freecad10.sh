@@ -218,7 +218,7 @@ umount_common() {
 }
 
 # Run a command in the chroot with a clean environment, cwd = repo root when
-# it is mounted, / otherwise.
+# it is reachable at the same path (bound itself or under /tmp), / otherwise.
 chroot_env() {
     local cwd=/ v
     # The repo is reachable at the same path when bind-mounted itself or under the /tmp bind.
