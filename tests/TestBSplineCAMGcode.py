@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import re
 import shutil
-import subprocess
 from unittest import mock
 
 import numpy as np
@@ -14,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from BSplineCAM import rs274
 from BSplineCAM.core import gcode
 from BSplineCAM.core.gcode import (
     GcodeError,
@@ -134,6 +134,15 @@ def test_errors_name_the_line(text: str, message: str) -> None:
         read_gcode(text, "prog.ngc")
 
 
+def linuxcnc_moves(tmp_path, text: str):
+    """The moves LinuxCNC's rs274 makes of ``text`` (6 mm tool 1), which it must accept."""
+    ngc = tmp_path / "program.ngc"
+    ngc.write_text(text)
+    check = rs274.check(ngc, {1: 6.0}, timeout=60)
+    assert check.ok, check.message
+    return read_canonical(check.canonical)
+
+
 # FreeCAD 1.0's fanuc post around a tool change: home Z, then a tool-length offset whose
 # value lives in the controller's parameters.
 FANUC_TOOL_CHANGE = """G17 G54 G40 G49 G80 G90
@@ -172,14 +181,7 @@ def test_home_and_parameter_axes_make_the_position_unknown() -> None:
 @pytest.mark.skipif(RS274 is None, reason="LinuxCNC rs274 not installed")
 def test_fanuc_tool_change_is_a_valid_program(tmp_path) -> None:
     """LinuxCNC accepts the block, so refusing it would be the reader's fault."""
-    ngc = tmp_path / "fanuc.ngc"
-    ngc.write_text(FANUC_TOOL_CHANGE)
-    table = tmp_path / "tool.tbl"
-    table.write_text("T1 P1 D6 Z0 ;\n")
-    proc = subprocess.run([RS274, "-t", str(table), "-g", str(ngc)], capture_output=True,
-                          text=True, input="", timeout=60, check=False)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    theirs = read_canonical(proc.stdout)
+    theirs = linuxcnc_moves(tmp_path, FANUC_TOOL_CHANGE)
     ours = read_gcode(FANUC_TOOL_CHANGE)
     # the feeds, which start from a position set by the program, agree exactly
     np.testing.assert_allclose(ours.end[ours.kind == MoveKind.LINE],
@@ -281,14 +283,8 @@ M2
 @pytest.mark.skipif(RS274 is None, reason="LinuxCNC rs274 not installed")
 def test_same_moves_as_linuxcnc(tmp_path) -> None:
     """Our reader and LinuxCNC's interpreter agree on every end point and arc centre."""
-    ngc = tmp_path / "arcs.ngc"
-    ngc.write_text(ARC_PROGRAM)
-    table = tmp_path / "tool.tbl"
-    table.write_text("T1 P1 D6 Z0 ;\n")
-    out = subprocess.run([RS274, "-t", str(table), "-g", str(ngc)], capture_output=True,
-                         text=True, input="", timeout=60, check=True).stdout
     ours = read_gcode(ARC_PROGRAM)
-    theirs = read_canonical(out)
+    theirs = linuxcnc_moves(tmp_path, ARC_PROGRAM)
     assert len(ours) == len(theirs)
     np.testing.assert_array_equal(ours.kind, theirs.kind)
     np.testing.assert_allclose(ours.end, theirs.end, atol=1e-4)

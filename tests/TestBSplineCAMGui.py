@@ -338,6 +338,19 @@ def cam_dialogs(post: str = "", save_path: str = "", open_path: str = "",
         cam_commands.ask_post, cam_commands.ask_tool_diameter = saved
 
 
+def isometric_view(mdi):
+    """The active 3D view maximised, nothing selected, isometric and fitted (and DOCS made)."""
+    FreeCADGui.Selection.clearSelection()
+    mdi.activeSubWindow().showMaximized()
+    process_events(20)
+    view = FreeCADGui.activeDocument().activeView()
+    view.viewIsometric()
+    view.fitAll()
+    process_events(20)
+    DOCS.mkdir(parents=True, exist_ok=True)
+    return view
+
+
 def tree_dock(mw):
     """The dock showing the document tree, brought to the front: "Combo View" in FreeCAD 0.20,
     a "Model" dock tabbed with "Tasks" in 1.0."""
@@ -569,14 +582,7 @@ class TestCamCommands(CamTestCase):
         for sub in mdi.subWindowList():
             if sub.windowTitle().startswith("Start page"):
                 sub.close()
-        mdi.activeSubWindow().showMaximized()
-        FreeCADGui.Selection.clearSelection()
-        process_events(20)
-        view = FreeCADGui.activeDocument().activeView()
-        view.viewIsometric()
-        view.fitAll()
-        process_events(20)
-        DOCS.mkdir(parents=True, exist_ok=True)
+        view = isometric_view(mdi)
         verify3d = DOCS / "verify3d.png"
         view.saveImage(str(verify3d), 1600, 1000, "White")
         counts = count_colours(QtGui.QImage(str(verify3d)))
@@ -632,14 +638,7 @@ class TestZScreenshots(GuiTestCase):
         FreeCADGui.Selection.clearSelection()
         FreeCADGui.Selection.addSelection(obj)
         FreeCADGui.runCommand("BSplineCAM_CrossCheck")  # its report in the report view
-        FreeCADGui.Selection.clearSelection()
-        mdi.activeSubWindow().showMaximized()
-        process_events(20)
-        view = FreeCADGui.activeDocument().activeView()
-        view.viewIsometric()
-        view.fitAll()
-        process_events(20)
-        DOCS.mkdir(parents=True, exist_ok=True)
+        view = isometric_view(mdi)
         view3d = DOCS / "view3d.png"
         view.saveImage(str(view3d), 1600, 1000, "White")
         # the main window, grabbed from the X screen because QWidget.grab() leaves OpenGL
