@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from BSplineCAM import rs274
 from BSplineCAM.core import Surface
 from BSplineCAM.core.gcode import read_gcode
 from BSplineCAM.core.simulate import Tool
@@ -46,12 +47,23 @@ def dome_run():
     # Rapids stay at clearance, as the FreeCAD op's safe height keeps them above the stock:
     # finishing passes alone leave the block uncut below each contour.
     moves = to_moves(tp, safe_height=tp.clearance_height)
-    result = verify(surface, read_gcode(gcode(moves)), Tool(TOOL), cell=0.1)
-    return surface, tp, result
+    text = gcode(moves)
+    result = verify(surface, read_gcode(text), Tool(TOOL), cell=0.1)
+    return surface, tp, result, text
+
+
+@pytest.mark.skipif(not rs274.available(), reason="LinuxCNC rs274 not installed")
+def test_program_passes_rs274(dome_run, tmp_path):
+    *_, text = dome_run
+    path = tmp_path / "dome-waterline.ngc"
+    path.write_text(text)
+    check = rs274.check(path, {1: TOOL})
+    assert check.ok, check.message
+    assert check.feeds == text.count(" F1000")
 
 
 def test_steep_walls_hold_scallop_without_gouge(dome_run):
-    _, _, result = dome_run
+    _, _, result, _ = dome_run
     metrics = result.metrics
     assert metrics["rapid_collisions"] == []
     assert metrics["gouge_max_mm"] <= GOUGE_TOLERANCE_MM + 2 * ROUNDING, metrics
@@ -67,7 +79,7 @@ def test_contour_vertices_stay_on_their_level(dome_run):
     at most the tolerance in XY, i.e. the exact drop-cutter height there is at most
     tolerance * |grad| below the level, never above it.  (Chords of the raw marching-squares
     contours needed pushes of ~0.04 mm, which lifted the scallop on steep walls.)"""
-    surface, tp, _ = dome_run
+    surface, tp, _, _ = dome_run
     dc = DropCutter(surface, TOOL / 2)
     for p in tp.passes[::4]:
         z, grad = dc.heights_and_slopes(p[:, :2])
