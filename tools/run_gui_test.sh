@@ -4,6 +4,7 @@
 # Usage: tools/run_gui_test.sh [MODULE...]      default: TestBSplineCAMGui
 # Environment:
 #   FREECAD             GUI binary (default: freecad)
+#   FREECADCMD          its command-line twin, asked where the Mod folder is (default: freecadcmd)
 #   BSPLINECAM_TIMEOUT  seconds before FreeCAD is killed (default: 600)
 #   BSPLINECAM_DOCS     where screenshots go (default: docs/)
 #
@@ -18,10 +19,11 @@ TIMEOUT="${BSPLINECAM_TIMEOUT:-600}"
 WORK="$(mktemp -d -t bsplinecam-gui.XXXXXX)"
 trap 'rm -rf "$WORK"' EXIT
 
-mkdir -p "$WORK/home/.local/share/FreeCAD/Mod"
-ln -s "$ROOT" "$WORK/home/.local/share/FreeCAD/Mod/BSplineCAM"
+mkdir -p "$WORK/home"
 export HOME="$WORK/home"
 export XDG_CONFIG_HOME="$HOME/.config" XDG_DATA_HOME="$HOME/.local/share"
+# the Mod folder this FreeCAD reads (1.1's is versioned), as FreeCAD itself reports it
+python3 "$ROOT/tools/install_addon.py" --freecadcmd "${FREECADCMD:-freecadcmd}" >/dev/null
 export BSPLINECAM_GUI_OUT="$WORK/result.json"
 export BSPLINECAM_GUI_TESTS="${*:-TestBSplineCAMGui}"
 export BSPLINECAM_DOCS="${BSPLINECAM_DOCS:-$ROOT/docs}"

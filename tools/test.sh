@@ -6,8 +6,12 @@
 #   core-debian  pytest in Debian's python3 (numpy 1.24, the Python FreeCAD 0.20 runs)
 #   freecad-0.20 unittest modules inside freecadcmd 0.20
 #   freecad-1.0  the same modules inside freecadcmd 1.0 (Debian trixie chroot)
+#   freecad-1.1  the same modules inside freecadcmd 1.1 (Debian sid chroot)
 #   gui          the real FreeCAD 0.20 GUI under Xvfb (screenshots in docs/)
 #   gui-1.0      the real FreeCAD 1.0 GUI under Xvfb in the chroot (build/screenshots-1.0/)
+#   gui-1.1      the real FreeCAD 1.1 GUI under Xvfb in the chroot (build/screenshots-1.1/)
+# Each log starts with the Debian versions of the packages that suite ran on (FreeCAD, OCCT,
+# numpy, Qt bindings, rs274), so a change upstream shows in the log of the run it reached.
 # The last line reads "N passed, N failed" over all tests run.
 set -uo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -41,14 +45,26 @@ count_unittest() {
   echo "$(( ran - f - e - s )) $(( f + e ))"
 }
 
-# suite NAME KIND(pytest|unittest|plain) CMD...
+# versions WHERE(host|1.0|1.1) -> the Debian versions of the packages a suite runs on
+host_reported=(freecad-python3 'libocct-modeling-algorithms-*' python3 python3-numpy 'python3-pyside*.qtcore' linuxcnc-uspace)
+versions() {
+  echo "# Debian packages ($1):"
+  if [ "$1" = host ]; then
+    dpkg-query -W -f='${db:Status-Abbrev} ${Package} ${Version}\n' "${host_reported[@]}" 2>/dev/null | sed -n 's/^ii */#   /p'
+  else
+    tools/freecad-chroot.sh "$1" versions 2>/dev/null | sed 's/^/#   /'
+  fi
+}
+
+# suite NAME KIND(pytest|unittest|plain) WHERE(host|1.0|1.1) CMD...
 suite() {
-  local name="$1" kind="$2"
-  shift 2
+  local name="$1" kind="$2" where="$3"
+  shift 3
   local log="$logs/$name.log" rc p f start
   start=$(date +%s)
   printf '== %-13s ' "$name"
-  "$@" >"$log" 2>&1
+  versions "$where" >"$log"
+  "$@" >>"$log" 2>&1
   rc=$?
   case "$kind" in
     pytest) read -r p f < <(count_pytest "$log") ;;
@@ -65,14 +81,22 @@ suite() {
   fi
 }
 
-suite lint plain .venv/bin/ruff check .
-BSPLINECAM_REQUIRE_ALL=1 suite core-venv pytest .venv/bin/python -m pytest -p no:cacheprovider tests
-BSPLINECAM_REQUIRE_ALL=0 suite core-debian pytest /usr/bin/python3 -m pytest -p no:cacheprovider tests
-suite freecad-0.20 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
-FREECADCMD="$root/tools/freecad10.sh freecadcmd" suite freecad-1.0 unittest tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
-suite gui unittest tools/run_gui_test.sh
-BSPLINECAM_DOCS="$root/build/screenshots-1.0" suite gui-1.0 unittest \
-  tools/freecad10.sh run env FREECAD=/usr/bin/freecad QT_QPA_PLATFORM=xcb "$root/tools/run_gui_test.sh"
+suite lint plain host .venv/bin/ruff check .
+BSPLINECAM_REQUIRE_ALL=1 suite core-venv pytest host .venv/bin/python -m pytest -p no:cacheprovider tests
+BSPLINECAM_REQUIRE_ALL=0 suite core-debian pytest host /usr/bin/python3 -m pytest -p no:cacheprovider tests
+# documents saved by each FreeCAD, opened by the newer ones (TestBSplineCAMMigration)
+rm -rf "$root/build/migration"
+export BSPLINECAM_REQUIRE_ALL=1  # FreeCAD suites: a missing OpenCAMLib or rs274 fails, never skips
+suite freecad-0.20 unittest host tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
+for v in 1.0 1.1; do
+  FREECADCMD="$root/tools/freecad-chroot.sh $v freecadcmd" suite "freecad-$v" unittest "$v" \
+    tools/run_freecad_tests.sh "${FREECAD_MODULES[@]}"
+done
+suite gui unittest host tools/run_gui_test.sh
+for v in 1.0 1.1; do
+  BSPLINECAM_DOCS="$root/build/screenshots-$v" suite "gui-$v" unittest "$v" \
+    tools/freecad-chroot.sh "$v" run env FREECAD=/usr/bin/freecad QT_QPA_PLATFORM=xcb "$root/tools/run_gui_test.sh"
+done
 
 if [ "${#failed_suites[@]}" -gt 0 ]; then
   echo "failed suites: ${failed_suites[*]}"

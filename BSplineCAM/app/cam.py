@@ -42,11 +42,7 @@ def make_ballend_controller(diameter: float, cutting: Cutting = Cutting(), numbe
     cutting.validate()
     doc = doc or FreeCAD.ActiveDocument
     _activate(doc)
-    bit = compat.cam_module("toolbit").Factory.Create(f"BallEnd{diameter:g}", compat.ballend_shape_file())
-    bit.Label = f"Ball end {diameter:g} mm"
-    bit.Diameter = diameter
-    if hasattr(bit, "Length"):
-        bit.Length = max(float(bit.Length), 50.0)
+    bit = compat.make_ballend_bit(doc, diameter)
     tc = compat.cam_module("controller").Create(f"TC: Ball end {diameter:g} mm", bit, number)
     tc.HorizFeed = f"{cutting.horizontal_feed} mm/min"
     tc.VertFeed = f"{cutting.vertical_feed} mm/min"

@@ -1,8 +1,12 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Every difference between FreeCAD 0.20 and 1.0 lives here, and nowhere else.
+"""Every difference between FreeCAD 0.20, 1.0 and 1.1 lives here, and nowhere else.
 
 0.20 calls its machining module "Path" with Python code under ``PathScripts``; 1.0 calls it
-"CAM" with the code under ``Path.Main``, ``Path.Op``, ``Path.Tool`` and ``Path.Post``.
+"CAM" with the code under ``Path.Main``, ``Path.Op``, ``Path.Tool`` and ``Path.Post``.  1.1
+keeps 1.0's layout but rewrote the tool bits as assets: ``Path.Tool.toolbit`` holds one class
+per shape, made with ``ToolBit.from_shape_id("ballend.fcstd")`` and put in a document with
+``attach_to_doc``; the ``Factory`` of 0.20/1.0 and ``findToolShape`` are gone.  1.1 also reads
+addons from a versioned user folder (``getUserAppDataDir()`` ends in ``v1-1``).
 """
 
 from __future__ import annotations
@@ -64,23 +68,48 @@ def freecad_version() -> tuple[int, int, int]:
     return tuple(numbers)  # type: ignore[return-value]
 
 
+#: The FreeCAD series BSplineCAM supports, oldest first; each newer FreeCAD counts as the
+#: newest series it has reached (a 1.2 runs the 1.1 code paths).
+SERIES = ("0.20", "1.0", "1.1")
+
+
+def cam_series() -> str:
+    """"0.20", "1.0" or "1.1": which of the supported FreeCAD series is running."""
+    version = freecad_version()
+    if version >= (1, 1, 0):
+        return "1.1"
+    if version >= (0, 22, 0):  # 0.22 was 1.0's development version
+        return "1.0"
+    return "0.20"
+
+
 def is_freecad_1() -> bool:
-    return freecad_version() >= (0, 22, 0)
+    """FreeCAD 1.0 or newer (the CAM layout of ``Path.Main``, ``Path.Op``, ...)."""
+    return cam_series() != "0.20"
 
 
-# --- Path (0.20) / CAM (1.0) ----------------------------------------------------------------
-#: Module names of the machining workbench's pieces: (FreeCAD 0.20, FreeCAD 1.0).
+def _pick(choices: tuple):
+    """The entry of ``choices`` (one per :data:`SERIES`) for the running FreeCAD."""
+    return choices[SERIES.index(cam_series())]
+
+
+# --- Path (0.20) / CAM (1.0, 1.1) -----------------------------------------------------------
+#: Module names of the machining workbench's pieces: (FreeCAD 0.20, 1.0, 1.1).
 _CAM_MODULES = {
-    "job": ("PathScripts.PathJob", "Path.Main.Job"),
-    "op": ("PathScripts.PathOp", "Path.Op.Base"),
-    "toolbit": ("PathScripts.PathToolBit", "Path.Tool.Bit"),
-    "toolbit_gui": ("PathScripts.PathToolBitGui", "Path.Tool.Gui.Bit"),  # GUI layer only
-    "controller": ("PathScripts.PathToolController", "Path.Tool.Controller"),
-    "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface"),
-    "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils"),
+    "job": ("PathScripts.PathJob", "Path.Main.Job", "Path.Main.Job"),
+    "op": ("PathScripts.PathOp", "Path.Op.Base", "Path.Op.Base"),
+    "toolbit": ("PathScripts.PathToolBit", "Path.Tool.Bit", "Path.Tool.toolbit"),
+    "controller": ("PathScripts.PathToolController", "Path.Tool.Controller", "Path.Tool.Controller"),
+    "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface", "Path.Op.Surface"),
+    "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils", "PathScripts.PathUtils"),
+    # GUI layer only (view providers); imported by gui/ when FreeCAD.GuiUp
+    "toolbit_gui": ("PathScripts.PathToolBitGui", "Path.Tool.Gui.Bit", "Path.Tool.toolbit.ui.view"),
+    "job_gui": ("PathScripts.PathJobGui", "Path.Main.Gui.Job", "Path.Main.Gui.Job"),
+    "icon_gui": ("PathScripts.PathIconViewProvider", "Path.Base.Gui.IconViewProvider",
+                 "Path.Base.Gui.IconViewProvider"),
 }
-#: Where post-processor scripts live: (FreeCAD 0.20, FreeCAD 1.0).
-_POST_PACKAGES = ("PathScripts.post", "Path.Post.scripts")
+#: Where post-processor scripts live: (FreeCAD 0.20, 1.0, 1.1).
+_POST_PACKAGES = ("PathScripts.post", "Path.Post.scripts", "Path.Post.scripts")
 #: Decimals of coordinates in posted programs: 0.1 µm, so rounding stays far below the 1 µm
 #: gouge budget (FreeCAD's default of 3 decimals alone can move a point by 0.5 µm).
 POST_PRECISION = 4
@@ -89,19 +118,30 @@ POST_PROCESSORS = ("linuxcnc", "grbl", "fanuc", "mach3_mach4")
 
 
 def cam_module(role: str):
-    """The machining module playing ``role`` (job, op, toolbit, toolbit_gui, controller,
-    surface_op, utils)."""
+    """The machining module playing ``role`` (job, op, toolbit, controller, surface_op, utils;
+    in the GUI also toolbit_gui, job_gui, icon_gui).
+
+    A FreeCAD built without its CAM (Path) workbench raises an ImportError that says so.
+    """
     ensure_freecad()
     if role not in _CAM_MODULES:
         raise KeyError(f"unknown CAM module role {role!r}")
-    old, new = _CAM_MODULES[role]
-    return importlib.import_module(new if is_freecad_1() else old)
+    name = _pick(_CAM_MODULES[role])
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        if "Path" in str(exc) or "PathScripts" in str(exc):
+            raise ImportError(
+                f"this FreeCAD {'.'.join(map(str, freecad_version()))} has no CAM (Path) "
+                f"workbench ({name} is missing): install the full FreeCAD (Debian: "
+                "apt-get install freecad)") from exc
+        raise
 
 
 def post_module(name: str):
     """The post-processor script module ``NAME_post`` (a ValueError names the known ones)."""
     ensure_freecad()
-    package = _POST_PACKAGES[1] if is_freecad_1() else _POST_PACKAGES[0]
+    package = _pick(_POST_PACKAGES)
     known = available_posts()
     if name not in known:
         raise ValueError(f"unknown post-processor {name!r}: available are {', '.join(sorted(known))}")
@@ -111,7 +151,7 @@ def post_module(name: str):
 def available_posts() -> list[str]:
     """Names of the post-processors installed with this FreeCAD."""
     ensure_freecad()
-    package = importlib.import_module(_POST_PACKAGES[1] if is_freecad_1() else _POST_PACKAGES[0])
+    package = importlib.import_module(_pick(_POST_PACKAGES))
     names = []
     for folder in package.__path__:
         for path in glob.glob(os.path.join(folder, "*_post.py")):
@@ -120,16 +160,55 @@ def available_posts() -> list[str]:
 
 
 def ballend_shape_file() -> str:
-    """The ball-end ToolBit shape shipped with FreeCAD (Tools/Shape/ballend.fcstd)."""
+    """The ball-end ToolBit shape shipped with FreeCAD 0.20/1.0 (Tools/Shape/ballend.fcstd)."""
     path = cam_module("toolbit").findToolShape("ballend.fcstd")
     if not path:
         raise FileNotFoundError("FreeCAD's ballend.fcstd tool shape was not found")
     return path
 
 
+def make_ballend_bit(doc, diameter: float):
+    """A ball-end ToolBit object of ``diameter`` mm in ``doc`` (which must be the active
+    document: CAM's factories create objects there), made by FreeCAD's own tool-bit API."""
+    toolbit = cam_module("toolbit")
+    if cam_series() == "1.1":
+        asset = toolbit.ToolBit.from_shape_id("ballend.fcstd", f"Ball end {diameter:g} mm")
+        bit = asset.attach_to_doc(doc)
+    else:
+        bit = toolbit.Factory.Create(f"BallEnd{diameter:g}", ballend_shape_file())
+    bit.Label = f"Ball end {diameter:g} mm"
+    bit.Diameter = diameter
+    if hasattr(bit, "Length"):
+        bit.Length = max(float(bit.Length), 50.0)
+    return bit
+
+
+def opencamlib_missing_message() -> str:
+    """What to install for FreeCAD's own 3D Surface op on the running FreeCAD, in one line."""
+    version = ".".join(map(str, freecad_version()))
+    how = _pick((
+        "pip install opencamlib for Debian's python3 (tools/setup.sh does it, with an 'ocl' alias)",
+        "apt-get install python3-opencamlib",
+        "apt-get install python3-opencamlib",
+    ))
+    return (f"FreeCAD's 3D Surface op needs OpenCAMLib (Python module 'ocl' or 'opencamlib.ocl'), "
+            f"which this FreeCAD {version} cannot import: {how}")
+
+
+def tool_shape_name(bit) -> str:
+    """The shape a ToolBit was made from, as FreeCAD names it: ``ShapeType`` ("Ballend") or
+    ``ShapeID`` in 1.1, ``ShapeName`` in 1.0, the ``BitShape`` file (ballend.fcstd) in 0.20;
+    "" when the object is no ToolBit."""
+    for prop in ("ShapeType", "ShapeID", "ShapeName", "BitShape"):
+        value = str(getattr(bit, prop, "") or "")
+        if value:
+            return value
+    return ""
+
+
 def opencamlib_available() -> bool:
-    """FreeCAD's own 3D Surface op needs OpenCAMLib, imported as ``ocl`` (0.20) or
-    ``opencamlib.ocl``; on Debian's FreeCAD 1.0 (Python 3.13) there is none."""
+    """FreeCAD's own 3D Surface op needs OpenCAMLib, imported as ``ocl`` (0.20: the PyPI wheel
+    with an alias module) or ``opencamlib.ocl`` (1.0 and 1.1: Debian's python3-opencamlib)."""
     for name in ("ocl", "opencamlib.ocl"):
         try:
             importlib.import_module(name)

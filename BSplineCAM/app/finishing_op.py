@@ -102,7 +102,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
                 f"vertical {self.vertFeed}); a controller refuses a zero feed")
         if not float(obj.ToolController.SpindleSpeed) > 0:
             raise ValueError(f"{obj.ToolController.Label}: spindle speed must be > 0 rpm")
-        shape_name = str(getattr(self.tool, "ShapeName", "") or getattr(self.tool, "BitShape", ""))
+        shape_name = compat.tool_shape_name(self.tool)
         if "ball" not in shape_name.lower():
             raise ValueError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
         surface = self.surface(obj)

@@ -77,16 +77,11 @@ def add_freecad_surface_op(
 
     ``scallop`` and ``tolerance`` in mm fix StepOver and SampleInterval; ``sample_interval``
     (mm) overrides the latter.  ``tool_diameter`` (mm) must be the job's tool's.  Raises
-    :class:`OpenCAMLibMissing` when OpenCAMLib is absent (Debian's FreeCAD 1.0 has none) and
+    :class:`OpenCAMLibMissing` when OpenCAMLib is absent (it names the package to install) and
     ValueError on bad arguments.  The op is not recomputed.
     """
     if not compat.opencamlib_available():
-        version = ".".join(map(str, compat.freecad_version()))
-        raise OpenCAMLibMissing(
-            f"FreeCAD's 3D Surface op needs OpenCAMLib (Python module 'ocl'), which is not "
-            f"importable in this FreeCAD {version} (Debian's FreeCAD 1.0 has none); install "
-            "the PyPI package 'opencamlib' for FreeCAD's Python, with an 'ocl' shim on 0.20"
-        )
+        raise OpenCAMLibMissing(compat.opencamlib_missing_message())
     percent = stepover_percent(tool_diameter, scallop)
     if sample_interval is None:
         sample_interval = chordal_sample_interval(tool_diameter, tolerance)

@@ -18,7 +18,6 @@ dialogs go through replaceable ``ask_*`` functions (tests answer them).
 from __future__ import annotations
 
 import contextlib
-import importlib
 import json
 import os
 from collections.abc import Iterator
@@ -90,18 +89,6 @@ def gui_ref(obj) -> str:
     return f"Gui.getDocument({obj.Document.Name!r}).getObject({obj.Name!r})"
 
 
-# -- Path GUI pieces (view providers), FreeCAD 0.20 and 1.0 -----------------------------------
-_GUI_MODULES = {
-    "job": ("PathScripts.PathJobGui", "Path.Main.Gui.Job"),
-    "icon": ("PathScripts.PathIconViewProvider", "Path.Base.Gui.IconViewProvider"),
-}
-
-
-def path_gui(role: str):
-    old, new = _GUI_MODULES[role]
-    return importlib.import_module(new if compat.is_freecad_1() else old)
-
-
 class FinishOpViewProvider(StatelessProxy):
     """Icon of the finishing op in the job's tree; the op is edited in the property view."""
 
@@ -118,14 +105,14 @@ class FinishOpViewProvider(StatelessProxy):
 def attach_job_view_providers(job, op) -> None:
     """What CAM's own job command does in the GUI: the job's tree and icons, tool bit hidden."""
     if job.ViewObject is not None and job.ViewObject.Proxy is None:
-        job.ViewObject.Proxy = path_gui("job").ViewProvider(job.ViewObject)
+        job.ViewObject.Proxy = compat.cam_module("job_gui").ViewProvider(job.ViewObject)
         job.ViewObject.addExtension("Gui::ViewProviderGroupExtensionPython")
         job.ViewObject.Proxy.deleteOnReject = False
     for tc in job.Tools.Group:
         bit = getattr(tc, "Tool", None)
         if bit is not None and bit.ViewObject is not None:
             if bit.ViewObject.Proxy is None:
-                path_gui("icon").Attach(bit.ViewObject, "ToolBit")
+                compat.cam_module("icon_gui").Attach(bit.ViewObject, "ToolBit")
             bit.ViewObject.Visibility = False
     if op.ViewObject is not None:
         FinishOpViewProvider(op.ViewObject)
