@@ -166,6 +166,22 @@ def test_dropcutter_tight_hollow_two_contacts():
     assert np.all(z - ref < 1e-4)
 
 
+def test_dropcutter_tight_hollow_off_centre_reaches_the_maximum():
+    """Regression: at (15, 14.615), just off the hollow's centre, the ball rests on the near
+    wall, where f is far more curved across the wall than along it, with a saddle of f at
+    x = 15 between two maxima at x = 15 -+ 0.28.  The best seed's ascent crossed a region where
+    f is not concave; steepest ascent stalled there and the height came out 0.25 um low (seen in
+    the raster of test_unreachable_region_reported_and_not_gouged).  The exact point and its
+    mirror images, against the brute force."""
+    surface = tight_hollow()
+    dc = DropCutter(surface, 3.0)
+    xy = np.array([[15.0, 14.615], [15.0, 15.385], [14.615, 15.0], [15.385, 15.0]])
+    z = dc.heights(xy)[0]
+    ref = brute_force_heights(surface, 3.0, xy, samples=601)
+    assert np.all(z >= ref - 1e-9)
+    assert np.all(z - ref < 1e-4)
+
+
 def tight_hollow() -> Surface:
     u = np.linspace(0.0, 30.0, 11)
     x, y = np.meshgrid(u, u, indexing="ij")

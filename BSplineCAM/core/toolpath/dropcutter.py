@@ -17,7 +17,9 @@ the ball resting on the surface's boundary edges and corners.  A dense parameter
 gives global seeds (the best one, and the best sampled peak outside its neighbourhood, so a
 ball resting in a concave valley on two walls finds both contacts), and projected Newton with
 backtracking (Nocedal & Wright, section 3.1 and 16.7) polishes each to machine precision,
-stopping on the Newton decrement.
+stopping on the Newton decrement.  Where f is not concave (a seed on a saddle or in a valley of
+f, as where the ball nearly fits a hollow) the step is still Newton's across the contact and a
+trust step uphill along it, so the ascent reaches the maximum instead of stalling on its flank.
 Every value is evaluated at a real surface point, so it never exceeds the true height; the
 maximum over the polished seeds is taken.
 """
@@ -225,11 +227,12 @@ class DropCutter:
             safe = np.where(concave, det, 1.0)
             du = np.where(concave, -(Hww * gu - Huw * gw) / safe, 0.0)
             dw = np.where(concave, -(Huu * gw - Huw * gu) / safe, 0.0)
-            # Not concave here: steepest ascent scaled to the trust step.
-            gnorm = np.hypot(gu * trust[0], gw * trust[1])
-            scale = np.where(gnorm > 0, 1.0 / np.maximum(gnorm, 1e-300), 0.0)
-            du = np.where(concave, du, gu * scale * trust[0] ** 2)
-            dw = np.where(concave, dw, gw * scale * trust[1] ** 2)
+            # Not concave here (a saddle or a valley of f): Newton along the concave principal
+            # direction, the trust step uphill along the other (see _indefinite_step).
+            bent = np.flatnonzero(~concave)
+            if len(bent):
+                du[bent], dw[bent] = _indefinite_step(
+                    gu[bent], gw[bent], Huu[bent], Huw[bent], Hww[bent], trust)
             # Limit the step to the trust region (stay in the seed's basin).
             ratio = np.maximum(np.abs(du) / trust[0], np.abs(dw) / trust[1])
             shrink = np.where(ratio > 1.0, 1.0 / np.maximum(ratio, 1e-300), 1.0)
@@ -328,6 +331,39 @@ class DropCutter:
         grad = self.slopes(xy, u, w)
         grad[~np.isfinite(tip)] = np.nan
         return tip, grad
+
+
+def _indefinite_step(gu: FloatArray, gw: FloatArray, Huu: FloatArray, Huw: FloatArray,
+                     Hww: FloatArray, trust: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Ascent step (du, dw) of f where its Hessian is not negative definite.
+
+    In coordinates scaled by the trust step, the Hessian's principal directions split the step:
+    along a direction of negative curvature the Newton step (the model's maximum there), along
+    one of zero or positive curvature a full trust step uphill (the model rises without bound;
+    from a stationary saddle, either way).  Steepest ascent (used here before) is badly scaled
+    where f is much more curved across the contact than along it (the ball nearly fitting a
+    hollow or a valley): its trust-sized step overshoots across the contact, backtracking runs
+    out, and the search stops on the flank, short of the maximum (Nocedal & Wright, 3.4, 4.3).
+    """
+    tu, tw = trust
+    a, b, c = Huu * tu * tu, Huw * tu * tw, Hww * tw * tw
+    ga, gb = gu * tu, gw * tw
+    half = 0.5 * (a - c)
+    radius = np.hypot(half, b)
+    mean = 0.5 * (a + c)
+    theta = 0.5 * np.arctan2(b, half)
+    cos, sin = np.cos(theta), np.sin(theta)
+    step_a = np.zeros_like(ga)
+    step_b = np.zeros_like(gb)
+    # (cos, sin) belongs to the larger eigenvalue, (-sin, cos) to the smaller.
+    for lam, va, vb in ((mean + radius, cos, sin), (mean - radius, -sin, cos)):
+        g = ga * va + gb * vb
+        curved = lam < 0.0
+        t = np.where(curved, np.clip(-g / np.where(curved, lam, -1.0), -1.0, 1.0),
+                     np.where(g < 0.0, -1.0, 1.0))
+        step_a += t * va
+        step_b += t * vb
+    return step_a * tu, step_b * tw
 
 
 def _unit(t: FloatArray) -> FloatArray:
