@@ -12,6 +12,7 @@ File dialogs are replaced by fixed paths; error boxes are closed by a timer and 
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import shutil
@@ -364,32 +365,138 @@ def tree_dock(mw):
     return None
 
 
-def count_colours(image, step: int = 4) -> dict[str, int]:
-    """Pixels (every ``step``-th) that are white, green, blue or red in a QImage.
+#: Size of the saved 3D pictures (pixels).
+PICTURE = (1600, 1000)
 
-    Colours are told by hue, so the shading of a FreeCAD version's lights (1.0 renders darker
-    than 0.20) does not change the class; grey and near-black pixels count as none.
+
+def in_scene(view, node, drawn_only: bool = True) -> bool:
+    """Whether ``node`` hangs in the view's Coin scene graph.
+
+    With ``drawn_only`` the search follows what is drawn: a switch leads only into the child it
+    shows (a hidden object, another display mode or ShowLegend off are not found).
     """
-    counts = {"white": 0, "green": 0, "blue": 0, "red": 0}
-    for x in range(0, image.width(), step):
-        for y in range(0, image.height(), step):
-            c = QtGui.QColor(image.pixel(x, y))
-            if c.red() > 245 and c.green() > 245 and c.blue() > 245:
-                counts["white"] += 1
-                continue
-            hue, sat, val = c.hsvHue(), c.hsvSaturation(), c.value()
-            if sat < 90 or val < 40 or hue < 0:
-                continue
-            if 75 <= hue <= 165:
-                counts["green"] += 1
-            elif 195 <= hue <= 260:
-                counts["blue"] += 1
-            elif hue <= 15 or hue >= 345:
-                counts["red"] += 1
-    return counts
+    from pivy import coin
+
+    search = coin.SoSearchAction()
+    search.setNode(node)
+    search.setInterest(coin.SoSearchAction.FIRST)
+    search.setSearchingAll(not drawn_only)
+    search.apply(view.getSceneGraph())
+    return search.getPath() is not None
 
 
-class CamTestCase(GuiTestCase):
+def drawn_of_type(root, type_name: str) -> int:
+    """How many nodes of a Coin type are drawn under ``root`` (switches followed)."""
+    from pivy import coin
+
+    search = coin.SoSearchAction()
+    search.setType(coin.SoType.fromName(type_name))
+    search.setInterest(coin.SoSearchAction.ALL)
+    search.apply(root)
+    return search.getPaths().getLength()
+
+
+def scene_box(view, node=None) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """(min, max) corners of what ``node`` (default: the view's whole scene graph, the box
+    fitAll frames) draws, as Coin's bounding-box action sees it; None if nothing."""
+    from pivy import coin
+
+    action = coin.SoGetBoundingBoxAction(coin.SbViewportRegion(*view.getSize()))
+    action.apply(view.getSceneGraph() if node is None else node)
+    box = action.getBoundingBox()
+    if box.isEmpty():
+        return None
+    return tuple(box.getMin().getValue()), tuple(box.getMax().getValue())
+
+
+def drawn_boxes(view, doc) -> dict[str, tuple[tuple[float, ...], tuple[float, ...]]]:
+    """Per object of ``doc`` that the view draws something of, the box of what it draws."""
+    boxes = {}
+    for obj in doc.Objects:
+        vobj = obj.ViewObject
+        if vobj is not None and in_scene(view, vobj.RootNode):
+            box = scene_box(view, vobj.RootNode)
+            if box is not None:
+                boxes[obj.Name] = box
+    return boxes
+
+
+def box_corners(low, high) -> list[tuple[float, float, float]]:
+    return list(itertools.product(*zip(low, high)))
+
+
+def picture_point(view, point, size=PICTURE) -> tuple[float, float]:
+    """Where the camera puts ``point`` in a picture of ``size`` saved from the view (pixels from
+    the top left): the camera's view volume at the picture's aspect (wider than high, so
+    Coin's ADJUST_CAMERA widens the volume and keeps its height)."""
+    from pivy import coin
+
+    volume = view.getCameraNode().getViewVolume(size[0] / size[1])
+    u, v, _ = volume.projectToScreen(coin.SbVec3f(*map(float, point))).getValue()
+    return u * size[0], (1.0 - v) * size[1]
+
+
+class PictureChecks:
+    """Assertions on what a 3D view shows, told from the camera and the scene graph (which the
+    code controls) rather than from rendered pixels (which move with the renderer)."""
+
+    def assert_box_close(self, low, high, expected, tol: float, axes: str = "xyz") -> None:
+        """The box (low, high) matches a FreeCAD BoundBox on the given axes within ``tol``."""
+        for i, axis in enumerate("xyz"):
+            if axis not in axes:
+                continue
+            want = [getattr(expected, f"{axis.upper()}{end}") for end in ("Min", "Max")]
+            self.assertAlmostEqual(low[i], want[0], delta=tol, msg=f"{axis} min of {low}, {high}")
+            self.assertAlmostEqual(high[i], want[1], delta=tol, msg=f"{axis} max of {low}, {high}")
+
+    def assert_framed(self, view, low, high, fill: float = 0.4) -> None:
+        """The camera sees the whole box, in the view and in a saved picture, and the box fills
+        at least ``fill`` of their width or height (fitted, not a speck)."""
+        width, height = view.getSize()
+        corners = box_corners(low, high)
+        on_view = [view.getPointOnScreen(*corner) for corner in corners]
+        on_picture = [picture_point(view, corner) for corner in corners]
+        for points, (w, h), where in ((on_view, (width, height), "view"),
+                                      (on_picture, PICTURE, "picture")):
+            for corner, (x, y) in zip(corners, points):
+                self.assertTrue(0 <= x < w and 0 <= y < h,
+                                f"{corner} is at {(x, y)}, outside the {where} {(w, h)}")
+            xs, ys = [x for x, _ in points], [y for _, y in points]
+            self.assertGreater(max((max(xs) - min(xs)) / w, (max(ys) - min(ys)) / h), fill,
+                               f"the box covers little of the {where}: {points}")
+
+    def assert_picture(self, view, path: Path, covered) -> None:
+        """The picture just saved from the view on white: its size, its background and where
+        the scene is drawn.
+
+        A twin of the picture saved on black tells the background from the scene, pixel by
+        pixel, whatever the renderer's lights, shading and anti-aliasing (only the background
+        changes with the requested colour).  Its corners must be background (assert_framed
+        keeps the scene off them) and the pixels where the camera puts ``covered``, points on
+        or inside the drawn surfaces, must not.
+        """
+        twin = self.tmp / f"{path.stem}-on-black.png"
+        view.saveImage(str(twin), *PICTURE, "Black")
+        white, black = QtGui.QImage(str(path)), QtGui.QImage(str(twin))
+        for image in (white, black):
+            self.assertEqual((image.width(), image.height()), PICTURE, path)
+
+        def background(x: float, y: float) -> bool:
+            on_white = QtGui.QColor(white.pixel(int(x), int(y)))
+            on_black = QtGui.QColor(black.pixel(int(x), int(y)))
+            return (min(on_white.red(), on_white.green(), on_white.blue()) >= 250
+                    and max(on_black.red(), on_black.green(), on_black.blue()) <= 5)
+
+        w, h = PICTURE
+        for x, y in ((2, 2), (w - 3, 2), (2, h - 3), (w - 3, h - 3)):
+            self.assertTrue(background(x, y), f"{path.name}: corner {(x, y)} is drawn")
+        for point in covered:
+            x, y = picture_point(view, point)
+            self.assertFalse(background(x, y),
+                             f"{path.name}: background at {(x, y)}, where {point} is")
+
+
+class CamTestCase(PictureChecks, GuiTestCase):
     def open_job_panel(self, surface):
         from BSplineCAM.gui import cam_commands
 
@@ -485,9 +592,12 @@ class TestCamCommands(CamTestCase):
         self.assertFalse(FreeCADGui.Control.activeDialog())
 
     def test_job_post_verify(self) -> None:
+        import numpy as np
+        from pivy import coin
+
         from BSplineCAM import rs274
         from BSplineCAM.app import verify_feature as vf
-        from BSplineCAM.gui import cam_commands
+        from BSplineCAM.gui import cam_commands, verify_view
 
         surface, job, op = self.make_job()
         self.assertTrue(surface.MakeSolid)
@@ -552,6 +662,32 @@ class TestCamCommands(CamTestCase):
         blue = top[:, 2] > 0.6
         self.assertGreater(green.mean(), 0.2)  # passes touch the design
         self.assertGreater(blue.mean(), 0.02)  # scallops left between passes
+        # the Coin nodes draw those colours, one per vertex, and each as the deviation says
+        proxy = vobj.Proxy
+        drawn = np.array([c.getValue() for c in proxy.material.diffuseColor.getValues()])
+        np.testing.assert_allclose(drawn, colours, atol=1e-6)
+        self.assertEqual(proxy.binding.value.getValue(),
+                         coin.SoMaterialBinding.PER_VERTEX_INDEXED)
+        self.assertEqual(list(proxy.faces.materialIndex.getValues()),
+                         list(proxy.faces.coordIndex.getValues()))
+        band, scallop, gouge = proxy.scale
+        self.assertAlmostEqual(band, vobj.Band)
+        self.assertAlmostEqual(scallop, max(metrics["scallop_p99_mm"], 2 * band))
+        self.assertAlmostEqual(gouge, max(metrics["gouge_max_mm"], 2 * band))
+        deviation = vf.deviation_of(result)
+        self.assertEqual(len(deviation), len(top))
+        on_design = np.abs(deviation) <= band
+        left = deviation >= scallop
+        gouged = deviation < -band
+        between = (deviation > band) & (deviation < scallop)
+        self.assertGreater(on_design.mean(), 0.2)
+        self.assertTrue(left.any())
+        np.testing.assert_allclose(top[on_design], np.broadcast_to(verify_view.GREEN,
+                                                                    top[on_design].shape))
+        np.testing.assert_allclose(top[left], np.broadcast_to(verify_view.BLUE,
+                                                               top[left].shape))
+        self.assertTrue(np.all(top[between, 2] > verify_view.GREEN[2]))  # towards blue
+        self.assertTrue(np.all(top[gouged, 0] > verify_view.GREEN[0]))  # towards red
         self.assertFalse(op.ViewObject.Visibility)  # paths hidden: the part shows
         self.assertTrue(vobj.Visibility)
 
@@ -571,10 +707,16 @@ class TestCamCommands(CamTestCase):
         # the surface's control net is drawn outside its display modes: hiding the surface
         # does not hide the net (surface_view), so switch it off for the pictures
         surface.ViewObject.ShowControlNet = False
-        self.screenshots(job, op, result)
+        self.screenshots(job, op, result, hidden=made[0])
 
-    def screenshots(self, job, op, result) -> None:
-        """docs/verify3d.png (the coloured part) and docs/job.png (the bench with the job)."""
+    def screenshots(self, job, op, result, hidden) -> None:
+        """docs/verify3d.png (the coloured part) and docs/job.png (the bench with the job).
+
+        What the 3D view shows is checked on the scene graph and the camera: the part's
+        Deviation nodes are drawn and no other object draws anything (but CAM's job axes), the
+        legend stands beside the part, fitAll frames it all; the picture only where renderers
+        agree.
+        """
         mw = FreeCADGui.getMainWindow()
         mw.showNormal()
         mw.setGeometry(0, 0, 1600, 1000)
@@ -583,13 +725,53 @@ class TestCamCommands(CamTestCase):
             if sub.windowTitle().startswith("Start page"):
                 sub.close()
         view = isometric_view(mdi)
+        vobj, proxy = result.ViewObject, result.ViewObject.Proxy
+        # drawn: the object's root, its display-mode switch on the Deviation node, the legend
+        self.assertTrue(in_scene(view, vobj.RootNode))
+        switch = vobj.SwitchNode
+        self.assertEqual(switch.whichChild.getValue(), switch.findChild(proxy.root))
+        for node in (proxy.root, proxy.faces, proxy.side_faces, proxy.legend):
+            self.assertTrue(in_scene(view, node), node)
+        # the file route's verification is hidden: in the scene graph, not drawn
+        self.assertTrue(in_scene(view, hidden.ViewObject.Proxy.root, drawn_only=False))
+        self.assertFalse(in_scene(view, hidden.ViewObject.Proxy.root))
+        # with the legend off, only the part's mesh is drawn: the verify command hid the
+        # design, the model, the stock and the paths.  (FreeCAD 1.0's CAM draws a job's origin
+        # axes while the job is visible: not ours, at the origin, and allowed for.)
+        mesh_box = result.Mesh.BoundBox
+        vobj.ShowLegend = False
+        process_events()
+        self.assertFalse(in_scene(view, proxy.legend))
+        boxes = drawn_boxes(view, self.doc)
+        job_axes = boxes.pop(job.Name, None)
+        if job_axes is not None:
+            self.assertTrue(all(lo <= 0 <= hi for lo, hi in zip(*job_axes)), job_axes)
+        self.assertEqual(list(boxes), [result.Name])
+        # the mesh spans the design's x/y (its vertices stand on Z-map cells, at most a cell
+        # and a stride in from the design's edges)
+        low, high = boxes[result.Name]
+        self.assert_box_close(low, high, mesh_box, tol=1e-3)
+        self.assert_box_close(low, high, result.Surface.Shape.BoundBox,
+                              tol=float(result.Cell) * max(int(result.Stride), 1), axes="xy")
+        # with the legend: a colour bar beside the part, at its +x/-y corner, from its base up
+        vobj.ShowLegend = True
+        process_events()
+        self.assertTrue(in_scene(view, proxy.legend))
+        low, high = scene_box(view, vobj.RootNode)
+        self.assertGreater(high[0], mesh_box.XMax + 0.05 * mesh_box.XLength)
+        self.assertAlmostEqual(low[1], mesh_box.YMin, delta=1e-3)
+        self.assertAlmostEqual(low[2], mesh_box.ZMin, delta=1e-3)
+        # the camera frames all the scene draws (the part, its legend and any job axes)
+        low, high = scene_box(view)
+        self.assert_framed(view, low, high)  # fitted by isometric_view
         verify3d = DOCS / "verify3d.png"
-        view.saveImage(str(verify3d), 1600, 1000, "White")
-        counts = count_colours(QtGui.QImage(str(verify3d)))
-        total = sum(1 for _ in range(0, 1600, 4)) * sum(1 for _ in range(0, 1000, 4))
-        self.assertGreater(counts["green"], total * 0.05, counts)
-        self.assertGreater(counts["blue"], total * 0.003, counts)  # scallop crests
-        self.assertGreater(counts["white"], total * 0.2, counts)
+        view.saveImage(str(verify3d), *PICTURE, "White")
+        # points inside the block, just above its base and away from its walls: the part
+        # covers them wherever the camera looks from
+        inner = [(mesh_box.XMin + fx * mesh_box.XLength, mesh_box.YMin + fy * mesh_box.YLength,
+                  mesh_box.ZMin + 0.01 * mesh_box.ZLength)
+                 for fx in (0.25, 0.5, 0.75) for fy in (0.25, 0.5, 0.75)]
+        self.assert_picture(view, verify3d, inner)
 
         # the workbench with the job's tree open, the op's paths shown and selected
         result.ViewObject.Visibility = False
@@ -616,8 +798,8 @@ class TestCamCommands(CamTestCase):
             self.assertTrue(path.is_file() and path.stat().st_size > 10000, path)
 
 
-class TestZScreenshots(GuiTestCase):
-    """Last: the documentation pictures, with a check that the view is not empty."""
+class TestZScreenshots(PictureChecks, GuiTestCase):
+    """Last: the documentation pictures, with checks of what the 3D view draws."""
 
     def test_screenshots(self) -> None:
         mw = FreeCADGui.getMainWindow()
@@ -639,8 +821,16 @@ class TestZScreenshots(GuiTestCase):
         FreeCADGui.Selection.addSelection(obj)
         FreeCADGui.runCommand("BSplineCAM_CrossCheck")  # its report in the report view
         view = isometric_view(mdi)
+        self.check_surface_view(view, obj)
         view3d = DOCS / "view3d.png"
-        view.saveImage(str(view3d), 1600, 1000, "White")
+        view.saveImage(str(view3d), *PICTURE, "White")
+        # on the picture: points of the surface and the control points (a 6-pixel dot, or the
+        # surface in front of it)
+        face = obj.Shape.Faces[0]
+        u0, u1, v0, v1 = face.ParameterRange
+        on_surface = [tuple(face.valueAt(u0 + fu * (u1 - u0), v0 + fv * (v1 - v0)))
+                      for fu in (0.25, 0.5, 0.75) for fv in (0.25, 0.5, 0.75)]
+        self.assert_picture(view, view3d, on_surface + [tuple(v) for v in obj.ControlPoints])
         # the main window, grabbed from the X screen because QWidget.grab() leaves OpenGL
         # views empty: first with the surface selected (all commands enabled, its properties
         # shown), then with the net editor open
@@ -660,20 +850,41 @@ class TestZScreenshots(GuiTestCase):
         process_events()
         for path in (view3d, workbench, editor):
             self.assertTrue(path.is_file() and path.stat().st_size > 10000, path)
-        image = QtGui.QImage(str(view3d))
-        self.assertEqual((image.width(), image.height()), (1600, 1000))
-        counts = {"white": 0, "net": 0, "surface": 0}
-        for x in range(0, 1600, 8):
-            for y in range(0, 1000, 8):
-                c = QtGui.QColor(image.pixel(x, y))
-                r, g, b = c.red(), c.green(), c.blue()
-                if r > 245 and g > 245 and b > 245:
-                    counts["white"] += 1
-                elif r > 150 and g < 100 and b < 100:
-                    counts["net"] += 1
-                elif b > r + 30:
-                    counts["surface"] += 1
-        total = (1600 // 8) * (1000 // 8)
-        self.assertGreater(counts["surface"], total * 0.05, counts)  # surface visible
-        self.assertGreater(counts["net"], 20, counts)  # control net drawn
-        self.assertGreater(counts["white"], total * 0.2, counts)  # fitted, not clipped
+
+    def check_surface_view(self, view, obj) -> None:
+        """The 3D view draws the surface's faces and its control net, and frames them."""
+        from BSplineCAM.gui.surface_view import net_line_indices
+
+        vobj, proxy = obj.ViewObject, obj.ViewObject.Proxy
+        self.assertTrue(vobj.Visibility)
+        self.assertTrue(in_scene(view, vobj.RootNode))
+        # a display mode showing Part's faces, in the colour the view provider gave
+        self.assertIn(vobj.DisplayMode, ("Flat Lines", "Shaded"))
+        self.assertGreaterEqual(vobj.SwitchNode.whichChild.getValue(), 0)
+        self.assertGreater(drawn_of_type(vobj.RootNode, "SoBrepFaceSet"), 0)
+        for got, want in zip(vobj.ShapeColor[:3], (0.45, 0.62, 0.85)):
+            self.assertAlmostEqual(got, want, places=2)
+        # the control net: drawn, every row and column of the object's points, in its colour
+        self.assertTrue(vobj.ShowControlNet)
+        self.assertEqual(proxy.switch.whichChild.getValue(), 0)
+        for node in (proxy.switch, proxy.coords, proxy.lines, proxy.points):
+            self.assertTrue(in_scene(view, node), node)
+        rows, cols = int(obj.Rows), int(obj.Columns)
+        net = [tuple(v) for v in obj.ControlPoints]
+        self.assertEqual(len(net), rows * cols)
+        drawn = [tuple(p.getValue()) for p in proxy.coords.point.getValues()]
+        self.assertEqual(len(drawn), len(net))
+        for got, want in zip(drawn, net):
+            for a, b in zip(got, want):
+                self.assertAlmostEqual(a, b, places=3)
+        self.assertEqual(list(proxy.lines.coordIndex.getValues()), net_line_indices(rows, cols))
+        self.assertEqual(proxy.points.numPoints.getValue(), rows * cols)
+        for got, want in zip(proxy.color.rgb[0].getValue(), vobj.ControlNetColor[:3]):
+            self.assertAlmostEqual(got, want, places=3)
+        # the scene's box is the surface's and the net's, nothing else; the camera frames it
+        box = obj.Shape.BoundBox
+        for point in net:
+            box.add(FreeCAD.Vector(*point))
+        low, high = scene_box(view)
+        self.assert_box_close(low, high, box, tol=0.01 * box.DiagonalLength)
+        self.assert_framed(view, low, high)
