@@ -304,6 +304,8 @@ class TestImportExport(BSplineCAMTestCase):
             self.skipTest("addon not installed in FreeCAD's Mod folder")
         self.assertIn("BSplineCAM.app.importers", FreeCAD.getImportType("json"))
         self.assertIn("BSplineCAM.app.importers", FreeCAD.getExportType("dat"))
+        # and the old CAM module names (documents of 0.20 open in 1.0 and 1.1)
+        self.assertTrue(any(type(f).__name__ == "_LegacyCamFinder" for f in sys.meta_path))
 
     def test_insert_good_files(self) -> None:
         surface = Surface(wavy_net(), "clamped", "wavy")

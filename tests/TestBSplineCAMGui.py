@@ -401,9 +401,21 @@ def scene_box(view, node=None) -> tuple[tuple[float, ...], tuple[float, ...]] | 
     fitAll frames) draws, as Coin's bounding-box action sees it; None if nothing."""
     from pivy import coin
 
-    action = coin.SoGetBoundingBoxAction(coin.SbViewportRegion(*view.getSize()))
-    action.apply(view.getSceneGraph() if node is None else node)
-    box = action.getBoundingBox()
+    region = coin.SbViewportRegion(*view.getSize())
+    if node is None:
+        # FreeCAD's own overlays sit in SoSkipBoundingGroups, which fitAll leaves out (FreeCAD
+        # 1.1 keeps a zero-size marker at the origin there): leave them out too
+        root = view.getSceneGraph()
+        nodes = [root.getChild(i) for i in range(root.getNumChildren())]
+        nodes = [n for n in nodes if n.getTypeId().getName() != "SoSkipBoundingGroup"]
+    else:
+        nodes = [node]
+    box = coin.SbBox3f()
+    for part in nodes:
+        action = coin.SoGetBoundingBoxAction(region)
+        action.apply(part)
+        if not action.getBoundingBox().isEmpty():
+            box.extendBy(action.getBoundingBox())
     if box.isEmpty():
         return None
     return tuple(box.getMin().getValue()), tuple(box.getMax().getValue())

@@ -14,6 +14,7 @@ import sys
 import tempfile
 import unittest
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
@@ -74,6 +75,10 @@ class TestJob(JobFixture):
         self.assertEqual(len(tcs), 1)
         tc = tcs[0]
         self.assertIn("ball", compat.tool_shape_name(tc.Tool).lower())
+        # nothing left over from the default tool controller CAM makes (1.1's bit body included)
+        loose = [o.Label for o in self.doc.Objects if not o.InList and o not in (self.job, self.model)]
+        self.assertEqual(loose, [])
+        self.assertFalse([o.Label for o in self.doc.Objects if "Endmill" in o.Label])
         self.assertAlmostEqual(float(tc.Tool.Diameter), TOOL)
         self.assertGreater(tc.HorizFeed.Value, 0)
         self.assertGreater(tc.VertFeed.Value, 0)
@@ -219,6 +224,13 @@ class TestBadInput(unittest.TestCase):
     def test_job_without_model(self):
         with self.assertRaisesRegex(ValueError, "needs a model"):
             cam.make_job(None, TOOL)
+
+    def test_freecad_without_cam_is_named(self):
+        """A FreeCAD built without its CAM workbench: one message saying what to install."""
+        name = compat._pick(compat._CAM_MODULES["surface_op"])
+        with mock.patch.dict(sys.modules, {name: None}), \
+                self.assertRaisesRegex(ImportError, r"has no CAM \(Path\) workbench.*apt-get install freecad"):
+            compat.cam_module("surface_op")
 
 
 if __name__ == "__main__":

@@ -67,11 +67,24 @@ def make_job(model, tool_diameter: float, cutting: Cutting = Cutting(), name: st
         job.Tools.removeObject(old)
         for child in old.OutList:
             if child.isDerivedFrom("Part::FeaturePython") and not child.InList[1:]:
-                doc.removeObject(child.Name)
+                _remove_tool_bit(doc, child)
         doc.removeObject(old.Name)
     job.Tools.addObject(tc)
     doc.recompute()
     return job
+
+
+def _remove_tool_bit(doc, bit) -> None:
+    """Remove a ToolBit and the body that draws it (``BitBody``: a PartDesign body with its
+    sketch, revolution and origin, which FreeCAD 1.1 leaves behind when only the bit goes)."""
+    body = getattr(bit, "BitBody", None)
+    name = bit.Name
+    if body is not None and body.Document is doc and not [o for o in body.InList if o is not bit]:
+        bit.BitBody = None
+        body.removeObjectsFromDocument()
+        doc.removeObject(body.Name)
+    if doc.getObject(name) is not None:
+        doc.removeObject(name)
 
 
 def post_objects(job) -> list:

@@ -11,10 +11,13 @@ addons from a versioned user folder (``getUserAppDataDir()`` ends in ``v1-1``).
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import importlib
+import importlib.util
 import os
 import sys
+from collections.abc import Iterator
 
 #: Where Debian's FreeCAD packages put FreeCAD.so, tried in order when FreeCAD is not importable.
 FREECAD_LIB_DIRS = (
@@ -117,6 +120,69 @@ POST_PRECISION = 4
 POST_PROCESSORS = ("linuxcnc", "grbl", "fanuc", "mach3_mach4")
 
 
+#: FreeCAD 0.20 module names that saved documents name as their objects' proxies, and where
+#: 1.0 and 1.1 keep those classes.  FreeCAD 1.0 moved them without a forwarding module, so a
+#: 0.20 CAM job opened there loses its Job, stock, tool bit and tool controller behaviour
+#: (1.1 forwards 1.0's ``Path.Tool.Bit`` itself, once ``Path.Tool`` is imported).
+LEGACY_CAM_MODULES = {
+    "PathScripts.PathJob": "Path.Main.Job",
+    "PathScripts.PathSetupSheet": "Path.Base.SetupSheet",
+    "PathScripts.PathStock": "Path.Main.Stock",
+    "PathScripts.PathToolBit": "Path.Tool.Bit",
+    "PathScripts.PathToolController": "Path.Tool.Controller",
+    "PathScripts.PathSurface": "Path.Op.Surface",
+    "PathScripts.PathJobGui": "Path.Main.Gui.Job",
+    "PathScripts.PathSetupSheetGui": "Path.Base.Gui.SetupSheet",
+    "PathScripts.PathToolBitGui": "Path.Tool.Gui.Bit",
+    "PathScripts.PathToolControllerGui": "Path.Tool.Gui.Controller",
+    "PathScripts.PathIconViewProvider": "Path.Base.Gui.IconViewProvider",
+    "PathScripts.PathSurfaceGui": "Path.Op.Gui.Surface",
+}
+
+
+class _LegacyCamFinder:
+    """Import hook: an old ``PathScripts.X`` name imports the module that holds X's classes
+    now.  Only names of :data:`LEGACY_CAM_MODULES`, only where the old module is gone."""
+
+    def find_spec(self, fullname, path=None, target=None):
+        new = LEGACY_CAM_MODULES.get(fullname)
+        if new is None:
+            return None
+        # last on sys.meta_path: reached only when no other finder has the old module (1.0, 1.1)
+        try:
+            if new == "Path.Tool.Bit" or new.startswith("Path.Tool.Gui."):
+                importlib.import_module("Path.Tool")  # 1.1 registers its forwarding names here
+            target_spec = importlib.util.find_spec(new)
+        except (ImportError, ValueError):
+            return None
+        if target_spec is None:
+            return None
+        # the origin is the real file: FreeCAD restores objects only from modules that live in
+        # FreeCAD's or an installed addon's folders, and judges by it
+        return importlib.util.spec_from_loader(fullname, _LegacyCamLoader(new),
+                                               origin=target_spec.origin)
+
+
+class _LegacyCamLoader:
+    def __init__(self, target: str) -> None:
+        self.target = target
+
+    def create_module(self, spec):
+        module = importlib.import_module(self.target)
+        self._spec = module.__spec__
+        return module
+
+    def exec_module(self, module) -> None:
+        module.__spec__ = self._spec  # the module keeps its own identity
+
+
+def install_legacy_cam_modules() -> None:
+    """Let documents saved by FreeCAD 0.20 restore their CAM objects in 1.0 and 1.1 (a no-op
+    in 0.20, whose modules exist).  Called at FreeCAD start-up by the addon's Init.py."""
+    if not any(isinstance(f, _LegacyCamFinder) for f in sys.meta_path):
+        sys.meta_path.append(_LegacyCamFinder())
+
+
 def cam_module(role: str):
     """The machining module playing ``role`` (job, op, toolbit, controller, surface_op, utils;
     in the GUI also toolbit_gui, job_gui, icon_gui).
@@ -193,6 +259,45 @@ def opencamlib_missing_message() -> str:
     ))
     return (f"FreeCAD's 3D Surface op needs OpenCAMLib (Python module 'ocl' or 'opencamlib.ocl'), "
             f"which this FreeCAD {version} cannot import: {how}")
+
+
+@contextlib.contextmanager
+def toolbits_keep_transaction() -> Iterator[None]:
+    """Tool bits made inside this context leave the caller's open transaction open.
+
+    FreeCAD 1.1 builds a tool bit's body by opening the shape's file as a hidden document,
+    copying the body into the job's document and closing the hidden one; in the GUI that close
+    commits the job document's open transaction, so a command that makes a job would become
+    several undo steps, and aborting it would leave half a job behind.  Here the hidden
+    documents are closed only when the context ends (after the caller's transaction is
+    committed or aborted).  FreeCAD 0.20 and 1.0 need nothing.
+    """
+    if cam_series() != "1.1":
+        yield
+        return
+    shape_doc = importlib.import_module("Path.Tool.shape.doc")
+    opener = shape_doc.ShapeDocFromBytes
+    original_exit = opener.__exit__
+    kept: list[str] = []
+
+    def keep_open(self, exc_type, exc_value, traceback) -> None:
+        if self._doc:
+            kept.append(self._doc.Name)
+            self._doc = None
+        shape_doc.restore_doc_state(self._old_state)
+
+    opener.__exit__ = keep_open
+    try:
+        yield
+    finally:
+        opener.__exit__ = original_exit
+        fc = ensure_freecad()
+        active = fc.ActiveDocument.Name if fc.ActiveDocument else None
+        for name in kept:
+            if name in fc.listDocuments():
+                fc.closeDocument(name)
+        if active and active in fc.listDocuments():
+            fc.setActiveDocument(active)
 
 
 def tool_shape_name(bit) -> str:

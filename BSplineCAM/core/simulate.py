@@ -310,8 +310,19 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
     dy = (grid.y0 + (iy0[:, None] + np.arange(H) + 0.5) * grid.cell - p0[:, 1, None])[:, :, None]
     e = (slice(None), None, None)
     f32 = np.float32
-    qa = np.add((dx * ux[e]).astype(f32), (dy * uy[e]).astype(f32))
-    qp2 = np.subtract((dy * ux[e]).astype(f32), (dx * uy[e]).astype(f32))
+    # The (K, H, W) coordinates are sums of a per-row and a per-column term, each as large as
+    # the window; summed in float32 they would carry an error of the window's size times
+    # 6e-8, which the profile's slope (unbounded at the rim) multiplies.  Summed in float64 and
+    # rounded once, they are exact to float32 at their own size, which at the minimum is at
+    # most R; the along coordinate is kept from both ends for that reason.  The float64 loop
+    # costs about a float32 pass more per array, so windows within 2 R of the start (short
+    # moves, the bulk of a finishing program) sum in float32 with errors already of that size.
+    wide = max(np.abs(dx).max(initial=0.0), np.abs(dy).max(initial=0.0)) > 2 * R
+    terms = (lambda v: v) if wide else (lambda v: v.astype(f32))
+    shape = (len(L), H, W)
+    qa = np.add(terms(dy * uy[e]), terms(dx * ux[e]), out=np.empty(shape, f32))  # from p0
+    qa1 = np.add(terms(dy * uy[e]), terms(dx * ux[e] - L[e]), out=np.empty(shape, f32))
+    qp2 = np.subtract(terms(dy * ux[e]), terms(dx * uy[e]), out=np.empty(shape, f32))
     np.square(qp2, out=qp2)
     t = np.subtract(f32(R * R), qp2)
     with np.errstate(invalid="ignore"):
@@ -322,14 +333,14 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
             t *= np.sign(m).astype(f32)[e]
         else:
             t = _bullnose_tau(qp2, t, np.abs(m).astype(f32)[e], tool) * np.sign(m).astype(f32)[e]
-        np.subtract(qa, t, out=t)  # t* = qa - tau*, then clamp to the segment
-        np.maximum(t, f32(0.0), out=t)
-        np.minimum(t, L.astype(f32)[e], out=t)
-        np.subtract(qa, t, out=qa)  # tau at the minimum
-        t *= m.astype(f32)[e]
-        np.square(qa, out=qa)
-        qa += qp2  # r^2
-        r2 = qa
+        # clamping t* = qa - tau* to [0, L] is clamping tau* to [qa - L, qa]
+        np.maximum(t, qa1, out=t)  # NaN stays NaN
+        np.minimum(t, qa, out=t)  # tau at the minimum
+        np.subtract(qa, t, out=qa)  # t, the tool's position along the move
+        np.multiply(qa, m.astype(f32)[e], out=qa)  # its height above z0
+        np.square(t, out=t)
+        t += qp2  # r^2
+        r2, t = t, qa
         if tool.shape is ToolShape.BALL:
             t += (z0 + R).astype(f32)[e]
             np.subtract(f32(R * R), r2, out=r2)

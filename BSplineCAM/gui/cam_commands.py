@@ -146,7 +146,8 @@ def create_job(surface, params, cutting) -> tuple:
     """
     doc = surface.Document
     before = {o.Name for o in doc.Objects}
-    with wait_cursor(), app_toolbit_factory(), transaction("BSplineCAM job", doc):
+    with wait_cursor(), app_toolbit_factory(), compat.toolbits_keep_transaction(), \
+            transaction("BSplineCAM job", doc):
         cut = (f"cam.Cutting(horizontal_feed={cutting.horizontal_feed!r}, "
                f"vertical_feed={cutting.vertical_feed!r}, "
                f"spindle_speed={cutting.spindle_speed!r}, rapid={cutting.rapid!r})")
