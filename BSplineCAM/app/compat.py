@@ -120,67 +120,9 @@ POST_PRECISION = 4
 POST_PROCESSORS = ("linuxcnc", "grbl", "fanuc", "mach3_mach4")
 
 
-#: FreeCAD 0.20 module names that saved documents name as their objects' proxies, and where
-#: 1.0 and 1.1 keep those classes.  FreeCAD 1.0 moved them without a forwarding module, so a
-#: 0.20 CAM job opened there loses its Job, stock, tool bit and tool controller behaviour
-#: (1.1 forwards 1.0's ``Path.Tool.Bit`` itself, once ``Path.Tool`` is imported).
-LEGACY_CAM_MODULES = {
-    "PathScripts.PathJob": "Path.Main.Job",
-    "PathScripts.PathSetupSheet": "Path.Base.SetupSheet",
-    "PathScripts.PathStock": "Path.Main.Stock",
-    "PathScripts.PathToolBit": "Path.Tool.Bit",
-    "PathScripts.PathToolController": "Path.Tool.Controller",
-    "PathScripts.PathSurface": "Path.Op.Surface",
-    "PathScripts.PathJobGui": "Path.Main.Gui.Job",
-    "PathScripts.PathSetupSheetGui": "Path.Base.Gui.SetupSheet",
-    "PathScripts.PathToolBitGui": "Path.Tool.Gui.Bit",
-    "PathScripts.PathToolControllerGui": "Path.Tool.Gui.Controller",
-    "PathScripts.PathIconViewProvider": "Path.Base.Gui.IconViewProvider",
-    "PathScripts.PathSurfaceGui": "Path.Op.Gui.Surface",
-}
-
-
-class _LegacyCamFinder:
-    """Import hook: an old ``PathScripts.X`` name imports the module that holds X's classes
-    now.  Only names of :data:`LEGACY_CAM_MODULES`, only where the old module is gone."""
-
-    def find_spec(self, fullname, path=None, target=None):
-        new = LEGACY_CAM_MODULES.get(fullname)
-        if new is None:
-            return None
-        # last on sys.meta_path: reached only when no other finder has the old module (1.0, 1.1)
-        try:
-            if new == "Path.Tool.Bit" or new.startswith("Path.Tool.Gui."):
-                importlib.import_module("Path.Tool")  # 1.1 registers its forwarding names here
-            target_spec = importlib.util.find_spec(new)
-        except (ImportError, ValueError):
-            return None
-        if target_spec is None:
-            return None
-        # the origin is the real file: FreeCAD restores objects only from modules that live in
-        # FreeCAD's or an installed addon's folders, and judges by it
-        return importlib.util.spec_from_loader(fullname, _LegacyCamLoader(new),
-                                               origin=target_spec.origin)
-
-
-class _LegacyCamLoader:
-    def __init__(self, target: str) -> None:
-        self.target = target
-
-    def create_module(self, spec):
-        module = importlib.import_module(self.target)
-        self._spec = module.__spec__
-        return module
-
-    def exec_module(self, module) -> None:
-        module.__spec__ = self._spec  # the module keeps its own identity
-
-
-def install_legacy_cam_modules() -> None:
-    """Let documents saved by FreeCAD 0.20 restore their CAM objects in 1.0 and 1.1 (a no-op
-    in 0.20, whose modules exist).  Called at FreeCAD start-up by the addon's Init.py."""
-    if not any(isinstance(f, _LegacyCamFinder) for f in sys.meta_path):
-        sys.meta_path.append(_LegacyCamFinder())
+# The old module names under which FreeCAD 0.20 saved CAM objects live in legacy_cam (standard
+# library only, so the addon's Init.py installs them at start-up without importing BSplineCAM).
+from .legacy_cam import LEGACY_CAM_MODULES, install_legacy_cam_modules  # noqa: E402,F401
 
 
 def cam_module(role: str):
