@@ -7,7 +7,8 @@ Surface op by the flat stepover 2 sqrt(2Rh - h^2) (see :mod:`BSplineCAM.app.surf
 Each op's first recompute is timed; each is posted alone with linuxcnc, checked by rs274 and
 simulated from its G-code text with :func:`BSplineCAM.core.verify.verify`.
 
-Needs FreeCAD 0.20 with OpenCAMLib; run inside freecadcmd:
+Needs a FreeCAD with OpenCAMLib (0.20 with the PyPI wheel, 1.0 and 1.1 with Debian's
+python3-opencamlib); run inside freecadcmd (for 1.0 or 1.1: tools/freecad11.sh freecadcmd -c ...):
 
     freecadcmd -c "import runpy, sys; sys.argv=['x', '--scallop', '0.01', '--json', 'out.json'];
                    runpy.run_path('benchmarks/toolpath.py', run_name='__main__')"
@@ -112,7 +113,7 @@ def measure(surface: Surface, text: str, path: Path, diameter: float, cell: floa
 
 def run(args: argparse.Namespace) -> dict:
     if not compat.opencamlib_available():
-        raise SystemExit("this benchmark needs OpenCAMLib (FreeCAD 0.20's Python: import ocl)")
+        raise SystemExit(f"this benchmark: {compat.opencamlib_missing_message()}")
     surface = Surface.from_json(CASE_STUDY)
     params = pipeline.FinishingParameters(
         tool_diameter=args.diameter,
