@@ -77,7 +77,7 @@ suite() {
   printf '%4d passed, %d failed  (exit %d, %ds)  log: %s\n' "$p" "$f" "$rc" "$(( $(date +%s) - start ))" "${log#"$root"/}"
   if [ "$rc" != 0 ]; then
     failed_suites+=("$name")
-    tail -n 40 "$log" | sed 's/^/   | /'
+    { tail -n 40 "$log"; echo; } | sed 's/^/   | /'  # the log may end without a newline
   fi
 }
 
