@@ -117,7 +117,9 @@ def test_setup_script_never_removes_the_mod_folder():
 
 @pytest.mark.skipif(not os.path.exists("/usr/bin/freecadcmd"), reason="FreeCAD 0.20 not installed")
 def test_real_freecad_reports_its_folder(tmp_path):
-    env = dict(os.environ, HOME=str(tmp_path))
+    # FreeCAD takes XDG_DATA_HOME over HOME where it is set (make fresh-check sets it)
+    env = dict(os.environ, HOME=str(tmp_path), XDG_DATA_HOME=str(tmp_path / ".local" / "share"),
+               XDG_CONFIG_HOME=str(tmp_path / ".config"))
     out = subprocess.run([sys.executable, str(REPO / "tools" / "install_addon.py")], env=env,
                          capture_output=True, text=True, timeout=300, check=False)
     assert out.returncode == 0, out.stderr
