@@ -246,10 +246,11 @@ def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArr
     lock = threading.Lock()
 
     def run(mine: list[np.ndarray]) -> None:
+        scratch = _Scratch()
         for sel in mine:
             H, W = int(hb[sel[0]]), int(wb[sel[0]])
             seg = index[sel]
-            env = _envelope(start[seg], end[seg], ix0[sel], iy0[sel], H, W, tool, grid)
+            env = _envelope(start[seg], end[seg], ix0[sel], iy0[sel], H, W, tool, grid, scratch)
             with lock:
                 for k in range(len(sel)):
                     y, x = int(iy0[sel[k]]), int(ix0[sel[k]])
@@ -281,9 +282,25 @@ def _round_up(n: np.ndarray) -> np.ndarray:
     return -(-n // step) * step
 
 
+class _Scratch:
+    """Work arrays that one thread reuses from batch to batch: fresh ones, touched for the
+    first time, cost page faults that took a quarter of the envelope's time."""
+
+    def __init__(self) -> None:
+        self.pool = np.empty((0, 0), np.float32)
+
+    def arrays(self, count: int, shape: tuple[int, ...]) -> list[FloatArray]:
+        size = math.prod(shape)
+        if self.pool.shape[0] < count or self.pool.shape[1] < size:
+            self.pool = np.empty((count, size), np.float32)
+        return [self.pool[i, :size].reshape(shape) for i in range(count)]
+
+
 def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, H: int, W: int,
-              tool: Tool, grid: Grid) -> FloatArray:
+              tool: Tool, grid: Grid, scratch: _Scratch | None = None) -> FloatArray:
     """Lower envelope (K, H, W) of the tool swept from p0 to p1 over each segment's window.
+
+    With ``scratch`` the result lives in its arrays, valid until the next call with it.
 
     In the segment's frame, a cell centre lies at qa along and qp across the XY direction
     (length L, slope m = dz/L).  With the tool axis at distance t = s L along the segment, the
@@ -293,8 +310,13 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
     rho^2 = R^2 - qp^2 and tau = qa - t: ball tau* = rho m / sqrt(1 + m^2), flat
     tau* = rho sign(m), bull-nose by bisection.  Clamping t* = qa - tau* to [0, L] gives the
     minimum.  Cells out of the tool's reach come out NaN (the caller merges with fmin).
-    A vertical segment (L = 0) has t = 0 and the lower end's z.  float32 throughout: the
-    arrays are the simulation's whole cost and 1e-5 mm is far below any cell size.
+    A vertical segment (L = 0) has t = 0 and the lower end's z.
+
+    float32 throughout, since the arrays are the simulation's whole cost, but at the tool's
+    scale: qa is taken from both ends, every coordinate is rounded once, and R^2 - r^2 is
+    rho^2 - tau^2.  A cell centre is then misplaced by less than 1e-6 R whatever the move's
+    length, and its height is off by that times the envelope's slope: ~1e-6 mm mostly, more
+    only on the swept rim (where the profile turns vertical) and along short steep moves.
     """
     R = tool.radius
     d = p1[:, :2] - p0[:, :2]
@@ -310,57 +332,60 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
     dy = (grid.y0 + (iy0[:, None] + np.arange(H) + 0.5) * grid.cell - p0[:, 1, None])[:, :, None]
     e = (slice(None), None, None)
     f32 = np.float32
-    # The (K, H, W) coordinates are sums of a per-row and a per-column term, each as large as
-    # the window; summed in float32 they would carry an error of the window's size times
-    # 6e-8, which the profile's slope (unbounded at the rim) multiplies.  Summed in float64 and
-    # rounded once, they are exact to float32 at their own size, which at the minimum is at
-    # most R; the along coordinate is kept from both ends for that reason.  The float64 loop
-    # costs about a float32 pass more per array, so windows within 2 R of the start (short
-    # moves, the bulk of a finishing program) sum in float32 with errors already of that size.
+    # The (K, H, W) coordinates are each a per-row plus a per-column term.  Where those exceed
+    # 2 R (long moves) they are summed in float64 and rounded once, which costs about one
+    # float32 pass more per array; else in float32, with errors of a few ulp of 2 R.
     wide = max(np.abs(dx).max(initial=0.0), np.abs(dy).max(initial=0.0)) > 2 * R
     terms = (lambda v: v) if wide else (lambda v: v.astype(f32))
     shape = (len(L), H, W)
-    qa = np.add(terms(dy * uy[e]), terms(dx * ux[e]), out=np.empty(shape, f32))  # from p0
-    qa1 = np.add(terms(dy * uy[e]), terms(dx * ux[e] - L[e]), out=np.empty(shape, f32))
-    qp2 = np.subtract(terms(dy * ux[e]), terms(dx * uy[e]), out=np.empty(shape, f32))
+    qa, qa1, qp2, rho = (scratch or _Scratch()).arrays(4, shape)
+    np.add(terms(dy * uy[e]), terms(dx * ux[e]), out=qa)  # from p0
+    np.add(terms(dy * uy[e]), terms(dx * ux[e] - L[e]), out=qa1)  # from p1
+    np.subtract(terms(dy * ux[e]), terms(dx * uy[e]), out=qp2)
     np.square(qp2, out=qp2)
-    t = np.subtract(f32(R * R), qp2)
+    np.subtract(f32(R * R), qp2, out=rho)
     with np.errstate(invalid="ignore"):
-        np.sqrt(t, out=t)  # rho; NaN beyond the tool's reach across the path
+        np.sqrt(rho, out=rho)  # NaN beyond the tool's reach across the path
         if tool.shape is ToolShape.BALL:
-            t *= (m / np.sqrt(1.0 + m * m)).astype(f32)[e]
+            tau = np.multiply(rho, (m / np.sqrt(1.0 + m * m)).astype(f32)[e], out=qp2)
         elif tool.shape is ToolShape.FLAT:
-            t *= np.sign(m).astype(f32)[e]
+            tau = np.multiply(rho, np.sign(m).astype(f32)[e], out=qp2)
         else:
-            t = _bullnose_tau(qp2, t, np.abs(m).astype(f32)[e], tool) * np.sign(m).astype(f32)[e]
-        # clamping t* = qa - tau* to [0, L] is clamping tau* to [qa - L, qa]
-        np.maximum(t, qa1, out=t)  # NaN stays NaN
-        np.minimum(t, qa, out=t)  # tau at the minimum
-        np.subtract(qa, t, out=qa)  # t, the tool's position along the move
-        np.multiply(qa, m.astype(f32)[e], out=qa)  # its height above z0
-        np.square(t, out=t)
-        t += qp2  # r^2
-        r2, t = t, qa
+            tau = _bullnose_tau(qp2, rho, np.abs(m).astype(f32)[e], tool)
+            tau *= np.sign(m).astype(f32)[e]
+        # t* = qa - tau* clamped to [0, L] is tau* clamped to [qa1, qa]; both are clamped,
+        # t so that the ends' heights are exact, tau so that r is exact at both ends.
+        np.maximum(tau, qa1, out=qa1)  # NaN stays NaN
+        t = np.subtract(qa, tau, out=tau)
+        tau = np.minimum(qa1, qa, out=qa1)
+        np.maximum(t, f32(0.0), out=t)
+        np.minimum(t, L.astype(f32)[e], out=t)
+        t *= m.astype(f32)[e]  # height of the tip above z0
+        # R^2 - r^2 = rho^2 - tau^2, which keeps its precision where r^2 is close to R^2
+        # (steep moves have their minimum there); negative beyond the ends' reach
+        gap = np.subtract(rho, tau, out=qa)
+        gap *= np.add(rho, tau, out=rho)
         if tool.shape is ToolShape.BALL:
             t += (z0 + R).astype(f32)[e]
-            np.subtract(f32(R * R), r2, out=r2)
-            np.sqrt(r2, out=r2)
-            t -= r2
+            np.sqrt(gap, out=gap)
+            t -= gap
         elif tool.shape is ToolShape.FLAT:
             t += z0.astype(f32)[e]
-            r2[r2 > f32(R * R * (1 + 1e-6))] = np.nan
-            t += r2 * f32(0.0)
+            t[gap < f32(-1e-6 * R * R)] = np.nan
         else:
-            a, rc = R - tool.corner_radius, tool.corner_radius
+            # corner: f = rc - sqrt(rc^2 - (r - a)^2), a = R - rc, with rc - (r - a) = R - r =
+            # gap / (R + r) carried to the end for the same precision; 0 on the flat (R - r >= rc)
+            rc = tool.corner_radius
+            r = np.subtract(f32(R * R), gap, out=tau)
+            np.sqrt(r, out=r)
+            r += f32(R)
+            np.divide(gap, r, out=gap)  # R - r
+            np.minimum(gap, f32(rc), out=gap)  # NaN stays NaN
+            np.subtract(f32(2 * rc), gap, out=r)
+            gap *= r  # rc^2 - (r - a)^2
+            np.sqrt(gap, out=gap)
             t += (z0 + rc).astype(f32)[e]
-            r2[r2 > f32(R * R * (1 + 1e-6))] = np.nan
-            np.sqrt(r2, out=r2)
-            r2 -= f32(a)
-            np.maximum(r2, f32(0.0), out=r2)  # NaN stays NaN
-            np.square(r2, out=r2)
-            np.subtract(f32(rc * rc), r2, out=r2)
-            np.sqrt(r2, out=r2)
-            t -= r2
+            t -= gap
     return t
 
 
