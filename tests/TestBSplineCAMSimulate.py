@@ -117,9 +117,10 @@ def brute_envelope(p0, p1, tool: Tool, X: np.ndarray, Y: np.ndarray,
 
 
 def position_tolerance(tool: Tool) -> float:
-    """How far (mm) the simulation may misplace a cell centre: it works in float32 in each
-    move's frame, at the tool's scale (a few ulp of 2 R, ulp(x) <= 1.2e-7 x), and a flat end
-    reaches 5e-7 R beyond its radius; 1e-6 R bounds both."""
+    """How far (mm) the simulation may misplace a cell centre.  It rounds coordinates in each
+    move's frame to float32, each by at most 6e-8 of its size: a few times 2 R, or along a
+    move its length (13 mm at most in these tests); a flat end reaches 5e-7 R beyond its
+    radius.  1e-6 R bounds them all (1.5e-6 mm for a 3 mm tool)."""
     return 1e-6 * tool.radius
 
 

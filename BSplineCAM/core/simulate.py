@@ -283,8 +283,8 @@ def _round_up(n: np.ndarray) -> np.ndarray:
 
 
 class _Scratch:
-    """Work arrays that one thread reuses from batch to batch: fresh ones, touched for the
-    first time, cost page faults that took a quarter of the envelope's time."""
+    """Work arrays that one thread reuses from batch to batch: fresh ones of a batch's size
+    are page-faulted in on first touch, at a cost comparable to the arithmetic on them."""
 
     def __init__(self) -> None:
         self.pool = np.empty((0, 0), np.float32)
@@ -314,9 +314,11 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
 
     float32 throughout, since the arrays are the simulation's whole cost, but at the tool's
     scale: qa is taken from both ends, every coordinate is rounded once, and R^2 - r^2 is
-    rho^2 - tau^2.  A cell centre is then misplaced by less than 1e-6 R whatever the move's
-    length, and its height is off by that times the envelope's slope: ~1e-6 mm mostly, more
-    only on the swept rim (where the profile turns vertical) and along short steep moves.
+    rho^2 - tau^2.  A cell's offset from the tool's axis is then good to 1e-6 R whatever the
+    move's length (its place along the move to 6e-8 of that length, where the envelope rises
+    at the move's own slope), and its height to that error times the envelope's slope:
+    ~1e-6 mm mostly, more on the swept rim (where the profile turns vertical) and along short
+    steep moves.
     """
     R = tool.radius
     d = p1[:, :2] - p0[:, :2]
@@ -334,13 +336,16 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
     f32 = np.float32
     # The (K, H, W) coordinates are each a per-row plus a per-column term.  Where those exceed
     # 2 R (long moves) they are summed in float64 and rounded once, which costs about one
-    # float32 pass more per array; else in float32, with errors of a few ulp of 2 R.
+    # float32 pass more per array; else in float32, with errors of a few ulp of 2 R, and qa1
+    # is qa - L.
     wide = max(np.abs(dx).max(initial=0.0), np.abs(dy).max(initial=0.0)) > 2 * R
     terms = (lambda v: v) if wide else (lambda v: v.astype(f32))
-    shape = (len(L), H, W)
-    qa, qa1, qp2, rho = (scratch or _Scratch()).arrays(4, shape)
+    qa, qa1, qp2, rho = (scratch or _Scratch()).arrays(4, (len(L), H, W))
     np.add(terms(dy * uy[e]), terms(dx * ux[e]), out=qa)  # from p0
-    np.add(terms(dy * uy[e]), terms(dx * ux[e] - L[e]), out=qa1)  # from p1
+    if wide:
+        np.add(terms(dy * uy[e]), terms(dx * ux[e] - L[e]), out=qa1)  # from p1
+    else:
+        np.subtract(qa, L.astype(f32)[e], out=qa1)
     np.subtract(terms(dy * ux[e]), terms(dx * uy[e]), out=qp2)
     np.square(qp2, out=qp2)
     np.subtract(f32(R * R), qp2, out=rho)
@@ -354,11 +359,11 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
             tau = _bullnose_tau(qp2, rho, np.abs(m).astype(f32)[e], tool)
             tau *= np.sign(m).astype(f32)[e]
         # t* = qa - tau* clamped to [0, L] is tau* clamped to [qa1, qa]; both are clamped,
-        # t so that the ends' heights are exact, tau so that r is exact at both ends.
-        np.maximum(tau, qa1, out=qa1)  # NaN stays NaN
-        t = np.subtract(qa, tau, out=tau)
-        tau = np.minimum(qa1, qa, out=qa1)
-        np.maximum(t, f32(0.0), out=t)
+        # t so that the ends' heights are exact, tau so that r is exact at both ends
+        np.minimum(tau, qa, out=tau)  # NaN stays NaN
+        np.maximum(tau, qa1, out=qa1)
+        t = np.subtract(qa, tau, out=tau)  # >= 0
+        tau = qa1
         np.minimum(t, L.astype(f32)[e], out=t)
         t *= m.astype(f32)[e]  # height of the tip above z0
         # R^2 - r^2 = rho^2 - tau^2, which keeps its precision where r^2 is close to R^2
