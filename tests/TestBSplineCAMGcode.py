@@ -13,7 +13,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM import rs274
 from BSplineCAM.core import gcode
 from BSplineCAM.core.gcode import (
     GcodeError,
@@ -22,6 +21,7 @@ from BSplineCAM.core.gcode import (
     read_canonical,
     read_gcode,
 )
+from BSplineCAM.orchestration import rs274
 
 RS274 = shutil.which("rs274")
 

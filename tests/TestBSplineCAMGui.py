@@ -607,9 +607,9 @@ class TestCamCommands(CamTestCase):
         import numpy as np
         from pivy import coin
 
-        from BSplineCAM import rs274
         from BSplineCAM.app import verify_feature as vf
         from BSplineCAM.gui import cam_commands, verify_view
+        from BSplineCAM.orchestration import rs274
 
         surface, job, op = self.make_job()
         self.assertTrue(surface.MakeSolid)

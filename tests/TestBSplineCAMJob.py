@@ -22,11 +22,12 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from BSplineCAM import Surface, rs274  # noqa: E402
+from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
 from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
 from BSplineCAM.core.simulate import Tool  # noqa: E402
 from BSplineCAM.core.verify import verify  # noqa: E402
+from BSplineCAM.orchestration import rs274  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"

@@ -28,9 +28,10 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from BSplineCAM import Surface, rs274  # noqa: E402
+from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
 from BSplineCAM.core.gcode import read_gcode  # noqa: E402
+from BSplineCAM.orchestration import rs274  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"

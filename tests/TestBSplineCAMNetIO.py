@@ -13,9 +13,9 @@ import pytest
 from conftest import CASE_STUDY, ROOT, random_net
 
 from BSplineCAM import Surface
-from BSplineCAM.cli import main as cli_main
 from BSplineCAM.core import netio
 from BSplineCAM.core.errors import NetError
+from BSplineCAM.orchestration.cli import main as cli_main
 
 
 def write_json(path, points, **extra):
@@ -170,3 +170,19 @@ def test_core_never_imports_freecad():
     for path in (ROOT / "BSplineCAM" / "core").rglob("*.py"):
         match = banned.search(path.read_text())
         assert match is None, f"{path} imports {match.group(0).strip()!r}"
+
+
+def test_layers_import_only_downwards():
+    """core <- app <- gui, orchestration on top; nothing loose at the package root."""
+    package = ROOT / "BSplineCAM"
+    loose = sorted(p.name for p in package.glob("*.py") if p.name != "__init__.py")
+    assert loose == [], f"modules loose at the package root: {loose}"
+    upward = {
+        "core": re.compile(r"^\s*(from\s+(BSplineCAM\.|\.\.)(app|gui|orchestration|ocp)\b)", re.M),
+        # a factory may attach its view provider under ``if FreeCAD.GuiUp:`` (indented import)
+        "app": re.compile(r"^(import\s+FreeCADGui|from\s+(BSplineCAM\.|\.\.)gui\b)", re.M),
+    }
+    for layer, banned in upward.items():
+        for path in (package / layer).rglob("*.py"):
+            match = banned.search(path.read_text())
+            assert match is None, f"{path} imports upwards: {match.group(0).strip()!r}"

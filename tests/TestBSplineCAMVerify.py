@@ -129,7 +129,7 @@ def test_tool_larger_than_part() -> None:
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run([sys.executable, "-m", "BSplineCAM.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "BSplineCAM.orchestration.cli", *args], capture_output=True,
                           text=True, env=env, timeout=600)
 
 

@@ -179,10 +179,10 @@ def surfaces_in(objects: Iterable) -> list:
 def run_crosscheck(obj, **options) -> dict:
     """Cross-check a surface object against OCCT; store the report in ``obj.CrossCheck``.
 
-    The report (max deviations in mm, see :func:`BSplineCAM.crosscheck.crosscheck`) is also
+    The report (max deviations in mm, see :func:`BSplineCAM.orchestration.crosscheck.crosscheck`) is also
     printed to the report view, a warning when the exact route misses its tolerance.
     """
-    from ..crosscheck import crosscheck
+    from ..orchestration.crosscheck import crosscheck
 
     report = crosscheck(surface_of(obj), **options)
     obj.CrossCheck = json.dumps(report, sort_keys=True)

@@ -327,7 +327,7 @@ class PostProcess(BaseCommand):
         return selected_job() is not None
 
     def run(self) -> None:
-        from .. import rs274
+        from ..orchestration import rs274
 
         job = selected_job()
         available = set(compat.available_posts())

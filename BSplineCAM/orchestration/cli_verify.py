@@ -12,10 +12,10 @@ import json
 import time
 from pathlib import Path
 
-from .core import Surface
-from .core.gcode import read_gcode_file
-from .core.simulate import Tool, ToolShape
-from .core.verify import (
+from ..core import Surface
+from ..core.gcode import read_gcode_file
+from ..core.simulate import Tool, ToolShape
+from ..core.verify import (
     DEFAULT_COVERAGE_TOLERANCE,
     DEFAULT_RAPID_RATE,
     DEFAULT_STOCK_MARGIN,

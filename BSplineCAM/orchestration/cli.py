@@ -20,9 +20,9 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from ..core import BSplineCAMError, Surface
+from ..core.netio import write_dat
 from . import runtime
-from .core import BSplineCAMError, Surface
-from .core.netio import write_dat
 
 EXIT_INPUT_ERROR = 2
 EXIT_CHECK_FAILED = 1
@@ -131,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: Modules of later stages; each has ``register(subparsers)`` adding its subcommand.
-STAGE_COMMANDS = [m for m in ("BSplineCAM.cli_toolpath", "BSplineCAM.cli_verify")
+STAGE_COMMANDS = [m for m in ("BSplineCAM.orchestration.cli_toolpath", "BSplineCAM.orchestration.cli_verify")
                   if importlib.util.find_spec(m) is not None]
 
 

@@ -3,7 +3,7 @@
 
 FreeCAD 0.20 on Debian runs Debian's python3 with numpy 1.24; cadquery lives in the project's
 virtual environment with numpy 2.x.  Work that needs the other one goes to a worker process
-(:mod:`BSplineCAM.worker`) through JSON files.
+(:mod:`BSplineCAM.orchestration.worker`) through JSON files.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 WORKER_TIMEOUT_S = 1800
 
 
@@ -43,7 +43,7 @@ def freecad_in_process() -> bool:
     if "OCP" in sys.modules or os.path.realpath(sys.executable) != os.path.realpath(freecad_python()):
         return False
     try:
-        from .app.compat import ensure_freecad
+        from ..app.compat import ensure_freecad
 
         ensure_freecad()
     except ImportError:
@@ -70,7 +70,7 @@ def run_worker(backend: str, request: dict) -> dict:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
         proc = subprocess.run(
-            [python, "-m", "BSplineCAM.worker", str(req), str(rep)],
+            [python, "-m", "BSplineCAM.orchestration.worker", str(req), str(rep)],
             capture_output=True, text=True, env=env, timeout=WORKER_TIMEOUT_S, check=False,
         )
         if not rep.exists():

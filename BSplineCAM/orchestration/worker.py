@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Worker entry point: ``python -m BSplineCAM.worker REQUEST.json REPLY.json``.
+"""Worker entry point: ``python -m BSplineCAM.orchestration.worker REQUEST.json REPLY.json``.
 
 Runs one request against FreeCAD's or cadquery's OCCT in this process and writes a JSON reply
 (``{"error": ...}`` on failure), so that the two OCCTs never share a process.
@@ -13,8 +13,8 @@ import traceback
 
 import numpy as np
 
-from .core import Surface
-from .core.netio import net_from_dict
+from ..core import Surface
+from ..core.netio import net_from_dict
 
 
 def handle(request: dict) -> dict:
@@ -22,9 +22,9 @@ def handle(request: dict) -> dict:
     backend = request["backend"]
     op = request["op"]
     if backend == "freecad":
-        from .app import part as impl
+        from ..app import part as impl
     elif backend == "cadquery":
-        from .ocp import occ as impl
+        from ..ocp import occ as impl
     else:
         raise ValueError(f"unknown backend {backend!r}")
     if op == "evaluate":
@@ -48,7 +48,7 @@ def handle(request: dict) -> dict:
 
 def backend_version(backend: str) -> str:
     if backend == "freecad":
-        from .app.compat import freecad_version
+        from ..app.compat import freecad_version
 
         return ".".join(map(str, freecad_version()))
     import OCP

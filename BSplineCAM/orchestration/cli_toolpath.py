@@ -12,11 +12,11 @@ import argparse
 import json
 from pathlib import Path
 
+from ..core import BSplineCAMError, Surface
+from ..core.errors import ParameterError
+from ..core.gcode import MoveKind, read_gcode
+from ..core.toolpath.common import Direction, IsoDirection, Strategy, ToolParameters
 from . import rs274
-from .core import BSplineCAMError, Surface
-from .core.errors import ParameterError
-from .core.gcode import MoveKind, read_gcode
-from .core.toolpath.common import Direction, IsoDirection, Strategy, ToolParameters
 
 DEFAULT_RAPID = 5000.0
 
@@ -60,7 +60,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
         if not getattr(args, name) > 0:
             raise ParameterError(f"--{name.replace('_', '-')} must be > 0, got {getattr(args, name)}")
     surface = Surface.from_file(args.net, args.knots)
-    from .app import cam, compat, pipeline
+    from ..app import cam, compat, pipeline
 
     try:
         compat.post_module(args.post)
