@@ -21,6 +21,7 @@ from enum import Enum
 
 import numpy as np
 
+from .distance import dilate_disk
 from .errors import ParameterError
 from .footprint import footprint_bounds, surface_height
 from .gcode import MoveKind, Program, linearise
@@ -159,23 +160,6 @@ def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.n
 def _dilate(mask: np.ndarray, radius: float) -> np.ndarray:
     """Dilate a boolean (ny, nx) mask by a disk of ``radius`` cells; outside the grid is set.
 
-    A disk is a stack of horizontal runs: for each row offset dy the run half-width is
-    floor(sqrt(r^2 - dy^2)); each run is a window sum over a row-wise cumulative count.
+    By the exact distance transform (:mod:`.distance`): linear in cells, whatever the radius.
     """
-    k = int(math.floor(radius))
-    padded = np.pad(mask, k + 1, constant_values=True)
-    ny, nx = padded.shape
-    count = np.zeros((ny, nx + 1), dtype=np.int32)
-    np.cumsum(padded, axis=1, out=count[:, 1:])
-    out = np.zeros_like(padded)
-    cols = np.arange(nx)
-    for dy in range(-k, k + 1):
-        half = int(math.floor(math.sqrt(max(radius * radius - dy * dy, 0.0))))
-        hi = np.minimum(cols + half + 1, nx)
-        lo = np.maximum(cols - half, 0)
-        run = (count[:, hi] - count[:, lo]) > 0
-        if dy >= 0:
-            out[dy:] |= run[:ny - dy]
-        else:
-            out[:dy] |= run[-dy:]
-    return out[k + 1:-(k + 1), k + 1:-(k + 1)]
+    return dilate_disk(mask, radius, outside=True)
