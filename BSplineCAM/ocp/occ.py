@@ -93,3 +93,47 @@ def export(surface: Surface, path: str | os.PathLike) -> None:
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+# -- general NURBS surfaces (core.nurbs.NurbsSurface's constructor arguments) -----------------
+def nurbs_geom(poles, knots_u, knots_v, degree_u: int, degree_v: int, weights=None,
+               periodic_u: bool = False, periodic_v: bool = False) -> Geom_BSplineSurface:
+    """Geom_BSplineSurface from the arguments of :class:`~BSplineCAM.core.nurbs.NurbsSurface`
+    (full flat knot vectors, periodic directions in OCCT's own form)."""
+    from ..core.basis import unique_knots
+
+    poles = np.asarray(poles, dtype=float)
+    rows, cols = poles.shape[:2]
+    net = TColgp_Array2OfPnt(1, rows, 1, cols)
+    for i in range(rows):
+        for j in range(cols):
+            net.SetValue(i + 1, j + 1, gp_Pnt(*map(float, poles[i, j])))
+    uk, um = unique_knots(knots_u, tol=0.0)
+    vk, vm = unique_knots(knots_v, tol=0.0)
+    args = (_reals(uk), _reals(vk), _ints(um), _ints(vm), int(degree_u), int(degree_v),
+            bool(periodic_u), bool(periodic_v))
+    if weights is None:
+        return Geom_BSplineSurface(net, *args)
+    from OCP.TColStd import TColStd_Array2OfReal
+
+    wts = TColStd_Array2OfReal(1, rows, 1, cols)
+    weights = np.asarray(weights, dtype=float)
+    for i in range(rows):
+        for j in range(cols):
+            wts.SetValue(i + 1, j + 1, float(weights[i, j]))
+    return Geom_BSplineSurface(net, wts, *args)
+
+
+def nurbs_d2(geom, u, v) -> tuple[FloatArray, ...]:
+    """OCCT's Geom_Surface::D2 at scattered (u, v): point, Su, Sv, Suu, Suv, Svv, each (m, 3)."""
+    from OCP.gp import gp_Vec
+
+    out = []
+    for a, b in zip(np.ravel(u), np.ravel(v)):
+        p = gp_Pnt()
+        vecs = [gp_Vec() for _ in range(5)]
+        geom.D2(float(a), float(b), p, *vecs)  # P, D1U, D1V, D2U, D2V, D2UV
+        d1u, d1v, d2u, d2v, d2uv = vecs
+        out.append([(q.X(), q.Y(), q.Z()) for q in (p, d1u, d1v, d2u, d2uv, d2v)])
+    arr = np.array(out).reshape(-1, 6, 3)
+    return tuple(arr[:, k] for k in range(6))

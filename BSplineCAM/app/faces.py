@@ -1,0 +1,350 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Faces as FreeCAD holds them, into the core's plain NURBS faces (BSplineCAM.core.faces).
+
+B-spline and Bézier faces give their poles, weights, knots and multiplicities directly; any
+other surface (plane, cylinder, cone, sphere, torus, revolved, extruded, offset, trimmed) is
+converted by OCCT (``Part.Face.toNurbs``, i.e. BRepBuilderAPI_NurbsConvert) and the result is
+measured against OCCT's evaluation of the original surface.  Periodic or unclamped knot
+vectors are made clamped by OCCT's exact knot insertion (``Geom_BSplineSurface::Segment``),
+which keeps the parameterisation; the trim's parameter curves (pcurves) are discretised by
+:func:`BSplineCAM.core.faces.densify_edge` within a 3-D chord tolerance.
+
+"up" (:func:`reaches_from_above`): a face a 3-axis tool reaches from above has an outward
+normal with z ≥ -1e-9 at every sampled point of its trimmed domain (a grid inside the trim and
+the trim's own points) and z > 1e-9 at one of them at least; vertical walls are not "up".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..core import faces as core_faces
+from ..core.errors import BSplineCAMError
+from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
+from ..core.typing import FloatArray
+from .compat import ensure_freecad
+
+FreeCAD = ensure_freecad()
+import Part  # noqa: E402  (needs FreeCAD on sys.path first)
+
+#: A normal's z below -UP_TOLERANCE points down; above +UP_TOLERANCE, up.
+UP_TOLERANCE = 1e-9
+#: Largest accepted distance of a face's NURBS from OCCT's original, relative to its size.
+RELATIVE_DEVIATION = 1e-9
+#: Part file types :func:`read_part` reads.
+PART_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".fcstd")
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def read_part(path: str | os.PathLike) -> Part.Shape:
+    """The solid(s) of a STEP, BREP or FreeCAD document as one Part.Shape.
+
+    FCStd: the visible objects' shapes that hold solids.  Errors (FaceError) name the file:
+    missing, unknown type, unreadable, no solid, or geometry OCCT reports invalid.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in PART_SUFFIXES:
+        raise FaceError(f"{path}: unknown part type {suffix!r} (expected one of "
+                        f"{', '.join(PART_SUFFIXES)})")
+    if not path.is_file():
+        raise FaceError(f"{path}: no such file")
+    try:
+        if suffix == ".fcstd":
+            shape = _read_fcstd(path)
+        else:
+            shape = Part.Shape()
+            shape.read(str(path))
+    except BSplineCAMError:
+        raise
+    except Exception as exc:  # OCCT's reader errors come as Part.OCCError / RuntimeError
+        raise FaceError(f"{path}: cannot read the part ({exc})") from None
+    if shape.isNull() or not shape.Solids:
+        raise FaceError(f"{path}: holds no solid")
+    check_shape(shape, str(path))
+    return shape
+
+
+def _read_fcstd(path: Path) -> Part.Shape:
+    try:
+        doc = FreeCAD.openDocument(str(path), True)  # hidden: no 3D view (FreeCAD >= 0.20)
+    except TypeError:
+        doc = FreeCAD.openDocument(str(path))
+    try:
+        shapes = []
+        for obj in doc.Objects:
+            shape = getattr(obj, "Shape", None)
+            if shape is None or shape.isNull() or not shape.Solids or not _visible(obj):
+                continue
+            shapes.append(shape.copy())
+        if not shapes:
+            raise FaceError(f"{path}: no visible object holds a solid")
+        return shapes[0] if len(shapes) == 1 else Part.makeCompound(shapes)
+    finally:
+        FreeCAD.closeDocument(doc.Name)
+
+
+def _visible(obj) -> bool:
+    """Visibility as saved in the document (headless FreeCAD has no view providers)."""
+    try:
+        return bool(obj.Visibility)
+    except AttributeError:
+        return True
+
+
+def check_shape(shape: Part.Shape, where: str = "shape") -> None:
+    """FaceError naming ``where`` if OCCT's checker (BRepCheck) finds the shape invalid."""
+    if shape.isValid():
+        return
+    try:
+        shape.check(True)
+        detail = "BRepCheck reports it invalid"
+    except Exception as exc:  # Part.OCCError with BRepCheck's findings
+        detail = " ".join(str(exc).split())[:300]
+    raise FaceError(f"{where}: broken geometry: {detail}")
+
+
+# --------------------------------------------------------------------------- one face
+
+
+def _flat(knots: Sequence[float], mults: Sequence[int]) -> FloatArray:
+    return np.repeat(np.asarray(knots, dtype=float), np.asarray(mults, dtype=int))
+
+
+def _clamped(surface: Part.BSplineSurface) -> bool:
+    return (not surface.isUPeriodic() and not surface.isVPeriodic()
+            and surface.getUMultiplicities()[0] == surface.UDegree + 1
+            and surface.getUMultiplicities()[-1] == surface.UDegree + 1
+            and surface.getVMultiplicities()[0] == surface.VDegree + 1
+            and surface.getVMultiplicities()[-1] == surface.VDegree + 1)
+
+
+def _nurbs_arrays(surface, uv_box: tuple[float, float, float, float], name: str):
+    """Poles (n, m, 3), weights (n, m), full clamped knot vectors and degrees of a Part
+    B-spline or Bézier surface.  A periodic direction is cut to the trim's range ``uv_box``
+    (exact knot insertion, same parameters); an unclamped one is clamped to its bounds."""
+    shift = (0.0, 0.0)
+    if isinstance(surface, Part.BezierSurface):
+        p, q = surface.UDegree, surface.VDegree
+        knots_u = np.array([0.0] * (p + 1) + [1.0] * (p + 1))
+        knots_v = np.array([0.0] * (q + 1) + [1.0] * (q + 1))
+    else:
+        if not _clamped(surface):
+            surface = surface.copy()
+            u0, u1, v0, v1 = surface.bounds()
+            if surface.isUPeriodic():
+                u0, u1 = _periodic_range(uv_box[0], uv_box[1], surface.UPeriod(), "u", name)
+            if surface.isVPeriodic():
+                v0, v1 = _periodic_range(uv_box[2], uv_box[3], surface.VPeriod(), "v", name)
+            periods = (surface.UPeriod() if surface.isUPeriodic() else 0.0,
+                       surface.VPeriod() if surface.isVPeriodic() else 0.0)
+            surface.segment(u0, u1, v0, v1)
+            shift = core_faces.period_shift(surface.bounds(), (u0, v0), periods)
+            if not _clamped(surface):
+                raise FaceError(f"{name}: OCCT could not clamp the surface's knot vectors")
+        p, q = surface.UDegree, surface.VDegree
+        knots_u = _flat(surface.getUKnots(), surface.getUMultiplicities())
+        knots_v = _flat(surface.getVKnots(), surface.getVMultiplicities())
+    poles = np.array([[tuple(pt) for pt in row] for row in surface.getPoles()], dtype=float)
+    weights = np.array(surface.getWeights(), dtype=float)
+    # Segment may land a whole period away from the trim: translate the knots back.
+    return {"poles": poles, "weights": weights, "knots_u": knots_u - shift[0],
+            "knots_v": knots_v - shift[1], "degree_u": int(p), "degree_v": int(q)}
+
+
+def _periodic_range(a: float, b: float, period: float, which: str, name: str):
+    if b - a > period * (1 + 1e-12):
+        raise FaceError(f"{name}: its trim spans more than one period in {which}")
+    if b - a >= period * (1 - 1e-12):
+        b = a + period
+    return a, b
+
+
+def _xy(point) -> tuple[float, float]:
+    return float(point.x), float(point.y)
+
+
+def _edge_polyline(face: Part.Face, edge, surface, tolerance: float, name: str) -> FloatArray:
+    found = face.curveOnSurface(edge)
+    if found:
+        curve, t0, t1 = found
+
+        def pcurve(ts):
+            return np.array([_xy(curve.value(float(t))) for t in ts], dtype=float)
+    else:  # no pcurve stored: project the 3-D edge onto the surface
+        t0, t1 = edge.ParameterRange
+
+        def pcurve(ts):
+            return np.array([surface.parameter(edge.valueAt(float(t))) for t in ts], dtype=float)
+
+    def point(uv):
+        return np.array([tuple(surface.value(float(a), float(b))) for a, b in uv], dtype=float)
+
+    if edge.Degenerated:  # a pole: a straight parameter segment, one 3-D point
+        return pcurve(np.array([t0, t1]))
+    return core_faces.densify_edge(pcurve, point, t0, t1, tolerance, name=name)
+
+
+def _loops(face: Part.Face, tolerance: float, name: str) -> tuple[FloatArray, list[FloatArray]]:
+    surface = face.Surface
+    u0, u1, v0, v1 = face.ParameterRange
+    gap = 1e-7 * max(u1 - u0, v1 - v0, 1e-300)
+    outer_wire = face.OuterWire
+    loops, outer = [], None
+    for n, wire in enumerate(face.Wires, start=1):
+        is_outer = wire.isSame(outer_wire)
+        which = "outer wire" if is_outer else f"wire {n}"
+        pieces = [_edge_polyline(face, e, surface, tolerance, name) for e in wire.OrderedEdges]
+        loop = core_faces.join_edges(pieces, name, which, gap)
+        if is_outer:
+            outer = loop
+        else:
+            loops.append(loop)
+    if outer is None:
+        raise FaceError(f"{name}: has no outer wire")
+    return outer, loops
+
+
+def _occt_v(face: Face, v):
+    if not face.flipped_v:
+        return v
+    k = np.asarray(face.surface.knots_v, dtype=float)
+    return k[0] + k[-1] - v
+
+
+def extract_face(source: Part.Face, index: int, tolerance: float = DEFAULT_TOLERANCE,
+                 selected: bool = True) -> Face:
+    """The core :class:`Face` of one Part.Face (``index`` 1-based in its shape)."""
+    return _extract(source, index, tolerance, selected)[0]
+
+
+def _extract(source: Part.Face, index: int, tolerance: float, selected: bool):
+    """(Face, OCCT's B-spline face it was taken from)."""
+    name = f"Face{index}"
+    kind = type(source.Surface).__name__
+    if isinstance(source.Surface, (Part.BSplineSurface, Part.BezierSurface)):
+        work = source
+    else:
+        try:
+            converted = source.toNurbs().Faces
+        except Exception as exc:  # Part.OCCError
+            raise FaceError(f"{name} ({kind}): OCCT's NURBS conversion failed ({exc})") from None
+        if len(converted) != 1 or not isinstance(converted[0].Surface, Part.BSplineSurface):
+            raise FaceError(f"{name} ({kind}): OCCT's NURBS conversion gave no B-spline face")
+        work = converted[0]
+    outer, holes = _loops(work, tolerance, name)
+    box = np.concatenate([outer, *holes])
+    uv_box = (float(box[:, 0].min()), float(box[:, 0].max()),
+              float(box[:, 1].min()), float(box[:, 1].max()))
+    data = _nurbs_arrays(work.Surface, uv_box, name)
+    flipped = work.Orientation == "Reversed"
+    if flipped:
+        data["poles"], data["weights"], knots_v = core_faces.flip_v(
+            data["poles"], data["weights"], data["knots_v"])
+        vsum = data["knots_v"][0] + data["knots_v"][-1]
+        data["knots_v"] = knots_v
+        outer = np.column_stack([outer[:, 0], vsum - outer[:, 1]])
+        holes = [np.column_stack([h[:, 0], vsum - h[:, 1]]) for h in holes]
+    try:
+        surface = core_faces.make_surface(name=name, **data)
+    except BSplineCAMError as exc:
+        raise FaceError(f"{name} ({kind}): {exc}") from None
+    face = Face(surface, outer, tuple(holes), index=index, name=name, selected=selected,
+                flipped_v=flipped, source=kind, tolerance=tolerance)
+    deviation = measure(face, source, work)
+    size = max(source.BoundBox.DiagonalLength, 1e-300)
+    if not deviation <= RELATIVE_DEVIATION * size:
+        raise FaceError(f"{name} ({kind}): its NURBS is {deviation:.3g} mm from OCCT's "
+                        f"original surface, more than {RELATIVE_DEVIATION:g} of its size "
+                        f"{size:.6g} mm")
+    return dataclasses.replace(face, deviation=deviation), work
+
+
+def measure(face: Face, source: Part.Face, work: Part.Face) -> float:
+    """Max distance (mm) of the core NURBS from OCCT's surfaces at points of the face.
+
+    At the same (u, v) against the B-spline OCCT holds (``work``); when ``source`` was
+    converted, also the distance to its original surface (OCCT's projection, then its
+    evaluation at the projected parameters).
+    """
+    uv = core_faces.sample_points(face)
+    ours = np.asarray(face.surface.evaluate(uv[:, 0], uv[:, 1]), dtype=float)
+    vo = _occt_v(face, uv[:, 1])
+    theirs = np.array([tuple(work.Surface.value(float(a), float(b)))
+                       for a, b in zip(uv[:, 0], vo)])
+    deviation = float(np.linalg.norm(ours - theirs, axis=1).max())
+    if work is not source:
+        original = source.Surface
+        for p in ours:
+            pt = FreeCAD.Vector(*map(float, p))
+            a, b = original.parameter(pt)
+            deviation = max(deviation, float((original.value(a, b) - pt).Length))
+    return deviation
+
+
+# --------------------------------------------------------------------------- "up"
+
+
+def reaches_from_above(face: Face, work: Part.Face) -> tuple[bool, str]:
+    """Whether a 3-axis tool reaches the face from above, and why not (module docstring).
+
+    ``work`` is the OCCT B-spline face the core face was taken from (OCCT's normals, which
+    follow the face's orientation).
+    """
+    uv = core_faces.sample_points(face)
+    vo = _occt_v(face, uv[:, 1])
+    nz = []
+    for a, b in zip(uv[:, 0], vo):
+        try:
+            n = work.normalAt(float(a), float(b))
+        except Exception:  # a pole or another point without a normal
+            continue
+        if n.Length > 0.5:
+            nz.append(n.z / n.Length)
+    if not nz:
+        return False, "its normal is defined nowhere"
+    nz = np.array(nz)
+    low = float(nz.min())
+    if low < -UP_TOLERANCE:
+        return False, f"its outward normal points down somewhere (normal z = {low:.3g})"
+    if float(nz.max()) <= UP_TOLERANCE:
+        return False, "it is vertical (outward normal z = 0 everywhere)"
+    return True, ""
+
+
+# --------------------------------------------------------------------------- a shape
+
+
+def faces_from_shape(shape: Part.Shape, selection: core_faces.Selection = "up",
+                     tolerance: float = DEFAULT_TOLERANCE, where: str = "shape") -> list[Face]:
+    """Every face of ``shape`` as a core :class:`Face` (mm), in the shape's face order.
+
+    ``selection``: "up" (every face a 3-axis tool reaches from above) or 1-based face numbers;
+    the other faces come back with ``selected=False`` (check surfaces).  ``tolerance`` is the
+    trim polylines' 3-D chord tolerance in mm.  Errors (FaceError) name the face.
+    """
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise FaceError(f"{where}: trim tolerance must be a positive length in mm, "
+                        f"got {tolerance!r}")
+    if shape.isNull() or not shape.Faces:
+        raise FaceError(f"{where}: has no faces")
+    check_shape(shape, where)
+    sources = shape.Faces
+    chosen = core_faces.parse_selection(selection, len(sources), where)
+    pairs = [_extract(f, i, tolerance, False) for i, f in enumerate(sources, 1)]
+    reach = [reaches_from_above(face, work) for face, work in pairs]
+    return core_faces.apply_selection([face for face, _ in pairs], reach, chosen, where)
+
+
+__all__ = [
+    "PART_SUFFIXES", "RELATIVE_DEVIATION", "UP_TOLERANCE", "check_shape", "extract_face",
+    "faces_from_shape", "measure", "reaches_from_above", "read_part",
+]

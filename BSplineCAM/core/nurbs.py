@@ -1,0 +1,795 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""NURBS surfaces of any degree by the paper's matrix method, one matrix per knot span.
+
+The paper (appendix A, eq. A.2) writes a uniform cubic patch as ``[U][MB][P][MB]^T[W]^T``.
+Here every knot span ``[t_k, t_{k+1})`` of any degree ``p`` and any knot vector has its own
+(p+1)x(p+1) matrix ``M_k``: with the span's local parameter ``s = (u - t_k) / h_k`` in [0, 1]
+(``h_k = t_{k+1} - t_k``), the row vector ``[1 s s^2 ... s^p] @ M_k`` holds the p+1 basis
+functions ``N_{k-p..k, p}`` that are non-zero on the span.  ``M_k`` is the Taylor expansion of
+those functions at the span start::
+
+    M_k[r, l] = N^{(r)}_{k-p+l, p}(t_k) * h_k^r / r!
+
+with the derivatives from "The NURBS Book" (Piegl & Tiller, 2nd ed.) algorithm A2.3
+(DersBasisFuns, which contains A2.2, BasisFuns).  Rows run in *ascending* powers of s, so for
+the paper's uniform cubic knots ``M_k == MB[::-1]`` (the paper lists s^3 first); see
+:func:`span_matrices`.
+
+A patch is ``[S] M_i P_ij M_j^T [T]^T``; the products ``C_ij = M_i P_ij M_j^T`` are computed once
+per surface for x, y, z and (rational surfaces) the weight, i.e. in homogeneous coordinates
+``(w x, w y, w z, w)``, and evaluated by Horner's rule in s and t.  Rational values and
+derivatives follow from the homogeneous ones by the quotient rule ("The NURBS Book" eq. 4.20,
+algorithm A4.4).  Grids are evaluated in two banded stages like :func:`matrix.grid_planes`.
+
+Periodic surfaces arrive in OCCT's (and FreeCAD's) form -- ``n`` distinct poles, the knots of one
+period with the first and last multiplicity equal (``len(knots) = n + mult_last``) -- and are
+converted to the equivalent non-periodic (unclamped) form: the flat knots are extended by the
+period on both sides and the first poles repeated at the end, exactly as OCCT's
+``Geom_BSplineSurface::SetUNotPeriodic`` does (see :func:`unperiodize`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from math import comb, factorial
+
+import numpy as np
+
+from .errors import NetError, ParameterError
+from .typing import ArrayLike, FloatArray, IntArray
+
+#: Degrees accepted in each direction.
+MIN_DEGREE, MAX_DEGREE = 1, 9
+
+#: Bytes of patch coefficients gathered at once by scattered evaluation: the chunk of points
+#: is sized so that the gathered (m, q+1, (p+1) d) block stays in cache.
+SCATTER_BYTES = 1 << 21
+
+#: Rows of w per block in grid normals: a block's tangents stay in cache.
+NORMAL_BLOCK_ROWS = 16
+
+#: Partial derivatives (du, dw) in the order of the fields of ``surface.Derivatives``.
+SECOND_ORDER = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
+
+
+# -- knot vectors -----------------------------------------------------------------------------
+def expand_knots(knots: ArrayLike, mults: ArrayLike) -> FloatArray:
+    """Flat knot vector from distinct knots and multiplicities (OCCT's/FreeCAD's
+    ``getUKnots()`` + ``getUMultiplicities()``): each knot repeated ``mult`` times."""
+    knots = np.asarray(knots, dtype=float).ravel()
+    mults = np.asarray(mults).ravel()
+    if len(knots) != len(mults):
+        raise NetError(f"{len(knots)} knots but {len(mults)} multiplicities: they must pair up")
+    for i, m in enumerate(mults):
+        if not float(m).is_integer() or m < 1:
+            raise NetError(f"multiplicity {i} is {m}: multiplicities are integers >= 1")
+    return np.repeat(knots, np.asarray(mults, dtype=int))
+
+
+def _multiplicity_runs(knots: FloatArray) -> list[tuple[int, int]]:
+    """(first index, multiplicity) of each run of equal values in a flat knot vector."""
+    runs: list[tuple[int, int]] = []
+    for i, t in enumerate(knots):
+        if runs and t == knots[runs[-1][0]]:
+            runs[-1] = (runs[-1][0], runs[-1][1] + 1)
+        else:
+            runs.append((i, 1))
+    return runs
+
+
+def _validate_knots(knots: ArrayLike, degree: int, count: int, periodic: bool,
+                    label: str) -> FloatArray:
+    try:
+        knots = np.asarray(knots, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise NetError(f"{label}: knots must be numbers") from None
+    bad = np.flatnonzero(~np.isfinite(knots))
+    if bad.size:
+        raise NetError(f"{label}: knot {bad[0]} is {knots[bad[0]]}, knots must be finite")
+    down = np.flatnonzero(np.diff(knots) < 0)
+    if down.size:
+        i = int(down[0])
+        raise NetError(f"{label}: knots must be non-decreasing, knot {i + 1} ({knots[i + 1]:g}) "
+                       f"< knot {i} ({knots[i]:g})")
+    runs = _multiplicity_runs(knots)
+    if len(runs) < 2:
+        raise NetError(f"{label}: the knots span no interval (all equal to {knots[0]:g})")
+    for r, (start, mult) in enumerate(runs):
+        end = r in (0, len(runs) - 1)
+        limit = degree if periodic or not end else degree + 1
+        if mult > limit:
+            where = "end" if end else "interior"
+            raise NetError(f"{label}: knot {start} ({knots[start]:g}) has multiplicity {mult}, "
+                           f"more than {limit} allowed for an {where} knot of degree {degree}"
+                           + (" (periodic)" if periodic else ""))
+    if periodic:
+        first, last = runs[0][1], runs[-1][1]
+        if first != last:
+            raise NetError(f"{label}: periodic knots need equal first and last multiplicities, "
+                           f"got {first} and {last}")
+        if len(knots) != count + last:
+            raise NetError(f"{label}: periodic (OCCT form) needs len(knots) = poles + last "
+                           f"multiplicity = {count} + {last} = {count + last}, got {len(knots)}")
+        if count < degree + 1 - first:
+            # the unclamped form borrows degree + 1 - m knots from one previous period
+            raise NetError(f"{label}: periodic with {count} poles: degree {degree} with end "
+                           f"multiplicity {first} needs at least {degree + 1 - first} poles")
+    elif len(knots) != count + degree + 1:
+        raise NetError(f"{label}: len(knots) must be poles + degree + 1 = {count} + {degree} + 1 "
+                       f"= {count + degree + 1}, got {len(knots)}")
+    return knots
+
+
+def unperiodize(knots: FloatArray, degree: int, count: int) -> tuple[FloatArray, IntArray]:
+    """Non-periodic flat knots and pole indices equivalent to a periodic (OCCT-form) direction.
+
+    One period holds the flat knots tau_0 .. tau_{n-1} (``knots[:count]``, period
+    ``T = knots[-1] - knots[0]``), extended as tau_{i+n} = tau_i + T.  With the first
+    multiplicity m, the unclamped form has ``a = degree + 1 - m`` knots from the previous
+    period before tau_0, poles P_0 .. P_{n-1}, P_0 .. P_{a-1} (n + a of them) and n + a +
+    degree + 1 knots, so its domain [t_p, t_{n+a}] is the period [tau_0, tau_0 + T].  This is
+    OCCT's ``SetNotPeriodic`` (checked in the tests); "The NURBS Book" sec. 12.3 wraps poles
+    the same way.  Returns (flat knots, index of the periodic pole for each new pole).
+    """
+    mult = _multiplicity_runs(knots)[0][1]
+    n = count
+    period = knots[-1] - knots[0]
+    a = degree + 1 - mult
+    index = np.arange(-a, n + degree + 1)
+    flat = knots[np.mod(index, n)] + np.floor_divide(index, n) * period
+    return flat, np.mod(np.arange(n + a), n)
+
+
+# -- the span matrices ------------------------------------------------------------------------
+def ders_basis_funs(span: int, u: float, degree: int, n_ders: int,
+                    knots: FloatArray) -> FloatArray:
+    """"The NURBS Book" A2.3: the p+1 non-zero basis functions N_{span-p..span} and their
+    derivatives up to ``n_ders`` at ``u`` in [t_span, t_{span+1}): shape (n_ders+1, p+1)."""
+    p = degree
+    ndu = np.zeros((p + 1, p + 1))
+    left = np.zeros(p + 1)
+    right = np.zeros(p + 1)
+    ndu[0, 0] = 1.0
+    for j in range(1, p + 1):
+        left[j] = u - knots[span + 1 - j]
+        right[j] = knots[span + j] - u
+        saved = 0.0
+        for r in range(j):
+            ndu[j, r] = right[r + 1] + left[j - r]  # lower triangle: knot differences
+            temp = ndu[r, j - 1] / ndu[j, r]
+            ndu[r, j] = saved + right[r + 1] * temp  # upper triangle: basis functions
+            saved = left[j - r] * temp
+        ndu[j, j] = saved
+    ders = np.zeros((n_ders + 1, p + 1))
+    ders[0] = ndu[:, p]
+    a = np.zeros((2, p + 1))
+    for r in range(p + 1):
+        s1, s2 = 0, 1
+        a[0, 0] = 1.0
+        for k in range(1, n_ders + 1):
+            d = 0.0
+            rk, pk = r - k, p - k
+            if r >= k:
+                a[s2, 0] = a[s1, 0] / ndu[pk + 1, rk]
+                d = a[s2, 0] * ndu[rk, pk]
+            j1 = 1 if rk >= -1 else -rk
+            j2 = k - 1 if r - 1 <= pk else p - r
+            for j in range(j1, j2 + 1):
+                a[s2, j] = (a[s1, j] - a[s1, j - 1]) / ndu[pk + 1, rk + j]
+                d += a[s2, j] * ndu[rk + j, pk]
+            if r <= pk:
+                a[s2, k] = -a[s1, k - 1] / ndu[pk + 1, r]
+                d += a[s2, k] * ndu[r, pk]
+            ders[k, r] = d
+            s1, s2 = s2, s1
+    factor = p
+    for k in range(1, n_ders + 1):
+        ders[k] *= factor
+        factor *= p - k
+    return ders
+
+
+def span_matrices(knots: ArrayLike, degree: int) -> FloatArray:
+    """Power-basis matrices M_k of every span k = p .. n-1: shape (n - p, p+1, p+1).
+
+    ``[1 s ... s^p] @ M[k - p]`` are the basis functions N_{k-p .. k} on span k at local
+    parameter s = (u - t_k) / (t_{k+1} - t_k).  Row r is the s^r coefficient (the paper's MB
+    lists s^3 first: for uniform cubic knots ``M[k] == MB[::-1]``).  Empty spans (repeated
+    knots) get zero matrices; they are never located.
+    """
+    knots = np.asarray(knots, dtype=float)
+    p = int(degree)
+    count = len(knots) - p - 1
+    out = np.zeros((count - p, p + 1, p + 1))
+    scale = np.array([1.0 / factorial(r) for r in range(p + 1)])
+    for k in range(p, count):
+        h = knots[k + 1] - knots[k]
+        if h > 0:
+            ders = ders_basis_funs(k, knots[k], p, p, knots)
+            out[k - p] = ders * (scale * h ** np.arange(p + 1))[:, None]
+    return out
+
+
+def _power_to_bernstein(degree: int) -> FloatArray:
+    """Matrix B with b = B @ a: Bernstein (Bezier) coefficients of sum_r a_r s^r on [0, 1]
+    (b_i = sum_{r<=i} C(i, r) / C(p, r) a_r; "The NURBS Book" sec. 1.4 / 6.6)."""
+    p = degree
+    out = np.zeros((p + 1, p + 1))
+    for i in range(p + 1):
+        for r in range(i + 1):
+            out[i, r] = comb(i, r) / comb(p, r)
+    return out
+
+
+def _derivative_factors(degree: int, order: int) -> FloatArray:
+    """d^order/ds^order of s^a is a!/(a-order)! s^(a-order): the factors for a = order..p."""
+    return np.array([factorial(a) / factorial(a - order) for a in range(order, degree + 1)])
+
+
+def _horner(coef: FloatArray, s: FloatArray, orders, scale: FloatArray) -> dict:
+    """Derivatives d^k/ds^k (k in ``orders``) times ``scale**k`` of the polynomials whose
+    ascending power coefficients run along axis 1 of ``coef`` (m, p+1, n): {k: (m, n)}.
+
+    One Horner pass carries every order at once (p_k <- p_k s + p_{k-1}, then
+    p_0 <- p_0 s + c_a; the k-th derivative is k! p_k), with no per-order coefficient copies.
+    """
+    m, p1, n = coef.shape
+    top = max(orders)
+    acc = [coef[:, p1 - 1].copy()] + [np.zeros((m, n)) for _ in range(min(top, p1 - 1))]
+    s = s[:, None]
+    for a in range(p1 - 2, -1, -1):
+        for k in range(len(acc) - 1, 0, -1):
+            acc[k] *= s
+            acc[k] += acc[k - 1]
+        acc[0] *= s
+        acc[0] += coef[:, a]
+    out = {}
+    for k in orders:
+        if k >= len(acc):
+            out[k] = np.zeros((m, n))
+        else:
+            out[k] = acc[k]
+            if k:
+                out[k] *= (factorial(k) * scale**k)[:, None]
+    return out
+
+
+def _power_rows(s: FloatArray, degree: int, order: int) -> FloatArray:
+    """[1 s ... s^p] or its ``order``-th derivative in s: shape (m, p+1)."""
+    out = np.zeros((len(s), degree + 1))
+    if order > degree:
+        return out
+    factors = _derivative_factors(degree, order)
+    power = np.ones_like(s)
+    for a in range(order, degree + 1):
+        out[:, a] = factors[a - order] * power
+        power = power * s
+    return out
+
+
+# -- the direction: knots, spans and location -------------------------------------------------
+@dataclass(frozen=True)
+class _Direction:
+    knots: FloatArray  # non-periodic flat knots
+    degree: int
+    matrices: FloatArray  # (count - p, p+1, p+1)
+
+    @property
+    def count(self) -> int:
+        return len(self.knots) - self.degree - 1
+
+    @cached_property
+    def domain(self) -> tuple[float, float]:
+        return float(self.knots[self.degree]), float(self.knots[self.count])
+
+    @cached_property
+    def nonempty(self) -> IntArray:
+        """Span indices (k - p) of the spans of non-zero length."""
+        k = np.arange(self.degree, self.count)
+        return np.flatnonzero(self.knots[k + 1] > self.knots[k])
+
+    def locate(self, t: FloatArray) -> tuple[IntArray, FloatArray, FloatArray]:
+        """Span index (k - p, also the first pole), local parameter s and 1/h per parameter."""
+        p = self.degree
+        k = np.searchsorted(self.knots, t, side="right") - 1
+        span = np.clip(k - p, self.nonempty[0], self.nonempty[-1])
+        # a parameter inside an empty span (only possible by clipping) moves to a real one
+        lo = self.knots[span + p]
+        h = self.knots[span + p + 1] - lo
+        return span, np.clip((t - lo) / h, 0.0, 1.0), 1.0 / h
+
+    def weights(self, t: FloatArray, order: int) -> tuple[IntArray, FloatArray]:
+        """First pole index and the p+1 basis values (or d^order/du^order) per parameter."""
+        span, s, inv_h = self.locate(t)
+        rows = _power_rows(s, self.degree, order) * (inv_h**order)[:, None]
+        return span, np.einsum("ma,mal->ml", rows, self.matrices[span])
+
+
+@dataclass(frozen=True)
+class PatchBounds:
+    """Axis-aligned boxes of the Bezier control points of every non-empty span pair (mm).
+
+    ``u[i]`` and ``v[j]`` are the parameter intervals of span row i / column j; ``lower[i, j]``
+    and ``upper[i, j]`` (shape (3,)) bound the surface over that patch (convex hull property;
+    for rational patches the projected control points, valid since all weights are > 0).
+    """
+
+    u: FloatArray
+    v: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+
+
+@dataclass(frozen=True)
+class BezierPatches:
+    """Bezier form of every non-empty span pair.
+
+    ``points[i, j]`` (p+1, q+1, 3) are the projected control points (mm), ``weights[i, j]``
+    (p+1, q+1) their weights (all 1 for a non-rational surface); the patch over
+    ``u[i] x v[j]`` is the rational Bezier patch of those, in local parameters s, t in [0, 1].
+    """
+
+    u: FloatArray
+    v: FloatArray
+    points: FloatArray
+    weights: FloatArray
+
+
+class NurbsSurface:
+    """A tensor-product NURBS surface of degrees 1..9 in u and v, evaluated per span by
+    the paper's matrix form ``[S] M_i P_ij M_j^T [T]^T``.
+
+    ``poles`` (n, m, 3) mm, ``knots_u``/``knots_v`` full flat knot vectors (multiplicities
+    expanded, :func:`expand_knots`), ``weights`` (n, m) > 0 or None.  Periodic directions take
+    OCCT's form (see the module docstring).  Parameters are those of the knot vectors
+    (``domain``), not normalised.  The second parameter is called ``w`` in the methods, as in
+    :class:`~BSplineCAM.core.surface.Surface`.
+    """
+
+    def __init__(
+        self,
+        poles: ArrayLike,
+        knots_u: ArrayLike,
+        knots_v: ArrayLike,
+        degree_u: int,
+        degree_v: int,
+        weights: ArrayLike | None = None,
+        periodic_u: bool = False,
+        periodic_v: bool = False,
+        name: str = "face",
+    ):
+        label = f"surface {name!r}"
+        self.name = name
+        try:
+            poles = np.array(poles, dtype=float)
+        except (TypeError, ValueError):
+            raise NetError(f"{label}: poles must be numbers (mm)") from None
+        if poles.ndim != 3 or poles.shape[2] != 3:
+            raise NetError(f"{label}: poles must have shape (n, m, 3), got {poles.shape}")
+        bad = np.argwhere(~np.isfinite(poles))
+        if bad.size:
+            i, j, c = bad[0]
+            raise NetError(f"{label}: pole ({i}, {j}) coordinate {'xyz'[c]} is "
+                           f"{poles[i, j, c]} mm; poles must be finite")
+        degrees = []
+        for axis, d in (("u", degree_u), ("v", degree_v)):
+            valid = not isinstance(d, bool) and float(d).is_integer()
+            if not valid or not MIN_DEGREE <= d <= MAX_DEGREE:
+                raise NetError(f"{label}: degree_{axis} is {d!r}, expected an integer "
+                               f"from {MIN_DEGREE} to {MAX_DEGREE}")
+            degrees.append(int(d))
+        n, m = poles.shape[:2]
+        for axis, count, d, periodic in (("u", n, degrees[0], periodic_u),
+                                         ("v", m, degrees[1], periodic_v)):
+            least = 2 if periodic else d + 1
+            if count < least:
+                kind = " (periodic)" if periodic else ""
+                raise NetError(f"{label}: {count} poles along {axis}: degree {d}{kind} needs "
+                               f"at least {least}")
+        if weights is not None:
+            try:
+                weights = np.array(weights, dtype=float)
+            except (TypeError, ValueError):
+                raise NetError(f"{label}: weights must be numbers") from None
+            if weights.shape != (n, m):
+                raise NetError(f"{label}: weights must have shape {(n, m)} like the poles, got "
+                               f"{weights.shape}")
+            bad = np.argwhere(~(np.isfinite(weights) & (weights > 0)))
+            if bad.size:
+                i, j = bad[0]
+                raise NetError(f"{label}: weight ({i}, {j}) is {weights[i, j]}; weights must "
+                               "be finite and > 0")
+        ku = _validate_knots(knots_u, degrees[0], n, bool(periodic_u), f"{label} u")
+        kv = _validate_knots(knots_v, degrees[1], m, bool(periodic_v), f"{label} v")
+        self.periodic_u, self.periodic_v = bool(periodic_u), bool(periodic_v)
+        if self.periodic_u:
+            ku, rows = unperiodize(ku, degrees[0], n)
+            poles = poles[rows]
+            weights = None if weights is None else weights[rows]
+        if self.periodic_v:
+            kv, cols = unperiodize(kv, degrees[1], m)
+            poles = poles[:, cols]
+            weights = None if weights is None else weights[:, cols]
+        self.degree_u, self.degree_v = degrees
+        self.poles = poles
+        self.weights = weights
+        self.rational = weights is not None and not np.all(weights == weights.flat[0])
+        self.knots_u, self.knots_v = ku, kv
+        for a in (self.poles, self.knots_u, self.knots_v):
+            a.setflags(write=False)
+        if self.weights is not None:
+            self.weights.setflags(write=False)
+        self._u = _Direction(ku, degrees[0], span_matrices(ku, degrees[0]))
+        self._v = _Direction(kv, degrees[1], span_matrices(kv, degrees[1]))
+
+    # -- construction ------------------------------------------------------------------------
+    @classmethod
+    def from_surface(cls, surface) -> NurbsSurface:
+        """The same surface as a cubic :class:`~BSplineCAM.core.surface.Surface` (its uniform
+        or clamped layout as full knot vectors over the normalised domain [0, 1])."""
+        ku, kw = surface.knot_vectors()
+        return cls(np.array(surface.control_points), ku, kw, surface.degree, surface.degree,
+                   name=surface.name)
+
+    def __repr__(self) -> str:
+        n, m = self.poles.shape[:2]
+        kind = "rational" if self.rational else "non-rational"
+        return (f"NurbsSurface({self.name!r}, {n}x{m} poles, degrees {self.degree_u}x"
+                f"{self.degree_v}, {kind})")
+
+    # -- description -------------------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Poles along u and v of the non-periodic form."""
+        return int(self.poles.shape[0]), int(self.poles.shape[1])
+
+    @property
+    def domain(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((u0, u1), (v0, v1)): the parameter domain."""
+        return self._u.domain, self._v.domain
+
+    def span_matrices(self) -> tuple[FloatArray, FloatArray]:
+        """The per-span matrices M_i along u and M_j along v (see :func:`span_matrices`)."""
+        return self._u.matrices, self._v.matrices
+
+    def size(self) -> float:
+        """Diagonal of the poles' bounding box (mm): the scale for relative tolerances."""
+        pts = self.poles.reshape(-1, 3)
+        return float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+
+    @cached_property
+    def homogeneous(self) -> FloatArray:
+        """Poles as (w x, w y, w z, w) if rational, else (x, y, z): shape (n, m, d)."""
+        if not self.rational:
+            return self.poles
+        w = self.weights[..., None]
+        return np.concatenate([self.poles * w, w], axis=-1)
+
+    @cached_property
+    def patch_coefficients(self) -> FloatArray:
+        """C_ij = M_i P_ij M_j^T for every span pair: shape (spans_u, spans_v, p+1, q+1, d).
+
+        ``C[i, j, a, b]`` is the s^a t^b coefficient of patch (i, j) in homogeneous coordinates.
+        """
+        p, q = self.degree_u, self.degree_v
+        blocks = np.lib.stride_tricks.sliding_window_view(
+            self.homogeneous, (p + 1, q + 1), axis=(0, 1))  # (su, sv, d, k, l)
+        coef = np.einsum("iak,ijckl,jbl->ijabc", self._u.matrices, blocks, self._v.matrices,
+                         optimize=True)
+        coef = np.ascontiguousarray(coef)
+        coef.setflags(write=False)
+        return coef
+
+    # -- parameters --------------------------------------------------------------------------
+    def _check(self, u: ArrayLike, w: ArrayLike) -> tuple[FloatArray, FloatArray]:
+        try:
+            u = np.asarray(u, dtype=float)
+            w = np.asarray(w, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterError(f"surface {self.name!r}: parameters u and w must be numbers") \
+                from None
+        out = []
+        for axis, values, (lo, hi) in (("u", u, self._u.domain), ("w", w, self._v.domain)):
+            tol = 1e-10 * max(hi - lo, abs(lo), abs(hi))  # round-off of trimmed-face bounds
+            if values.size and (not np.all(np.isfinite(values)) or values.min() < lo - tol
+                                or values.max() > hi + tol):
+                raise ParameterError(
+                    f"surface {self.name!r}: parameter {axis} must lie in its knot domain "
+                    f"[{lo!r}, {hi!r}], got {float(values.min())!r}..{float(values.max())!r}")
+            out.append(np.clip(values, lo, hi))
+        return out[0], out[1]
+
+    # -- scattered evaluation ----------------------------------------------------------------
+    @cached_property
+    def _scatter_table(self) -> FloatArray:
+        """Patch coefficients laid out for gathering: (spans_u * spans_v, q+1, (p+1) * d),
+        row (i * spans_v + j), then the t power b, then (s power a, coordinate c)."""
+        coef = self.patch_coefficients
+        su, sv, p1, q1, d = coef.shape
+        table = np.ascontiguousarray(coef.transpose(0, 1, 3, 2, 4)).reshape(su * sv, q1, p1 * d)
+        table.setflags(write=False)
+        return table
+
+    def _homogeneous_scattered(self, u: FloatArray, w: FloatArray,
+                               orders: list[tuple[int, int]]) -> dict:
+        """Homogeneous partial derivatives at scattered points (flat u, w), per order: each
+        point gathers its patch's C_ij, Horner in t along v, then Horner in s along u."""
+        table = self._scatter_table
+        d = self.homogeneous.shape[-1]
+        spans_v = len(self._v.matrices)
+        chunk = max(256, SCATTER_BYTES // (8 * table[0].size))
+        outs = {o: np.empty((len(u), d)) for o in orders}
+        t_orders = sorted({b for _, b in orders})
+        for start in range(0, len(u), chunk):
+            sl = slice(start, start + chunk)
+            iu, su, hu = self._u.locate(u[sl])
+            iv, sv, hv = self._v.locate(w[sl])
+            coef = table[iu * spans_v + iv]  # (m, q+1, (p+1) d): each point's own patch
+            planes = _horner(coef, sv, t_orders, hv)  # {b: (m, (p+1) d)}
+            for b in t_orders:
+                s_orders = sorted({a for a, bb in orders if bb == b})
+                values = _horner(planes[b].reshape(len(iu), -1, d), su, s_orders, hu)
+                for a in s_orders:
+                    outs[(a, b)][sl] = values[a]
+        return outs
+
+    def _evaluate_orders(self, u: ArrayLike, w: ArrayLike,
+                         orders: tuple[tuple[int, int], ...]) -> list[FloatArray]:
+        u, w = self._check(u, w)
+        u, w = np.broadcast_arrays(u, w)
+        shape = u.shape
+        needed = _closure(orders) if self.rational else list(orders)
+        ders = self._homogeneous_scattered(u.ravel(), w.ravel(), needed)
+        if self.rational:
+            ders = _rational(ders, orders)
+        return [ders[o].reshape(shape + (3,)) for o in orders]
+
+    def evaluate(self, u: ArrayLike, w: ArrayLike, du: int = 0, dw: int = 0) -> FloatArray:
+        """Points (or the (du, dw) partial derivative, mm per parameter unit) at scattered
+        parameters u, w (broadcast): shape broadcast(u, w) + (3,)."""
+        return self._evaluate_orders(u, w, ((_order(du, "du"), _order(dw, "dw")),))[0]
+
+    def derivatives(self, u: ArrayLike, w: ArrayLike, grid: bool = False):
+        """Point, Su, Sw, Suu, Suw, Sww as a :class:`~BSplineCAM.core.surface.Derivatives`."""
+        from .surface import Derivatives
+
+        if grid:
+            return Derivatives(*self._grid_orders(u, w, SECOND_ORDER))
+        return Derivatives(*self._evaluate_orders(u, w, SECOND_ORDER))
+
+    # -- grids -------------------------------------------------------------------------------
+    def _stage1(self, u: FloatArray, order: int) -> FloatArray:
+        """[S] M_i applied along u (p+1 pole rows per sample): (n_v, d * len(u)), laid out
+        coordinate-major within a row (planes of len(u) values)."""
+        net = self.homogeneous
+        n_v, d = net.shape[1], net.shape[2]
+        iu, bu = self._u.weights(u, order)
+        acc = bu[:, 0, None, None] * net[iu]
+        for k in range(1, self.degree_u + 1):
+            acc += bu[:, k, None, None] * net[iu + k]
+        return np.ascontiguousarray(acc.transpose(1, 2, 0)).reshape(n_v, d * len(u))
+
+    def _stage2_blocks(self, w: FloatArray, rows: int | None = None):
+        """Sorted order of w, and per block of w-rows within one v-span: (lo, hi, span)."""
+        order = np.argsort(w, kind="stable")
+        iv, _ = self._v.weights(w[order], 0)
+        blocks = []
+        start = 0
+        while start < len(w):
+            stop = int(np.searchsorted(iv, iv[start], side="right"))
+            if rows is not None:
+                stop = min(stop, start + rows)
+            blocks.append((start, stop, int(iv[start])))
+            start = stop
+        return order, blocks
+
+    def _homogeneous_grid(self, u: FloatArray, w: FloatArray,
+                          orders: list[tuple[int, int]]) -> dict:
+        """Homogeneous partial derivatives on the grid u x w as planes (len(w), d, len(u)).
+
+        Stage 1 applies [S] M_i along u (p+1 pole rows per sample), stage 2 ([T] M_j)^T along v
+        span by span: the samples of v-span j need only pole columns j .. j+q, so each span is
+        one small BLAS product writing a contiguous block of output rows (as
+        :func:`matrix.grid_planes` does for the cubic case).
+        """
+        d = self.homogeneous.shape[-1]
+        q, nu = self.degree_v, len(u)
+        stage1 = {a: self._stage1(u, a) for a in sorted({a for a, _ in orders})}
+        order, blocks = self._stage2_blocks(w)
+        ws = w[order]
+        basis_v = {b: self._v.weights(ws, b)[1] for b in sorted({b for _, b in orders})}
+        outs = {}
+        for a, b in orders:
+            out = np.empty((len(w), d * nu))
+            for lo, hi, j in blocks:
+                np.matmul(basis_v[b][lo:hi], stage1[a][j : j + q + 1], out=out[lo:hi])
+            if not np.array_equal(order, np.arange(len(w))):
+                out[order] = out.copy()
+            outs[(a, b)] = out.reshape(len(w), d, nu)  # planes: coordinate on axis 1
+        return outs
+
+    def _grid_orders(self, u: ArrayLike, w: ArrayLike,
+                     orders: tuple[tuple[int, int], ...]) -> list[FloatArray]:
+        u, w = self._check(np.atleast_1d(u).ravel(), np.atleast_1d(w).ravel())
+        needed = _closure(orders) if self.rational else list(orders)
+        ders = self._homogeneous_grid(u, w, needed)
+        if self.rational:
+            ders = _rational(ders, orders, axis=1)
+        return [ders[o].transpose(2, 0, 1) for o in orders]  # (len(u), len(w), 3) views
+
+    def evaluate_grid(self, u: ArrayLike, w: ArrayLike, du: int = 0, dw: int = 0) -> FloatArray:
+        """Points (or a partial derivative) on the tensor grid u x w: (len(u), len(w), 3)."""
+        return self._grid_orders(u, w, ((_order(du, "du"), _order(dw, "dw")),))[0]
+
+    def grid(self, nu: int, nw: int) -> FloatArray:
+        """Points sampled uniformly over the parameter domain: (nu, nw, 3)."""
+        if int(nu) < 2 or int(nw) < 2:
+            raise ParameterError(f"grid needs at least 2 samples each way, got {nu}x{nw}")
+        (u0, u1), (v0, v1) = self.domain
+        return self.evaluate_grid(np.linspace(u0, u1, int(nu)), np.linspace(v0, v1, int(nw)))
+
+    # -- normals -----------------------------------------------------------------------------
+    def _tangent_pair(self, u: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Vectors parallel to Su and Sw at scattered (u, w) (same directions, the positive
+        factor 1/w^2 dropped for rational surfaces: w A_u - w_u A and w A_w - w_w A)."""
+        orders = [(0, 0), (1, 0), (0, 1)] if self.rational else [(1, 0), (0, 1)]
+        h = self._homogeneous_scattered(u, w, orders)
+        if not self.rational:
+            return h[(1, 0)], h[(0, 1)]
+        a, au, aw = h[(0, 0)], h[(1, 0)], h[(0, 1)]
+        wgt = a[..., 3:]
+        su = wgt * au[..., :3] - au[..., 3:] * a[..., :3]
+        sw = wgt * aw[..., :3] - aw[..., 3:] * a[..., :3]
+        return su, sw
+
+    def normals(self, u: ArrayLike, w: ArrayLike, grid: bool = False) -> FloatArray:
+        """Unit normals Su x Sw / |Su x Sw| (grid: shape (len(u), len(w), 3)).
+
+        Where that cross product vanishes (a collapsed edge, a pole of a sphere), the normal
+        is taken from a parameter nudged 1e-6 of the domain towards its middle, so no NaN
+        reaches a toolpath.
+        """
+        if grid:
+            u, w = self._check(np.atleast_1d(u).ravel(), np.atleast_1d(w).ravel())
+            return self._grid_normals(u, w)
+        u, w = self._check(u, w)
+        u, w = np.broadcast_arrays(u, w)
+        shape = u.shape
+        u, w = u.ravel(), w.ravel()
+        return self._scattered_normals(u, w).reshape(shape + (3,))
+
+    def _scattered_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
+        from .surface import unit_normals
+
+        return unit_normals(*self._tangent_pair(u, w), lambda: self._nudged_normals(u, w))
+
+    def _nudged_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
+        from .surface import unit_normals
+
+        moved = []
+        for t, (lo, hi) in ((u, self._u.domain), (w, self._v.domain)):
+            shift = 1e-6 * (hi - lo)
+            moved.append(np.where(t > 0.5 * (lo + hi), t - shift, t + shift))
+        return unit_normals(*self._tangent_pair(*moved), None)
+
+    def _grid_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
+        """Normals on the grid from the banded stages: stage 1 for [S] and d[S]/du once,
+        then per block of a few w-rows Su, Sw (and the point, if rational) by small BLAS
+        products, crossed and normalised while in cache."""
+        d = self.homogeneous.shape[-1]
+        q, nu = self.degree_v, len(u)
+        s0, s1 = self._stage1(u, 0), self._stage1(u, 1)
+        order, blocks = self._stage2_blocks(w, NORMAL_BLOCK_ROWS)
+        ws = w[order]
+        w0 = self._v.weights(ws, 0)[1]
+        w1 = self._v.weights(ws, 1)[1]
+        out = np.empty((len(w), 3, nu))
+        length = np.empty((len(w), nu))
+        scratch = np.empty((NORMAL_BLOCK_ROWS, nu))
+        for lo, hi, j in blocks:
+            su = (w0[lo:hi] @ s1[j : j + q + 1]).reshape(-1, d, nu)
+            sw = (w1[lo:hi] @ s0[j : j + q + 1]).reshape(-1, d, nu)
+            if self.rational:
+                a = (w0[lo:hi] @ s0[j : j + q + 1]).reshape(-1, d, nu)
+                su = a[:, 3:] * su[:, :3] - su[:, 3:] * a[:, :3]
+                sw = a[:, 3:] * sw[:, :3] - sw[:, 3:] * a[:, :3]
+            block = out[lo:hi]
+            tmp = scratch[: hi - lo]
+            for c, (i, k) in enumerate(((1, 2), (2, 0), (0, 1))):
+                np.multiply(su[:, i], sw[:, k], out=block[:, c])
+                np.multiply(su[:, k], sw[:, i], out=tmp)
+                block[:, c] -= tmp
+            lengths = length[lo:hi]
+            np.einsum("mcn,mcn->mn", block, block, out=lengths)
+            np.sqrt(lengths, out=lengths)
+            np.divide(1.0, lengths, out=tmp, where=lengths > 0)
+            tmp[lengths == 0] = 0.0
+            block *= tmp[:, None, :]
+        if not np.array_equal(order, np.arange(len(w))):
+            out[order] = out.copy()
+            length[order] = length.copy()
+        degenerate = length <= 1e-14 * max(1.0, float(length.max(initial=0.0)))
+        normals = out.transpose(2, 0, 1)
+        if np.any(degenerate):
+            jw, iu = np.nonzero(degenerate)
+            normals[iu, jw] = self._nudged_normals(u[iu], w[jw])
+        return normals
+
+    def grid_with_normals(self, nu: int, nw: int) -> tuple[FloatArray, FloatArray]:
+        """Points and unit normals on a uniform nu x nw parameter grid."""
+        (u0, u1), (v0, v1) = self.domain
+        u, w = np.linspace(u0, u1, int(nu)), np.linspace(v0, v1, int(nw))
+        return self.evaluate_grid(u, w), self.normals(u, w, grid=True)
+
+    # -- Bezier form and bounds --------------------------------------------------------------
+    def bezier_patches(self) -> BezierPatches:
+        """Bezier control points of every non-empty span pair, from the power-basis patch
+        coefficients: B_u C_ij B_v^T with the power-to-Bernstein matrices (the result equals
+        "The NURBS Book" A5.7's knot-insertion decomposition)."""
+        iu, iv = self._u.nonempty, self._v.nonempty
+        coef = self.patch_coefficients[np.ix_(iu, iv)]
+        bu = _power_to_bernstein(self.degree_u)
+        bv = _power_to_bernstein(self.degree_v)
+        hom = np.einsum("ia,xyabc,jb->xyijc", bu, coef, bv, optimize=True)
+        if self.rational:
+            weights = hom[..., 3]
+            points = hom[..., :3] / weights[..., None]
+        else:
+            weights = np.ones(hom.shape[:-1])
+            points = hom
+        ku, kv = self.knots_u, self.knots_v
+        p, q = self.degree_u, self.degree_v
+        u = np.stack([ku[iu + p], ku[iu + p + 1]], axis=-1)
+        v = np.stack([kv[iv + q], kv[iv + q + 1]], axis=-1)
+        return BezierPatches(u, v, points, weights)
+
+    def patch_bounds(self) -> PatchBounds:
+        """Axis-aligned box of each Bezier patch's control points (see :class:`PatchBounds`)."""
+        bez = self.bezier_patches()
+        return PatchBounds(bez.u, bez.v, bez.points.min(axis=(2, 3)),
+                           bez.points.max(axis=(2, 3)))
+
+
+def patch_bounds(surface: NurbsSurface) -> PatchBounds:
+    """Per-span boxes of ``surface`` (:meth:`NurbsSurface.patch_bounds`)."""
+    return surface.patch_bounds()
+
+
+def _order(value: int, label: str) -> int:
+    if isinstance(value, bool) or not float(value).is_integer() or value < 0:
+        raise ParameterError(f"derivative order {label} must be an integer >= 0, got {value!r}")
+    return int(value)
+
+
+def _closure(orders) -> list[tuple[int, int]]:
+    """Every (k, l) <= some requested (du, dw): what the quotient rule needs."""
+    return sorted({(a, b) for du, dw in orders for a in range(du + 1) for b in range(dw + 1)})
+
+
+def _rational(hom: dict, orders, axis: int = -1) -> dict:
+    """Derivatives of S = A / w from those of (A, w): "The NURBS Book" A4.4 (eq. 4.20).
+
+    S^(k,l) = (A^(k,l) - sum_{j=1..l} C(l,j) w^(0,j) S^(k,l-j)
+               - sum_{i=1..k} C(k,i) w^(i,0) S^(k-i,l)
+               - sum_{i=1..k} C(k,i) sum_{j=1..l} C(l,j) w^(i,j) S^(k-i,l-j)) / w.
+    The homogeneous coordinates (w x, w y, w z, w) run along ``axis`` of every array.
+    """
+    ndim = hom[(0, 0)].ndim
+    xyz = [slice(None)] * ndim
+    wt = [slice(None)] * ndim
+    xyz[axis], wt[axis] = slice(0, 3), slice(3, 4)
+    xyz, wt = tuple(xyz), tuple(wt)
+    w0 = hom[(0, 0)][wt]
+    out: dict = {}
+    for k, el in _closure(orders):
+        v = hom[(k, el)][xyz].copy()
+        for j in range(1, el + 1):
+            v -= comb(el, j) * hom[(0, j)][wt] * out[(k, el - j)]
+        for i in range(1, k + 1):
+            v -= comb(k, i) * hom[(i, 0)][wt] * out[(k - i, el)]
+            for j in range(1, el + 1):
+                v -= comb(k, i) * comb(el, j) * hom[(i, j)][wt] * out[(k - i, el - j)]
+        v /= w0
+        out[(k, el)] = v
+    return out
