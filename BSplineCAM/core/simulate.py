@@ -103,6 +103,32 @@ class Tool:
         return np.where(r <= R * (1 + 1e-12), out, np.inf)
 
 
+#: Most cells of a Z-map: about 100 bytes each while verifying (1.6 GB), and the time to
+#: simulate a program grows with them.
+MAX_ZMAP_CELLS = 16_000_000
+
+
+def zmap_shape(width: float, height: float, cell: float,
+               argument: str = "cell size") -> tuple[int, int]:
+    """Columns and rows of whole ``cell``-sized cells covering width x height (mm); a
+    ParameterError naming ``argument`` if there would be more than ``MAX_ZMAP_CELLS``."""
+    fx = max(width, 0.0) / cell - 1e-9
+    fy = max(height, 0.0) / cell - 1e-9
+    if not (math.isfinite(fx) and math.isfinite(fy)) or \
+            max(fx, 1.0) * max(fy, 1.0) > 2.0 * MAX_ZMAP_CELLS:
+        raise ParameterError(
+            f"{argument} {cell:g} mm gives more than {MAX_ZMAP_CELLS / 1e6:g} million Z-map cells "
+            f"over {width:.6g} x {height:.6g} mm: use a larger cell")
+    nx = max(1, math.ceil(fx))
+    ny = max(1, math.ceil(fy))
+    if nx * ny > MAX_ZMAP_CELLS:
+        raise ParameterError(
+            f"{argument} {cell:g} mm gives {nx} x {ny} Z-map cells (at most "
+            f"{MAX_ZMAP_CELLS / 1e6:g} million) over {width:.6g} x {height:.6g} mm: use a "
+            "larger cell")
+    return nx, ny
+
+
 @dataclass(frozen=True)
 class Grid:
     """Cells of size ``cell`` (mm) from (x0, y0); arrays on it are (ny, nx), rows along y."""
@@ -119,10 +145,7 @@ class Grid:
         """The grid of whole cells covering the rectangle, centred on it."""
         if not (math.isfinite(cell) and cell > 0):
             raise ParameterError(f"cell size must be a positive length (mm), got {cell!r}")
-        nx = max(1, int(math.ceil((x_max - x_min) / cell - 1e-9)))
-        ny = max(1, int(math.ceil((y_max - y_min) / cell - 1e-9)))
-        if nx * ny > 50_000_000:
-            raise ParameterError(f"cell size {cell:g} mm gives {nx}x{ny} cells: too many")
+        nx, ny = zmap_shape(x_max - x_min, y_max - y_min, cell)
         x0 = (x_min + x_max) / 2.0 - nx * cell / 2.0
         y0 = (y_min + y_max) / 2.0 - ny * cell / 2.0
         return cls(float(x0), float(y0), float(cell), nx, ny)

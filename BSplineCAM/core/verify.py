@@ -16,8 +16,11 @@ Definitions (all heights at cell centres, mm):
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
+from typing import TypeVar
 
 import numpy as np
 
@@ -27,7 +30,10 @@ from .footprint import footprint_bounds, surface_height
 from .gcode import MoveKind, Program, linearise
 from .simulate import Grid, Simulation, Tool, simulate
 from .surface import Surface
+from .toolpath.common import check_tool_fits
 from .typing import FloatArray
+
+T = TypeVar("T")
 
 #: Design - machined above this (mm) counts a cell as gouged.
 GOUGE_TOLERANCE_MM = 1e-3
@@ -71,8 +77,13 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
            stock_top: str | StockTop = StockTop.DESIGN, stock_margin: float = DEFAULT_STOCK_MARGIN,
            rapid_rate: float = DEFAULT_RAPID_RATE,
            coverage_tolerance: float = DEFAULT_COVERAGE_TOLERANCE,
-           chord_tolerance: float | None = None) -> Verification:
-    """Simulate ``program`` with ``tool`` over the surface's footprint and measure it."""
+           chord_tolerance: float | None = None,
+           progress: Callable[[float], None] | None = None) -> Verification:
+    """Simulate ``program`` with ``tool`` over the surface's footprint and measure it.
+
+    ``progress(fraction)``, if given, is called at least every 50 ms while the simulation runs
+    (so a GUI stays responsive) and may raise to abandon it (see :func:`run_reporting`).
+    """
     for name, value, unit in (("cell", cell, "mm"), ("rapid rate", rapid_rate, "mm/min"),
                               ("coverage tolerance", coverage_tolerance, "mm")):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -83,11 +94,7 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     if len(program) == 0:
         raise ParameterError("the program has no moves")
     x0, x1, y0, y1 = footprint_bounds(surface)
-    if tool.diameter >= min(x1 - x0, y1 - y0):
-        raise ParameterError(
-            f"tool diameter {tool.diameter:g} mm is not smaller than the part "
-            f"({x1 - x0:.3g} x {y1 - y0:.3g} mm footprint)"
-        )
+    check_tool_fits(surface, tool.diameter, "tool diameter")
     grid = Grid.covering(x0, x1, y0, y1, cell)
     xs, ys = grid.centres()
     design, _, _, inside = surface_height(surface, xs[None, :], ys[:, None])
@@ -101,7 +108,11 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     else:
         top = float(np.nanmax(design)) + stock_margin
     segments = linearise(program, grid.cell / 10.0 if chord_tolerance is None else chord_tolerance)
-    sim = simulate(segments, tool, grid, top)
+    if progress is None:
+        sim = simulate(segments, tool, grid, top)
+    else:
+        progress(0.1)
+        sim = run_reporting(lambda: simulate(segments, tool, grid, top), progress, 0.1, 0.95)
     inner = inside & ~_dilate(~inside, tool.diameter / cell)
     if not np.any(inner):
         raise ParameterError(
@@ -116,8 +127,85 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
         tool={"shape": tool.shape.value, "diameter_mm": tool.diameter,
               "corner_radius_mm": tool.corner_radius},
         program_tools=list(program.tools), program_warnings=list(program.warnings),
+        warnings=extent_warnings(program, (x0, x1, y0, y1), tool.radius),
     )
+    if progress is not None:
+        progress(1.0)
     return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics)
+
+
+def run_reporting(work: Callable[[], T], progress: Callable[[float], None], f0: float,
+                  f1: float, interval: float = 0.05) -> T:
+    """``work()`` in a worker thread while this thread calls ``progress`` every ``interval``
+    seconds with a fraction creeping from f0 towards f1 (the total is not known).
+
+    If ``progress`` raises (a cancel), the exception propagates at once; the worker, which
+    cannot be interrupted, finishes in the background and its result is dropped.
+    """
+    outcome: dict = {}
+
+    def run() -> None:
+        try:
+            outcome["value"] = work()
+        except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
+            outcome["error"] = exc
+
+    worker = threading.Thread(target=run, name="bsplinecam-simulate", daemon=True)
+    worker.start()
+    step = 0
+    while worker.is_alive():
+        worker.join(interval)
+        step += 1
+        progress(f0 + (f1 - f0) * (1.0 - 0.97 ** step))
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]
+
+
+#: Program extent over part extent that suggests inches read as mm or mm read as inches.
+INCH_RATIO = 25.4
+_UNIT_RATIO_BAND = (12.0, 50.0)
+
+
+def extent_warnings(program: Program, footprint: tuple[float, float, float, float],
+                    radius: float) -> list[str]:
+    """Warnings when the program cannot have machined the part: the XY extent of its feed
+    moves (rapids if it has none) misses the footprint grown by the tool radius, or the ratio
+    of the two extents is near 25.4 or 1/25.4 (mm numbers under G20, or inch numbers under
+    G21).  ``footprint`` is (x_min, x_max, y_min, y_max) in mm."""
+    feeds = program.kind != MoveKind.RAPID
+    moves = feeds if np.any(feeds) else np.ones(len(program), bool)
+    points = np.concatenate([program.start[moves, :2], program.end[moves, :2]])
+    points = points[np.all(np.isfinite(points), axis=1)]
+    if len(points) == 0:
+        return []
+    px0, py0 = points.min(axis=0)
+    px1, py1 = points.max(axis=0)
+    fx0, fx1, fy0, fy1 = footprint
+
+    def mm(v: float) -> str:
+        return f"{round(float(v), 4) + 0.0:.6g}"
+
+    span = (f"the program's {'feed ' if np.any(feeds) else ''}moves span X {mm(px0)} to "
+            f"{mm(px1)}, Y {mm(py0)} to {mm(py1)} mm")
+    part = f"the part's footprint X {mm(fx0)} to {mm(fx1)}, Y {mm(fy0)} to {mm(fy1)} mm"
+    warnings = []
+    if px1 < fx0 - radius or px0 > fx1 + radius or py1 < fy0 - radius or py0 > fy1 + radius:
+        warnings.append(f"{span}: that does not overlap {part}")
+    size = max(px1 - px0, py1 - py0)
+    part_size = max(fx1 - fx0, fy1 - fy0)
+    if size > 0 and part_size > 0:
+        ratio = size / part_size
+        lo, hi = _UNIT_RATIO_BAND
+        if lo <= ratio <= hi:
+            said = "G20 (inches)" if program.converted_from_inches else "mm"
+            warnings.append(f"{span}, {ratio:.3g} times the part's size: the units look "
+                            f"wrong (the program is read as {said}; are its numbers mm?)")
+        elif lo <= 1.0 / ratio <= hi:
+            said = "G20 (inches)" if program.converted_from_inches else "G21 (mm)"
+            warnings.append(f"{span}, 1/{1.0 / ratio:.3g} of the part's size: the units look "
+                            f"wrong (the program is read as {said}; are its numbers inches?)")
+    return warnings
 
 
 def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.ndarray,

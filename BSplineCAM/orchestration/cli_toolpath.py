@@ -9,14 +9,18 @@ receives nothing unless all steps succeed.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
 from ..core.gcode import MoveKind, read_gcode
-from ..core.toolpath.common import Direction, IsoDirection, Strategy, ToolParameters
+from ..core.toolpath import check_request
+from ..core.toolpath.common import CuttingParameters, Direction, IsoDirection, Strategy
 from . import rs274
+
+#: Option names, in the order the core's validators take them.
+TOOL_OPTIONS = ("--tool-diameter", "--scallop", "--tolerance", "--angle")
+CUTTING_OPTIONS = ("--feed", "--plunge-feed", "--spindle", "--rapid")
 
 DEFAULT_RAPID = 5000.0
 
@@ -53,39 +57,63 @@ def machining_time(gcode: str, rapid: float = DEFAULT_RAPID) -> tuple[float, flo
 
 
 def cmd_toolpath(args: argparse.Namespace) -> int:
-    from .cli import EXIT_CHECK_FAILED, _safe_name, emit, staged_output
+    from .cli import (
+        EXIT_CHECK_FAILED,
+        _safe_name,
+        captured_console,
+        check_interrupted,
+        check_output,
+        emit,
+        json_text,
+        staged_output,
+    )
 
-    ToolParameters.validate(args.tool_diameter, args.scallop, args.tolerance)
-    for name in ("feed", "plunge_feed", "spindle", "rapid"):
-        if not getattr(args, name) > 0:
-            raise ParameterError(f"--{name.replace('_', '-')} must be > 0, got {getattr(args, name)}")
+    # Everything the FreeCAD op would refuse is refused here first, with the core's own checks,
+    # so that no refusal happens inside a recompute (whose traceback FreeCAD prints).
+    cutting_params = CuttingParameters.validate(args.feed, args.plunge_feed, args.spindle,
+                                                args.rapid, CUTTING_OPTIONS)
+    check_output(args.out)
     surface = Surface.from_file(args.net, args.knots)
+    strategy, tool, angle = check_request(surface, args.strategy, args.tool_diameter,
+                                          args.scallop, args.tolerance, args.angle, TOOL_OPTIONS)
     from ..app import cam, compat, pipeline
 
     try:
         compat.post_module(args.post)
     except ValueError as exc:
-        raise ParameterError(str(exc)) from None
+        raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
     params = pipeline.FinishingParameters(
-        tool_diameter=args.tool_diameter, scallop=args.scallop, tolerance=args.tolerance,
-        strategy=args.strategy, angle=args.angle, direction=args.direction, iso_direction=args.iso_direction)
-    cutting = cam.Cutting(args.feed, args.plunge_feed, args.spindle, args.rapid)
+        tool_diameter=2.0 * tool.radius, scallop=tool.scallop, tolerance=tool.tolerance,
+        strategy=strategy.value, angle=angle, direction=args.direction,
+        iso_direction=args.iso_direction)
+    cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
+                          cutting_params.spindle, cutting_params.rapid)
     name = _safe_name(surface.name)
     with staged_output(Path(args.out)) as stage:
         program = stage / f"{name}.ngc"
         try:
-            report = pipeline.machine(surface, params, program, args.post, cutting, stage / f"{name}-job.FCStd")
+            with captured_console():
+                report = pipeline.machine(surface, params, program, args.post, cutting,
+                                          stage / f"{name}-job.FCStd")
         except ValueError as exc:
+            check_interrupted()
             raise ParameterError(str(exc)) from None
+        check_interrupted()
         text = program.read_text()
-        report["cutting_length_mm"], report["machining_time_s"] = (round(v, 3) for v in machining_time(text, args.rapid))
+        report["cutting_length_mm"], report["machining_time_s"] = (
+            round(v, 3) for v in machining_time(text, cutting_params.rapid))
         report["program"] = program.name
+        report["parameters"] = {
+            "strategy": strategy.value, "angle_deg": angle, "direction": args.direction,
+            "iso_direction": args.iso_direction, "tool_diameter_mm": 2.0 * tool.radius,
+            "scallop_mm": tool.scallop, "tolerance_mm": tool.tolerance}
+        report["angle_deg"] = angle
         if not args.no_rs274 and rs274.available():
-            check = rs274.check(program, {1: args.tool_diameter})
+            check = rs274.check(program, {1: 2.0 * tool.radius})
             report["rs274"] = check.as_dict()
             if not check.ok:
                 emit(report)
                 raise BSplineCAMError(f"{program.name}: LinuxCNC's rs274 rejects the program: {check.message}")
-        (stage / "toolpath.json").write_text(json.dumps(report, indent=1) + "\n")
+        (stage / "toolpath.json").write_text(json_text(report))
     emit(report)
     return 0 if report.get("rs274", {"ok": True})["ok"] else EXIT_CHECK_FAILED

@@ -8,13 +8,22 @@ and DIR/simulated.png, all or nothing.
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 import time
 from pathlib import Path
 
 from ..core import Surface
+from ..core.errors import ParameterError
+from ..core.footprint import footprint_bounds
 from ..core.gcode import read_gcode_file
-from ..core.simulate import Tool, ToolShape
+from ..core.simulate import Tool, ToolShape, zmap_shape
+from ..core.toolpath.common import (
+    MAX_TOOL_DIAMETER,
+    MIN_TOOL_DIAMETER,
+    RAPID_RANGE,
+    check_range,
+    check_tool_fits,
+)
 from ..core.verify import (
     DEFAULT_COVERAGE_TOLERANCE,
     DEFAULT_RAPID_RATE,
@@ -53,25 +62,55 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_verify)
 
 
+#: Ranges of the numeric options: (option, unit, low, high, low excluded).
+STOCK_MARGIN_RANGE = (0.0, 1000.0)
+CELL_RANGE = (1e-3, 100.0)
+COVERAGE_TOLERANCE_RANGE = (0.0, 100.0)
+
+
+def check_options(args: argparse.Namespace) -> Tool:
+    """Every numeric option finite and in range, errors naming the option and its unit."""
+    d = check_range(args.tool_diameter, "--tool-diameter", "mm", MIN_TOOL_DIAMETER,
+                    MAX_TOOL_DIAMETER)
+    corner = check_range(args.corner_radius, "--corner-radius", "mm", 0.0, d / 2.0)
+    check_range(args.cell, "--cell", "mm", *CELL_RANGE)
+    check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
+    check_range(args.rapid_rate, "--rapid-rate", "mm/min", *RAPID_RANGE)
+    check_range(args.coverage_tolerance, "--coverage-tolerance", "mm",
+                *COVERAGE_TOLERANCE_RANGE, low_open=True)
+    try:
+        return Tool(d, ToolShape.parse(args.tool_shape), corner)
+    except ParameterError as exc:
+        raise ParameterError(f"--tool-shape {args.tool_shape} / --corner-radius: {exc}") from None
+
+
 def cmd_verify(args: argparse.Namespace) -> int:
     from . import report
-    from .cli import emit, staged_output
+    from .cli import check_interrupted, check_output, emit, json_text, staged_output
 
     started = time.perf_counter()
+    tool = check_options(args)
+    check_output(args.out)
     surface = Surface.from_file(args.net, args.knots)
+    check_tool_fits(surface, tool.diameter, "--tool-diameter")
+    x0, x1, y0, y1 = footprint_bounds(surface)
+    zmap_shape(x1 - x0, y1 - y0, args.cell, "--cell")
     program = read_gcode_file(args.program)
-    tool = Tool(args.tool_diameter, ToolShape.parse(args.tool_shape), args.corner_radius)
     result = verify(surface, program, tool, cell=args.cell, stock_top=args.stock_top,
                     stock_margin=args.stock_margin, rapid_rate=args.rapid_rate,
                     coverage_tolerance=args.coverage_tolerance)
+    check_interrupted()
     metrics = {"net": str(Path(args.net)), "program": str(Path(args.program)), **result.metrics,
                "elapsed_s": round(time.perf_counter() - started, 3)}
     with staged_output(Path(args.out)) as stage:
         report.plot_deviation(result, stage / "deviation.png")
         report.plot_simulated(result, stage / "simulated.png")
-        (stage / "verify.json").write_text(json.dumps(metrics, indent=1) + "\n", encoding="utf-8")
+        (stage / "verify.json").write_text(json_text(metrics), encoding="utf-8")
+    for warning in metrics.get("warnings", []):
+        print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
     summary = {k: metrics[k] for k in ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
                                        "edge_scallop_max_mm", "coverage", "rapid_collisions",
                                        "cutting_length_mm", "machining_time_s")}
-    emit({"out": str(Path(args.out).resolve()), **summary})
+    emit({"out": str(Path(args.out).resolve()), **summary,
+          "warnings": metrics.get("warnings", [])})
     return 0

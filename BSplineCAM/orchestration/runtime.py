@@ -78,5 +78,9 @@ def run_worker(backend: str, request: dict) -> dict:
             raise BackendUnavailable(f"{backend} worker failed (exit {proc.returncode}): {tail}")
         reply = json.loads(rep.read_text())
     if "error" in reply:
+        if reply.get("input_error"):  # bad input found by the other Python: exit status 2
+            from ..core.errors import BSplineCAMError
+
+            raise BSplineCAMError(f"{backend} worker: {reply['error']}")
         raise RuntimeError(f"{backend} worker: {reply['error']}")
     return reply

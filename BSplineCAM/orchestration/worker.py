@@ -62,7 +62,8 @@ def main(argv: list[str]) -> int:
         with open(request_path, encoding="utf-8") as stream:
             reply = handle(json.load(stream))
     except Exception as exc:  # reported to the parent process, which raises it with context
-        reply = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        reply = {"error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc(),
+                 "input_error": isinstance(exc, ValueError)}
     with open(reply_path, "w", encoding="utf-8") as stream:
         json.dump(reply, stream)
     return 0

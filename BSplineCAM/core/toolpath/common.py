@@ -20,6 +20,9 @@ from ..typing import FloatArray
 
 #: Valid range of the chordal tolerance (mm).
 TOLERANCE_RANGE = (1e-5, 1.0)
+#: Smallest and largest ball diameter (mm); the part's footprint bounds it further.
+MIN_TOOL_DIAMETER = 0.01
+MAX_TOOL_DIAMETER = 1000.0
 
 ProgressFn = Optional[Callable[[float], Any]]
 CancelFn = Optional[Callable[[], bool]]
@@ -66,7 +69,7 @@ def check_positive(value: Any, argument: str, unit: str = "mm") -> float:
     """A finite number > 0, else ParameterError naming argument and unit."""
     try:
         number = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ParameterError(f"{argument} must be a number in {unit}, got {value!r}") from None
     if not math.isfinite(number) or number <= 0.0:
         raise ParameterError(f"{argument} must be a finite number > 0 {unit}, got {value!r}")
@@ -76,11 +79,72 @@ def check_positive(value: Any, argument: str, unit: str = "mm") -> float:
 def check_finite(value: Any, argument: str, unit: str) -> float:
     try:
         number = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ParameterError(f"{argument} must be a number in {unit}, got {value!r}") from None
     if not math.isfinite(number):
         raise ParameterError(f"{argument} must be finite ({unit}), got {value!r}")
     return number
+
+
+def check_range(value: Any, argument: str, unit: str, low: float, high: float,
+                low_open: bool = False) -> float:
+    """A finite number in [low, high] ((low, high] if ``low_open``), else ParameterError
+    naming ``argument``, the range and ``unit``."""
+    number = check_finite(value, argument, unit)
+    if number < low or number > high or (low_open and number == low):
+        bracket = "(" if low_open else "["
+        raise ParameterError(
+            f"{argument} must lie in {bracket}{low:g}, {high:g}] {unit}, got {number:g} {unit}")
+    return number
+
+
+#: Raster angle range (degrees): any direction is reachable within one turn either way.
+ANGLE_RANGE = (-360.0, 360.0)
+#: Feed range (mm/min): below 0.1 a post-processor's 3 decimals of mm/min (or 4 of mm/s)
+#: would write F0; above 100 m/min no machining centre follows.
+FEED_RANGE = (0.1, 100_000.0)
+#: Spindle speed range (rpm).
+SPINDLE_RANGE = (1.0, 200_000.0)
+#: Rapid traverse range (mm/min).
+RAPID_RANGE = (1.0, 1_000_000.0)
+
+
+def check_angle(angle: Any, argument: str = "angle") -> float:
+    """Raster pass direction from +X, a finite angle in [-360, 360] degrees."""
+    return check_range(angle, argument, "degrees", *ANGLE_RANGE)
+
+
+@dataclass(frozen=True)
+class CuttingParameters:
+    """Validated feeds (mm/min) and spindle speed (rpm) of a finishing job."""
+
+    feed: float
+    plunge_feed: float
+    spindle: float
+    rapid: float
+
+    @classmethod
+    def validate(cls, feed: Any, plunge_feed: Any, spindle: Any, rapid: Any,
+                 names: tuple[str, str, str, str] = ("feed", "plunge_feed", "spindle", "rapid"),
+                 ) -> CuttingParameters:
+        """Each value finite and within FEED_RANGE, SPINDLE_RANGE or RAPID_RANGE; the error
+        names the argument (``names``) and its unit."""
+        return cls(check_range(feed, names[0], "mm/min", *FEED_RANGE),
+                   check_range(plunge_feed, names[1], "mm/min", *FEED_RANGE),
+                   check_range(spindle, names[2], "rpm", *SPINDLE_RANGE),
+                   check_range(rapid, names[3], "mm/min", *RAPID_RANGE))
+
+
+def check_tool_fits(surface: Any, tool_diameter: float, argument: str = "tool_diameter") -> None:
+    """One rule for the toolpath and the verification: the tool must be smaller than the
+    part's XY footprint in both directions (mm)."""
+    from ..footprint import footprint_bounds
+
+    x0, x1, y0, y1 = footprint_bounds(surface)
+    if not tool_diameter < min(x1 - x0, y1 - y0):
+        raise ParameterError(
+            f"{argument} {tool_diameter:g} mm is not smaller than the part "
+            f"({x1 - x0:.3g} x {y1 - y0:.3g} mm footprint)")
 
 
 @dataclass(frozen=True)
@@ -92,18 +156,26 @@ class ToolParameters:
     tolerance: float
 
     @classmethod
-    def validate(cls, tool_diameter: Any, scallop: Any, tolerance: Any) -> ToolParameters:
-        diameter = check_positive(tool_diameter, "tool_diameter", "mm")
+    def validate(cls, tool_diameter: Any, scallop: Any, tolerance: Any,
+                 names: tuple[str, str, str] = ("tool_diameter", "scallop", "tolerance"),
+                 ) -> ToolParameters:
+        """Diameter in [MIN_TOOL_DIAMETER, MAX_TOOL_DIAMETER], scallop in (0, radius],
+        tolerance in TOLERANCE_RANGE (all mm); errors name the argument (``names``)."""
+        diameter = check_positive(tool_diameter, names[0], "mm")
+        if not MIN_TOOL_DIAMETER <= diameter <= MAX_TOOL_DIAMETER:
+            raise ParameterError(
+                f"{names[0]} must lie in [{MIN_TOOL_DIAMETER:g}, {MAX_TOOL_DIAMETER:g}] mm, "
+                f"got {diameter:g} mm")
         radius = diameter / 2.0
-        h = check_positive(scallop, "scallop", "mm")
+        h = check_positive(scallop, names[1], "mm")
         if h > radius:
             raise ParameterError(
-                f"scallop must not exceed the tool radius ({radius:g} mm), got {h:g} mm"
+                f"{names[1]} must not exceed the tool radius ({radius:g} mm), got {h:g} mm"
             )
-        tol = check_positive(tolerance, "tolerance", "mm")
+        tol = check_positive(tolerance, names[2], "mm")
         lo, hi = TOLERANCE_RANGE
         if not lo <= tol <= hi:
-            raise ParameterError(f"tolerance must lie in [{lo:g}, {hi:g}] mm, got {tol:g} mm")
+            raise ParameterError(f"{names[2]} must lie in [{lo:g}, {hi:g}] mm, got {tol:g} mm")
         return cls(radius, h, tol)
 
     @property
