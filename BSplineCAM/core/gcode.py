@@ -19,6 +19,13 @@ a parameter expression, such as the tool-length line of FreeCAD 1.0's fanuc post
 ``G91 G0 G43 G54 Z-[#[2000+#4120]] H#4120``: that axis is unknown until the program sets it
 again, and ``Program.warnings`` says so.  Parameter assignments (``#1=...``) and expressions
 in other words are refused.
+
+Nothing non-finite comes out, and time and memory stay linear in the text: a line longer than
+MAX_LINE_CHARS, a number with more than MAX_DIGITS digits, brackets nested deeper than
+MAX_NESTING, a position, arc centre or radius beyond MAX_COORDINATE_MM (the machine's reach), a
+character outside ASCII that is not in a comment, and an arc that :func:`linearise` would cut
+into more than MAX_ARC_SEGMENTS chords (or a program into more than MAX_SEGMENTS pieces) raise
+:class:`GcodeError` naming the line and the limit.  Lines end at LF, CR LF or CR only.
 """
 
 from __future__ import annotations
@@ -30,10 +37,23 @@ from enum import IntEnum
 
 import numpy as np
 
-from .errors import BSplineCAMError
+from .errors import BSplineCAMError, NetError
+from .netio import MAX_COORDINATE_MM, MAX_DIGITS, MAX_NESTING, read_bytes
 from .typing import FloatArray, IntArray
 
 MM_PER_INCH = 25.4
+
+# Limits on what the reader accepts (with MAX_DIGITS per number, MAX_NESTING of brackets and
+# MAX_COORDINATE_MM, the machine's reach, shared with the net readers).  Time and memory stay
+# linear in the program below them; the error that enforces one names it and its value.
+#: Bytes in one program file (512 MiB).
+MAX_PROGRAM_BYTES = 512 * 2**20
+#: Characters on one line, comments included.
+MAX_LINE_CHARS = 4096
+#: Chords one arc may be cut into by :func:`linearise`.
+MAX_ARC_SEGMENTS = 100_000
+#: Straight pieces :func:`linearise` may return for a whole program.
+MAX_SEGMENTS = 10_000_000
 #: LinuxCNC's arc end-radius tolerance (mm absolute, and relative), rs274ngc interp_arc.cc.
 ARC_RADIUS_TOLERANCE_MM = 0.05
 ARC_RADIUS_TOLERANCE_REL = 0.001
@@ -75,6 +95,8 @@ class Program:
     converted_from_inches: bool = False
     tools: tuple[int, ...] = ()
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    #: The file (or name) the program was read from, for error messages.
+    source: str = field(default="program", compare=False)
 
     def __len__(self) -> int:
         return int(len(self.kind))
@@ -108,10 +130,10 @@ class Segments:
 
 #: Stands for the value of a parameter expression (unknown to the reader) once it is masked.
 _UNKNOWN_MARK = "?"
-#: Innermost pieces of an expression: a numbered parameter, a parameter of a marker, a bracket
-#: holding no bracket.
-_INNER_EXPRESSION = re.compile(r"#\d+|#\?|\[[^\[\]]*\]")
-_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+|\?))|(.)")
+#: A number as G-code writes it; one way only to match each (no backtracking blow-up).
+_NUMBER = r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)"
+_WORD = re.compile(rf"([A-Z])({_NUMBER}|[+-]?\?)|(.)", re.ASCII | re.DOTALL)
+_DIGITS = re.compile(r"[\d.]+", re.ASCII)
 _COMMENT = re.compile(r"\([^()]*\)")
 
 #: G codes accepted without effect on the geometry (cutter compensation off, tool length,
@@ -121,14 +143,32 @@ _G_IGNORED = {40.0, 43.0, 49.0, 54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 61.0, 61.1, 
 _M_IGNORED = {0, 1, 3, 4, 5, 7, 8, 9}
 _AXES = "XYZ"
 _NO_CENTRE = (math.nan, math.nan, math.nan)
-_FAST_WORD = re.compile(r"([A-Z])([+-]?(?:\d+\.?\d*|\.\d+))")
-_NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)"
+_FAST_WORD = re.compile(rf"([A-Z])({_NUMBER})", re.ASCII)
 #: The line most programs are made of: [N..] [G0|G1] [X..] [Y..] [Z..] [F..], upper case, in
 #: this order; read by :meth:`_State.simple_move` without the general word handling.
 _SIMPLE_MOVE = re.compile(
     rf"\s*(?:N\d+\s*)?(?:G0?([01])(?![\d.])\s*)?(?:X({_NUMBER})\s*)?(?:Y({_NUMBER})\s*)?"
-    rf"(?:Z({_NUMBER})\s*)?(?:F({_NUMBER})\s*)?"
+    rf"(?:Z({_NUMBER})\s*)?(?:F({_NUMBER})\s*)?",
+    re.ASCII,
 )
+
+
+def _excerpt(text: str, limit: int = 60) -> str:
+    """``text`` for an error message: repr, cut to about ``limit`` characters."""
+    if len(text) <= limit:
+        return repr(text)
+    return repr(text[:limit]) + f"... ({len(text)} characters)"
+
+
+def split_lines(text: str) -> list[str]:
+    """Lines of a program as LinuxCNC reads them: ended by LF, CR LF or CR only, so that a form
+    feed or a Unicode line separator inside a comment stays in its line."""
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    lines = text.split("\n")
+    if lines[-1] == "":
+        lines.pop()
+    return lines
 
 
 def read_gcode(text: str, source: str = "program", require_end: bool = True) -> Program:
@@ -137,17 +177,21 @@ def read_gcode(text: str, source: str = "program", require_end: bool = True) -> 
     ``require_end``: a program that stops without M2/M30 or a closing % is taken as truncated.
     """
     state = _State(source)
-    lines = text.splitlines()
+    lines = split_lines(text[1:] if text.startswith("\ufeff") else text)
     percent_open = False
     simple = _SIMPLE_MOVE.fullmatch
     for lineno, raw in enumerate(lines, start=1):
-        match = simple(raw)
-        if match is not None and state.simple_move(match.groups(), lineno):
-            continue
+        if len(raw) <= MAX_DIGITS:  # no number can be too long: the plain-move path is safe
+            match = simple(raw)
+            if match is not None and state.simple_move(match.groups(), lineno):
+                continue
+        elif len(raw) > MAX_LINE_CHARS:
+            raise GcodeError(f"{source}: line {lineno}: longer than MAX_LINE_CHARS="
+                             f"{MAX_LINE_CHARS} characters")
         stripped = raw.strip()
         if stripped.startswith("%"):
             if stripped.strip("% \t"):
-                raise GcodeError(f"{source}: line {lineno}: text after '%': {stripped!r}")
+                raise GcodeError(f"{source}: line {lineno}: text after '%': {_excerpt(stripped)}")
             if percent_open or state.moves_seen:
                 state.ended = True
                 break
@@ -166,30 +210,74 @@ def read_gcode(text: str, source: str = "program", require_end: bool = True) -> 
 
 
 def read_gcode_file(path: str, require_end: bool = True) -> Program:
-    """Read a program file; undecodable or unreadable files raise GcodeError."""
+    """Read a program file (UTF-8, a byte-order mark allowed); unreadable, undecodable or
+    binary files and files over MAX_PROGRAM_BYTES raise GcodeError."""
     try:
-        with open(path, encoding="utf-8") as handle:
-            text = handle.read()
-    except OSError as exc:
-        raise GcodeError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise GcodeError(f"{path}: not a text file (invalid UTF-8)") from None
-    if "\x00" in text:
-        raise GcodeError(f"{path}: not a text file (contains NUL bytes)")
+        data = read_bytes(path, MAX_PROGRAM_BYTES, "MAX_PROGRAM_BYTES")
+    except NetError as exc:
+        raise GcodeError(str(exc)) from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + data.count(b"\r", 0, exc.start) \
+            - data.count(b"\r\n", 0, exc.start) + 1
+        raise GcodeError(f"{path}: line {line}: not a text file (invalid UTF-8 byte "
+                         f"0x{data[exc.start]:02x})") from None
+    nul = text.find("\x00")
+    if nul >= 0:
+        line = len(split_lines(text[:nul] + "x"))
+        raise GcodeError(f"{path}: line {line}: not a text file (contains NUL bytes)")
     return read_gcode(text, path, require_end)
+
+
+def _strip_comments(raw: str, source: str, lineno: int) -> str:
+    """The line without its ( ) comments and what follows a ';' outside them."""
+    text = _COMMENT.sub(" ", raw) if "(" in raw else raw
+    text = text.split(";", 1)[0]
+    if "(" in text or ")" in text:
+        _comment_error(raw, source, lineno)
+    return text
+
+
+def _comment_error(raw: str, source: str, lineno: int) -> None:
+    """Raise the error of a line whose comments do not close, or nest (left to right, as
+    LinuxCNC reads them)."""
+    pos = 0
+    while True:
+        opening = raw.find("(", pos)
+        semicolon = raw.find(";", pos)
+        closing = raw.find(")", pos)
+        stop = min(i for i in (opening, semicolon, len(raw)) if i >= 0)
+        if 0 <= closing < stop:
+            raise GcodeError(f"{source}: line {lineno}: unbalanced comment parenthesis")
+        if stop != opening:
+            break
+        end = raw.find(")", opening + 1)
+        if end < 0:
+            raise GcodeError(f"{source}: line {lineno}: unbalanced comment parenthesis")
+        if "(" in raw[opening + 1:end]:
+            raise GcodeError(f"{source}: line {lineno}: nested comment parenthesis")
+        pos = end + 1
+    raise GcodeError(f"{source}: line {lineno}: unbalanced comment parenthesis")
 
 
 def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
     """Words of one line as (letter, value), comments and block delete removed."""
-    text = raw.split(";", 1)[0]
-    text = _COMMENT.sub(" ", text)
-    if "(" in text or ")" in text:
-        raise GcodeError(f"{source}: line {lineno}: unbalanced comment parenthesis")
+    text = _strip_comments(raw, source, lineno) if "(" in raw or ";" in raw or ")" in raw else raw
+    if not text.isascii():  # before white space goes: X1\u30000 is no X10
+        bad = next(c for c in text if not c.isascii())
+        raise GcodeError(f"{source}: line {lineno}: character {bad!r} outside a comment "
+                         f"(G-code is ASCII): {_excerpt(text.strip())}")
     text = "".join(text.split()).upper()
     if text.startswith("/"):
         text = text[1:]
     if _UNKNOWN_MARK in text:  # the marker of masked expressions is no G-code character
-        raise GcodeError(f"{source}: line {lineno}: cannot read {text!r}")
+        raise GcodeError(f"{source}: line {lineno}: cannot read {_excerpt(text)}")
+    if len(text) > MAX_DIGITS:
+        longest = max((len(d) - d.count(".") for d in _DIGITS.findall(text)), default=0)
+        if longest > MAX_DIGITS:
+            raise GcodeError(f"{source}: line {lineno}: a number has more than MAX_DIGITS="
+                             f"{MAX_DIGITS} digits")
     if any(c in text for c in "#[]<>"):
         text = _mask_expressions(text, source, lineno)
     words = _FAST_WORD.findall(text)
@@ -198,11 +286,11 @@ def _parse_line(raw: str, source: str, lineno: int) -> list[tuple[str, float]]:
     words = []
     for match in _WORD.finditer(text):
         if match.group(3) is not None:
-            rest = text[match.start():]
+            rest = _excerpt(text[match.start():])
             bad = match.group(3)
             if bad.isalpha():
-                raise GcodeError(f"{source}: line {lineno}: word {bad!r} has no number: {rest!r}")
-            raise GcodeError(f"{source}: line {lineno}: cannot read {rest!r}")
+                raise GcodeError(f"{source}: line {lineno}: word {bad!r} has no number: {rest}")
+            raise GcodeError(f"{source}: line {lineno}: cannot read {rest}")
         value = match.group(2)
         unknown = value.lstrip("+-") == _UNKNOWN_MARK
         words.append((match.group(1), math.nan if unknown else float(value)))
@@ -213,15 +301,39 @@ def _mask_expressions(text: str, source: str, lineno: int) -> str:
     """Replace each parameter expression used as a word's value (``#4120``, ``[#[2000+#1]]``)
     by a marker read as an unknown value; anything else with ``#``, brackets or ``<>`` (an
     assignment, a named parameter, a stray bracket) is refused."""
-    masked = text
-    while True:
-        reduced = _INNER_EXPRESSION.sub(_UNKNOWN_MARK, masked)
-        if reduced == masked:
-            break
-        masked = reduced
-    if any(c in masked for c in "#[]<>=") or re.search(r"(?<![A-Z+-])" + re.escape(_UNKNOWN_MARK), masked):
+    # One pass, innermost first as the NIST grammar nests them: ``#`` + digits, ``#`` + an
+    # unknown and a bracket holding no bracket each become the marker; linear in the line.
+    out: list[str] = []
+    opened: list[int] = []
+    pos, size = 0, len(text)
+    while pos < size:
+        c = text[pos]
+        pos += 1
+        if c == "[":
+            if len(opened) >= MAX_NESTING:
+                raise GcodeError(f"{source}: line {lineno}: brackets nested deeper than "
+                                 f"MAX_NESTING={MAX_NESTING}")
+            opened.append(len(out))
+            out.append(c)
+            continue
+        if c == "]" and opened:
+            del out[opened.pop():]
+        elif c.isdigit() and out and out[-1] == "#":
+            while pos < size and text[pos].isdigit():
+                pos += 1
+            out.pop()
+        else:
+            out.append(c)
+            continue
+        while out and out[-1] == "#":  # a parameter numbered by an expression
+            out.pop()
+        out.append(_UNKNOWN_MARK)
+    masked = "".join(out)
+    stray_mark = re.search(r"(?<![A-Z+-])" + re.escape(_UNKNOWN_MARK), masked)
+    if any(c in masked for c in "#[]<>=") or stray_mark:
         raise GcodeError(
-            f"{source}: line {lineno}: parameters and expressions are not supported: {text!r}"
+            f"{source}: line {lineno}: parameters and expressions are not supported: "
+            f"{_excerpt(text)}"
         )
     return masked
 
@@ -261,7 +373,10 @@ class _State:
             if letter in "GM" and math.isnan(value):
                 raise self.error(f"parameters and expressions are not supported in {letter}")
             if letter == "G":
-                g_codes.append(round(value, 1))
+                g = round(value, 1)
+                if abs(value - g) > 1e-6:  # G1.00001 is no G1
+                    raise self.error(f"unknown G code G{value!r}")
+                g_codes.append(g)
             elif letter == "M":
                 if value != int(value):
                     raise self.error(f"unknown M code M{value:g}")
@@ -323,11 +438,17 @@ class _State:
                 raise self.error(f"feed F{values['F']:g} must be positive")
             self.feed = values["F"] * self.scale
         if "T" in values:
-            self.selected_tool = int(values["T"])
+            tool = values["T"]
+            if tool < 0 or tool != int(tool):
+                raise self.error(f"tool number T{tool:g} is not a whole number >= 0")
+            self.selected_tool = int(tool)
         if 6 in m_codes and self.selected_tool is not None and self.selected_tool > 0:
             self.tools.append(self.selected_tool)
         if motion is not None:
             self.motion = motion
+        if "P" in values and self.motion in (2, 3) and 4.0 not in g_codes and values["P"] != 1:
+            raise self.error(f"G{self.motion} with P{values['P']:g}: multi-turn arcs are not "
+                             "supported")
         has_axes = any(a in values for a in _AXES)
         if home is not None:
             if motion is not None:
@@ -462,6 +583,9 @@ class _State:
             if any(k in values for k in "IJK"):
                 raise self.error("arc with both R and I/J/K")
             radius = values["R"] * self.scale
+            if abs(radius) > MAX_COORDINATE_MM:
+                raise self.error(f"arc radius R{values['R']:g} is beyond the machine's reach "
+                                 f"(MAX_COORDINATE_MM={MAX_COORDINATE_MM:g} mm)")
             chord = e - s
             d = float(np.hypot(*chord))
             if d < 1e-9:
@@ -501,11 +625,24 @@ class _State:
             kind, start, end, centre, plane, feed, line = zip(*self.moves)
         else:
             kind = start = end = centre = plane = feed = line = ()
+        starts = np.array(start, dtype=float).reshape(-1, 3)
+        ends = np.array(end, dtype=float).reshape(-1, 3)
+        centres = np.array(centre, dtype=float).reshape(-1, 3)
+        # a move's start is the previous end or a position read without a move: check all three
+        for name, points in (("start point", starts), ("end point", ends),
+                             ("arc centre", centres)):
+            far = np.flatnonzero(np.any(np.abs(points) > MAX_COORDINATE_MM, axis=1))
+            if len(far):
+                self.lineno = line[far[0]]
+                raise self.error(
+                    f"{name} ({', '.join(f'{v:.6g}' for v in points[far[0]])}) mm is beyond the "
+                    f"machine's reach (MAX_COORDINATE_MM={MAX_COORDINATE_MM:g} mm)"
+                )
         return Program(
             kind=np.array(kind, dtype=np.intp),
-            start=np.array(start, dtype=float).reshape(-1, 3),
-            end=np.array(end, dtype=float).reshape(-1, 3),
-            centre=np.array(centre, dtype=float).reshape(-1, 3),
+            start=starts,
+            end=ends,
+            centre=centres,
             plane=np.array(plane, dtype=np.intp),
             feed=np.array(feed, dtype=float),
             line=np.array(line, dtype=np.intp),
@@ -513,6 +650,7 @@ class _State:
             converted_from_inches=self.inches_seen,
             tools=tuple(self.tools),
             warnings=tuple(self.warnings),
+            source=self.source,
         )
 
 
@@ -617,7 +755,22 @@ def linearise(program: Program, tolerance: float) -> Segments:
     if len(arcs):
         sweep, radius, _ = _arc_geometry(program, arcs)
         half = np.arccos(np.clip(1.0 - tolerance / np.maximum(radius, 1e-12), -1.0, 1.0))
-        pieces[arcs] = np.maximum(1, np.ceil(np.abs(sweep) / (2 * np.maximum(half, 1e-9))))
+        wanted = np.maximum(1, np.ceil(np.abs(sweep) / (2 * np.maximum(half, 1e-9))))
+        over = np.flatnonzero(~(wanted <= MAX_ARC_SEGMENTS))
+        if len(over):
+            a = arcs[over[0]]
+            raise GcodeError(
+                f"{program.source}: line {program.line[a]}: an arc of radius "
+                f"{radius[over[0]]:.6g} mm needs "
+                f"{wanted[over[0]]:.6g} chords for a sagitta of {tolerance:g} mm, more than "
+                f"MAX_ARC_SEGMENTS={MAX_ARC_SEGMENTS}"
+            )
+        pieces[arcs] = wanted
+    total = int(pieces.sum())
+    if total > MAX_SEGMENTS:
+        raise GcodeError(f"{program.source}: the program needs {total} straight pieces for a "
+                         "chord tolerance of "
+                         f"{tolerance:g} mm, more than MAX_SEGMENTS={MAX_SEGMENTS}")
     move = np.repeat(np.arange(n), pieces)
     first = np.cumsum(pieces) - pieces
     k = np.arange(len(move)) - first[move]
@@ -649,7 +802,8 @@ def linearise(program: Program, tolerance: float) -> Segments:
                 out[rows, a1] = c[:, a1] + r * np.cos(t)
                 out[rows, a2] = c[:, a2] + r * np.sin(t)
                 out[rows, normal] = s[:, normal] + f * (e[:, normal] - s[:, normal])
-            last = rows[frac1[rows] >= 1.0]
-            end[last] = program.end[move[last]]
+    # the first piece of every move starts, and its last ends, exactly where the move does
+    start[first] = program.start
+    end[first + pieces - 1] = program.end
     return Segments(start=start, end=end, rapid=program.kind[move] == MoveKind.RAPID,
                     line=program.line[move], move=move)
