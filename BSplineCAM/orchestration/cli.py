@@ -34,6 +34,8 @@ EXIT_CHECK_FAILED = 1
 #: BSPLINECAM_TRACEBACK=1.
 EXIT_INTERNAL_ERROR = 3
 DAT_SAMPLES = 51
+#: Grid samples per direction of ``check NET`` (the default before parts existed).
+NET_SAMPLES = 101
 #: Grid samples per direction of the cross-check (each is evaluated by four evaluators).
 SAMPLES_RANGE = (2, 501)
 #: Points per side of NAME.dat.
@@ -234,7 +236,8 @@ def captured_console() -> Iterator[None]:
             os.dup2(saved[1], 2)
             for fd in saved:
                 os.close(fd)
-            if ok:
+            # a signal FreeCAD swallowed (it prints the traceback and carries on) is not success
+            if ok and _Signals.received is None:
                 log.seek(0)
                 with contextlib.suppress(OSError):
                     os.write(2, log.read())
@@ -257,14 +260,45 @@ def _load(path: str, knots: str | None) -> Surface:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
+    from . import parts
     from .crosscheck import crosscheck
 
+    if parts.is_part(args.net):
+        return cmd_check_part(args)
+    for option, value in (("--faces", args.faces), ("--out", args.out)):
+        if value is not None:
+            raise ParameterError(f"{option} applies to parts ({', '.join(parts.PART_SUFFIXES)}),"
+                                 f" not to the control net {args.net}")
+    if args.samples is None:
+        args.samples = NET_SAMPLES
     check_int(args.samples, "--samples", *SAMPLES_RANGE)
     surface = _load(args.net, args.knots)
     report = crosscheck(surface, samples=args.samples, paper_route=not args.no_paper_route)
     check_interrupted()
     emit(report)
     return 0 if report["exact_route_ok"] else EXIT_CHECK_FAILED
+
+
+def cmd_check_part(args: argparse.Namespace) -> int:
+    """``check PART``: each selected face's conversion and evaluation cross-checked (see
+    :func:`BSplineCAM.orchestration.parts.check_part`); JSON on stdout and in --out/check.json;
+    exit 1 if a face exceeds the tolerance."""
+    from . import parts
+
+    for option, value in (("--knots", args.knots), ("--no-paper-route", args.no_paper_route)):
+        if value:
+            raise ParameterError(f"{option} applies to control nets, not to the part {args.net}")
+    samples = check_int(parts.PART_SAMPLES if args.samples is None else args.samples,
+                        "--samples", *SAMPLES_RANGE)
+    if args.out is not None:
+        check_output(args.out)
+    report = parts.check_part(args.net, args.faces, samples)
+    check_interrupted()
+    if args.out is not None:
+        with staged_output(Path(args.out)) as stage:
+            (stage / "check.json").write_text(json_text(report))
+    emit(report)
+    return 0 if report["ok"] else EXIT_CHECK_FAILED
 
 
 def cmd_surface(args: argparse.Namespace) -> int:
@@ -326,10 +360,16 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("net", help="control net: .json (canonical), .csv or .dat")
         p.add_argument("--knots", choices=["uniform", "clamped"], help="override the file's knot layout")
 
-    p = sub.add_parser("check", help="cross-check the matrix evaluator against Cox–de Boor and OCCT")
+    p = sub.add_parser("check", help="cross-check the matrix evaluator against Cox–de Boor and OCCT"
+                       " (a net), or each face's conversion and evaluation (a part)")
     add_net(p)
-    p.add_argument("--samples", type=int, default=101, help="grid samples per direction (default 101)")
+    p.add_argument("--samples", type=int, default=None,
+                   help=f"grid samples per direction (default {NET_SAMPLES} for a net, "
+                        "31 per face of a part)")
     p.add_argument("--no-paper-route", action="store_true", help="skip measuring the paper's loft route")
+    p.add_argument("--faces", default=None,
+                   help="faces of a part: all (default), up, or numbers such as 3,8,20")
+    p.add_argument("--out", default=None, help="also write DIR/check.json (parts only)")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("surface", help="export .dat, STEP, BREP, FCStd and the cross-check")
@@ -399,4 +439,8 @@ def _exit_status(exc: BaseException) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run the imported module's main, not this __main__ copy: the stage commands import
+    # BSplineCAM.orchestration.cli, and the signal state must be one and the same
+    from BSplineCAM.orchestration import cli as _cli
+
+    sys.exit(_cli.main())
