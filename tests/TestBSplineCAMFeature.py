@@ -183,6 +183,28 @@ class TestSurfaceObject(BSplineCAMTestCase):
         self.assertSuccessfulRecompute(obj)
         self.assertEqual(obj.Shape.ShapeType, "Face")
 
+    def test_extent_is_the_surface_not_its_poles(self) -> None:
+        """The exact extent (heights and stock of a job) against a dense grid of the core's
+        evaluation; OCCT's box of the face encloses the poles and stands higher on a hill."""
+        from BSplineCAM.app import part
+
+        for knots in ("clamped", "uniform"):
+            with self.subTest(knots=knots):
+                surface = Surface(wavy_net(), knots)
+                extent = part.surface_extent(surface)
+                g = np.linspace(0.0, 1.0, 601)
+                points = surface.evaluate_grid(g, g).reshape(-1, 3)
+                low, high = points.min(axis=0), points.max(axis=0)
+                found = np.array([[extent.x_min, extent.y_min, extent.z_min],
+                                  [extent.x_max, extent.y_max, extent.z_max]])
+                np.testing.assert_allclose(found, [low, high], atol=1e-3)
+                self.assertTrue(np.all(found[0] <= low + 1e-12) and np.all(found[1] >= high - 1e-12))
+        x, y = np.meshgrid(np.linspace(0, 60, 7), np.linspace(0, 60, 7), indexing="ij")
+        net = np.stack([x, y, np.full((7, 7), 10.0)], axis=-1)
+        net[3, 3, 2] = 40.0
+        hill = Surface(net, "clamped")
+        self.assertLess(part.surface_extent(hill).z_max, part.to_face(hill).BoundBox.ZMax - 10.0)
+
     def test_placement_is_kept(self) -> None:
         obj = sf.make_surface(wavy_net(), doc=self.doc)
         obj.Placement = FreeCAD.Placement(FreeCAD.Vector(100, 0, 0), FreeCAD.Rotation())

@@ -318,9 +318,52 @@ class TestSurfaceCommands(GuiTestCase):
         self.assertTrue(1e-4 < float(routes[0].MaxDeviation) < 1.0, routes[0].MaxDeviation)
 
 
-#: A coarse scallop keeps the GUI test fast (mm).
+#: A coarse scallop keeps the GUI test fast (mm); a fine one takes seconds (to cancel).
 COARSE_SCALLOP = 0.1
+FINE_SCALLOP = 0.005
 TOOL = 6.0
+
+
+@contextlib.contextmanager
+def timed_during_computation(action, after: float = 0.05) -> Iterator[list]:
+    """A timer ticking every 10 ms meanwhile; yield its ticks as (computing, fraction).
+
+    Once a computation (a status-bar progress bar) has passed ``after`` of its work,
+    ``action(bar)`` runs once, from the timer, as a user's click would.
+    """
+    from BSplineCAM.gui import progress_bar
+
+    ticks: list = []
+    done: list = []
+
+    def tick() -> None:
+        bar = progress_bar.ProgressBar.active
+        ticks.append((bar is not None, bar.fraction if bar is not None else None))
+        if bar is not None and bar.fraction > after and not done:
+            done.append(bar.fraction)
+            action(bar)
+
+    timer = QtCore.QTimer()
+    timer.timeout.connect(tick)
+    timer.start(10)
+    try:
+        yield ticks
+    finally:
+        timer.stop()
+
+
+def report_text() -> str:
+    """What FreeCAD's report view shows."""
+    dock = FreeCADGui.getMainWindow().findChild(QtGui.QDockWidget, "Report view")
+    edit = dock.findChild(QtGui.QTextEdit) if dock is not None else None
+    return edit.toPlainText() if edit is not None else ""
+
+
+def clear_report() -> None:
+    dock = FreeCADGui.getMainWindow().findChild(QtGui.QDockWidget, "Report view")
+    edit = dock.findChild(QtGui.QTextEdit) if dock is not None else None
+    if edit is not None:
+        edit.clear()
 
 
 @contextlib.contextmanager
@@ -412,8 +455,21 @@ def scene_box(view, node=None) -> tuple[tuple[float, ...], tuple[float, ...]] | 
         nodes = [node]
     box = coin.SbBox3f()
     for part in nodes:
+        # as FreeCAD's fitAll: SoSkipBoundingGroups (screen overlays) excluded meanwhile
+        search = coin.SoSearchAction()
+        search.setType(coin.SoType.fromName("SoSkipBoundingGroup"))
+        search.setInterest(coin.SoSearchAction.ALL)
+        search.setSearchingAll(True)
+        search.apply(part)
+        paths = search.getPaths()
+        skips = [paths[i].getTail() for i in range(paths.getLength())]
+        modes = [skip.getField("mode").getValue() for skip in skips]
+        for skip in skips:
+            skip.getField("mode").setValue(1)  # EXCLUDE_BBOX
         action = coin.SoGetBoundingBoxAction(region)
         action.apply(part)
+        for skip, mode in zip(skips, modes):
+            skip.getField("mode").setValue(mode)
         if not action.getBoundingBox().isEmpty():
             box.extendBy(action.getBoundingBox())
     if box.isEmpty():
@@ -558,8 +614,7 @@ class TestCamCommands(CamTestCase):
         self.assertFalse(is_active("BSplineCAM_PostProcess"))
 
     def test_job_panel_validation_and_interruption(self) -> None:
-        from BSplineCAM.app import progress
-        from BSplineCAM.core.toolpath.common import ToolpathCancelled
+        from BSplineCAM.gui import progress_bar
 
         surface = self.new_surface()
         names = [o.Name for o in self.doc.Objects]
@@ -579,20 +634,20 @@ class TestCamCommands(CamTestCase):
         panel.spindle.setValue(12000.0)
         self.assertEqual([o.Name for o in self.doc.Objects], names)
 
-        # the user interrupts the computation at 30 %: everything is undone
-        def interrupting(obj):
-            def report(fraction: float) -> None:
-                if fraction > 0.3:
-                    raise ToolpathCancelled("interrupted by the user at 30%")
-            return report
-
-        saved = progress.op_progress
-        progress.op_progress = interrupting
-        try:
+        # the user clicks Cancel in the status bar while the toolpath computes (a fine
+        # scallop: seconds of work): everything is undone
+        panel.scallop.setValue(FINE_SCALLOP)
+        with timed_during_computation(lambda bar: progress_bar.StatusWidgets.button.click()) \
+                as ticks:
             self.assertFalse(panel.accept())
-        finally:
-            progress.op_progress = saved
         process_events()
+        self.assertTrue(any(computing for computing, _ in ticks), ticks)  # fired meanwhile
+        last = progress_bar.ProgressBar.last
+        self.assertTrue(last.cancelled)
+        self.assertLess(last.fraction, 1.0)
+        self.assertLessEqual(last.calls - last.calls_at_cancel, 1)  # its next report stopped it
+        self.assertIsNone(progress_bar.ProgressBar.active)
+        self.assertFalse(progress_bar.StatusWidgets.bar.isVisible())
         self.assertIn("nterrupted", panel.message.text())
         self.assertTrue(FreeCADGui.Control.activeDialog())  # the panel stays for a retry
         self.assertEqual([o.Name for o in self.doc.Objects], names)
@@ -702,6 +757,26 @@ class TestCamCommands(CamTestCase):
         self.assertTrue(np.all(top[gouged, 0] > verify_view.GREEN[0]))  # towards red
         self.assertFalse(op.ViewObject.Visibility)  # paths hidden: the part shows
         self.assertTrue(vobj.Visibility)
+        # the status bar's progress bar went away with the computation
+        from BSplineCAM.gui import progress_bar, results_panel
+
+        self.assertFalse(progress_bar.StatusWidgets.bar.isVisible())
+        self.assertIsNone(progress_bar.ProgressBar.active)
+        # the figures in a task panel, selectable and copyable
+
+        panel = results_panel.ResultsPanel.last
+        self.assertIsNotNone(panel)
+        self.assertTrue(FreeCADGui.Control.activeDialog())
+        text = panel.figures.toPlainText()
+        for figure in (f"{metrics['gouge_max_mm']:.4f} mm", f"{metrics['scallop_max_mm']:.4f}",
+                       f"{metrics['scallop_p99_mm']:.4f} mm", f"{100 * metrics['coverage']:.2f} %",
+                       "machining time"):
+            self.assertIn(figure, text)
+        self.assertTrue(panel.figures.isReadOnly())
+        self.assertTrue(panel.figures.textInteractionFlags() & QtCore.Qt.TextSelectableByMouse)
+        # no chatter of FreeCAD's post scripts in the report view
+        for noise in ("Show editor", "postprocessing"):
+            self.assertNotIn(noise, report_text())
 
         # the file route: a program on the selected surface
         FreeCADGui.Selection.clearSelection()
@@ -721,12 +796,62 @@ class TestCamCommands(CamTestCase):
         surface.ViewObject.ShowControlNet = False
         self.screenshots(job, op, result, hidden=made[0])
 
+    def assert_screen_space_legend(self, view, proxy) -> None:
+        """The colour bar hangs under an orthographic camera of its own (LEAVE_ALONE), in an
+        annotation inside a group fitAll skips: zooming the view moves the part on screen,
+        not the bar."""
+        from pivy import coin
+
+        search = coin.SoSearchAction()
+        search.setNode(proxy.legend_coords)
+        search.apply(view.getSceneGraph())
+        path = search.getPath()
+        self.assertIsNotNone(path)
+        chain = [path.getNode(i) for i in range(path.getLength())]
+        names = [n.getTypeId().getName() for n in chain]
+        self.assertIn("SoSkipBoundingGroup", names)
+        annotations = [n for n in chain if n.isOfType(coin.SoAnnotation.getClassTypeId())]
+        self.assertEqual(len(annotations), 1, names)
+        camera = annotations[0].getChild(0)
+        self.assertTrue(camera.isOfType(coin.SoOrthographicCamera.getClassTypeId()))
+        self.assertEqual(camera.viewportMapping.getValue(), coin.SoCamera.LEAVE_ALONE)
+        self.assertNotEqual(camera, view.getCameraNode())
+        width, height = view.getSize()
+
+        def on_screen(points, volume) -> list:
+            return [tuple(round(c * s, 3) for c, s in zip(
+                volume.projectToScreen(coin.SbVec3f(*p)).getValue()[:2], (width, height)))
+                for p in points]
+
+        bar = [p.getValue() for p in proxy.legend_coords.point.getValues()]
+        corners = box_corners(*scene_box(view, proxy.root))
+        main = view.getCameraNode()
+        hud_before = on_screen(bar, camera.getViewVolume(0.0))
+        part_before = on_screen(corners, main.getViewVolume(width / height))
+        xs = [x for x, _ in hud_before]
+        ys = [y for _, y in hud_before]
+        for x, y in hud_before:  # the bar within the view, at its left
+            self.assertTrue(0 < x < 0.5 * width and 0 < y < height, (x, y))
+        self.assertGreater(max(ys) - min(ys), 0.3 * height)
+        view.zoomIn()
+        view.zoomIn()
+        process_events()
+        hud_after = on_screen(bar, camera.getViewVolume(0.0))
+        part_after = on_screen(corners, main.getViewVolume(width / height))
+        self.assertEqual(hud_after, hud_before)  # same pixels after zooming
+        self.assertNotEqual(part_after, part_before)  # while the part grew on screen
+        self.assertGreater(max(x for x, _ in part_after) - min(x for x, _ in part_after),
+                           max(x for x, _ in part_before) - min(x for x, _ in part_before))
+        self.assertEqual(len(xs), 8)
+        view.fitAll()
+        process_events()
+
     def screenshots(self, job, op, result, hidden) -> None:
         """docs/verify3d.png (the coloured part) and docs/job.png (the bench with the job).
 
         What the 3D view shows is checked on the scene graph and the camera: the part's
         Deviation nodes are drawn and no other object draws anything (but CAM's job axes), the
-        legend stands beside the part, fitAll frames it all; the picture only where renderers
+        legend is fixed to the screen, fitAll frames the part; the picture only where renderers
         agree.
         """
         mw = FreeCADGui.getMainWindow()
@@ -765,14 +890,12 @@ class TestCamCommands(CamTestCase):
         self.assert_box_close(low, high, mesh_box, tol=1e-3)
         self.assert_box_close(low, high, result.Surface.Shape.BoundBox,
                               tol=float(result.Cell) * max(int(result.Stride), 1), axes="xy")
-        # with the legend: a colour bar beside the part, at its +x/-y corner, from its base up
+        # with the legend: a colour bar fixed to the screen, left out of the part's box
         vobj.ShowLegend = True
         process_events()
         self.assertTrue(in_scene(view, proxy.legend))
-        low, high = scene_box(view, vobj.RootNode)
-        self.assertGreater(high[0], mesh_box.XMax + 0.05 * mesh_box.XLength)
-        self.assertAlmostEqual(low[1], mesh_box.YMin, delta=1e-3)
-        self.assertAlmostEqual(low[2], mesh_box.ZMin, delta=1e-3)
+        self.assert_screen_space_legend(view, proxy)
+        self.assert_box_close(*scene_box(view, vobj.RootNode), mesh_box, tol=1e-3)
         # the camera frames all the scene draws (the part, its legend and any job axes)
         low, high = scene_box(view)
         self.assert_framed(view, low, high)  # fitted by isometric_view
@@ -784,6 +907,19 @@ class TestCamCommands(CamTestCase):
                   mesh_box.ZMin + 0.01 * mesh_box.ZLength)
                  for fx in (0.25, 0.5, 0.75) for fy in (0.25, 0.5, 0.75)]
         self.assert_picture(view, verify3d, inner)
+        # the bench with the part, its legend and the figures' task panel
+        screen = QtGui.QApplication.primaryScreen()
+        from BSplineCAM.gui import results_panel
+
+        self.assertTrue(results_panel.show(results_panel.verification_panel(result)))
+        view.viewIsometric()
+        view.fitAll()
+        wait(1500)
+        results_png = DOCS / "verify_results.png"
+        self.assertTrue(screen.grabWindow(mw.winId()).save(str(results_png), "PNG"))
+        results_panel.close_results()
+        process_events()
+        self.assertFalse(FreeCADGui.Control.activeDialog())
 
         # the workbench with the job's tree open, the op's paths shown and selected
         result.ViewObject.Visibility = False
@@ -804,10 +940,287 @@ class TestCamCommands(CamTestCase):
         view.fitAll()
         wait(1500)
         job_png = DOCS / "job.png"
-        screen = QtGui.QApplication.primaryScreen()
         self.assertTrue(screen.grabWindow(mw.winId()).save(str(job_png), "PNG"))
-        for path in (verify3d, job_png):
+        for path in (verify3d, job_png, results_png):
             self.assertTrue(path.is_file() and path.stat().st_size > 10000, path)
+
+
+def default_dock_width() -> int:
+    """Width (pixels) of the dock holding the task panels, as a fresh FreeCAD lays it out."""
+    mw = FreeCADGui.getMainWindow()
+    for name in ("Combo View", "Tasks"):
+        dock = mw.findChild(QtGui.QDockWidget, name)
+        if dock is not None and dock.isVisible():
+            return dock.width()
+    return 0
+
+
+class TestProgressAndPanels(CamTestCase):
+    """Issue 13: progress and cancel, panels that fit and show what applies, the results."""
+
+    def test_op_progress_esc_cancel_keeps_path(self) -> None:
+        from BSplineCAM.gui import progress_bar
+
+        surface, job, op = self.make_job()
+        before = op.Path.toGCode()
+        report = op.Report
+        self.assertGreater(len(op.Path.Commands), 100)
+        # a long recompute (fine scallop): timers fire meanwhile, Esc cancels it
+        op.ScallopHeight = FINE_SCALLOP
+        clear_report()
+        mw = FreeCADGui.getMainWindow()
+
+        def press_esc(bar) -> None:
+            event = QtGui.QKeyEvent(QtCore.QEvent.KeyPress, QtCore.Qt.Key_Escape,
+                                    QtCore.Qt.NoModifier)
+            QtGui.QApplication.sendEvent(mw, event)
+
+        with message_boxes() as boxes, timed_during_computation(press_esc) as ticks:
+            self.doc.recompute()
+            process_events()
+        self.assertEqual(boxes, [])  # no "Do you really want to abort?"
+        computing = [fraction for running, fraction in ticks if running]
+        self.assertGreater(len(computing), 1, ticks)  # the event loop ran during the work
+        last = progress_bar.ProgressBar.last
+        self.assertEqual(last.target, (self.doc.Name, op.Name))
+        self.assertTrue(last.cancelled)
+        self.assertLess(last.fraction, 1.0)
+        self.assertLessEqual(last.calls - last.calls_at_cancel, 1)  # stopped at its next report
+        self.assertGreater(last.events, 1)
+        # the op as it was: its previous program and report, valid, still to be recomputed
+        self.assertEqual(op.Path.toGCode(), before)
+        self.assertEqual(op.Report, report)
+        self.assertTrue(op.isValid(), op.State)
+        self.assertNotIn("Invalid", op.State)
+        self.assertIn("Touched", op.State)
+        lines = [ln for ln in report_text().splitlines() if "cancelled by the user" in ln]
+        self.assertEqual(len(lines), 1, report_text())
+        self.assertFalse(progress_bar.StatusWidgets.bar.isVisible())
+        # the next recompute is not marked aborted; the coarse scallop gives the same program
+        op.ScallopHeight = COARSE_SCALLOP
+        with message_boxes() as boxes:
+            self.doc.recompute()
+        self.assertEqual(boxes, [])
+        self.assertTrue(op.isValid(), op.State)
+        self.assertNotIn("Touched", op.State)
+        self.assertEqual(op.Path.toGCode(), before)
+        self.assertNotIn("aborted", report_text().lower())
+
+        # Verify: the simulation reports while it runs, the Cancel button stops it, nothing made
+        names = [o.Name for o in self.doc.Objects]
+        undo = self.doc.UndoCount
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(job)
+        clear_report()
+        with message_boxes() as boxes, timed_during_computation(
+                lambda bar: progress_bar.StatusWidgets.button.click(), after=0.3) as ticks:
+            FreeCADGui.runCommand("BSplineCAM_Verify")
+            process_events()
+        self.assertEqual(boxes, [])
+        computing = [fraction for running, fraction in ticks if running]
+        self.assertTrue(any(0.15 < f < 0.8 for f in computing), ticks)  # during the simulation
+        last = progress_bar.ProgressBar.last
+        self.assertTrue(last.cancelled)
+        self.assertLess(last.fraction, 1.0)
+        self.assertLessEqual(last.calls - last.calls_at_cancel, 1)
+        self.assertEqual([o.Name for o in self.doc.Objects], names)
+        self.assertEqual(self.doc.UndoCount, undo)
+        lines = [ln for ln in report_text().splitlines() if "cancelled by the user" in ln]
+        self.assertEqual(len(lines), 1, report_text())
+        self.assertFalse(progress_bar.StatusWidgets.bar.isVisible())
+
+    def test_job_panel_fields_and_width(self) -> None:
+        surface = self.new_surface()
+        panel = self.open_job_panel(surface)
+        shown = {"raster": {"angle", "direction"}, "waterline": set(),
+                 "isoparametric": {"iso_direction", "direction"}}
+        for strategy, fields in shown.items():
+            panel.strategy.setCurrentIndex(panel.strategy.findText(strategy))
+            process_events()
+            for name in ("angle", "direction", "iso_direction"):
+                widget = getattr(panel, name)
+                label = panel.layout.labelForField(widget)
+                visible = name in fields
+                self.assertEqual(widget.isVisibleTo(panel.form), visible, (strategy, name))
+                self.assertEqual(label.isVisibleTo(panel.form), visible, (strategy, name))
+        # Qt's QDialogButtonBox values: Ok 0x400, Cancel 0x400000, Close 0x200000 (FreeCAD 1.1's
+        # PySide6 refuses int() on its enums: the panel's buttons must still come as an int)
+        self.assertEqual(panel.getStandardButtons(), 0x400 | 0x400000)
+        width = default_dock_width()
+        self.assertGreater(width, 100)
+        wait(500)
+        DOCS.mkdir(parents=True, exist_ok=True)
+        mw = FreeCADGui.getMainWindow()
+        self.assertTrue(QtGui.QApplication.primaryScreen().grabWindow(mw.winId()).save(
+            str(DOCS / "job_panel.png"), "PNG"))
+        # the panel sits in a task box inside the dock (margins of a few pixels each side)
+        self.assertLessEqual(panel.form.minimumSizeHint().width() + 40, width,
+                             f"job panel needs {panel.form.minimumSizeHint().width()} px")
+        panel.reject()
+        process_events()
+        # the net editor too, and a bad entry is explained beside the table
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(surface)
+        FreeCADGui.runCommand("BSplineCAM_EditNet")
+        process_events()
+        net = surface.ViewObject.Proxy.panel
+        self.assertEqual(net.getStandardButtons(), 0x400 | 0x400000)
+        self.assertLessEqual(net.form.minimumSizeHint().width() + 40, width,
+                             f"net panel needs {net.form.minimumSizeHint().width()} px")
+        z = surface.ControlPoints[12].z
+        self.assertFalse(net.message.isVisibleTo(net.form))
+        net.table.item(12, 2).setText("twelve")
+        process_events()
+        self.assertTrue(net.message.isVisibleTo(net.form))
+        self.assertIn("'twelve' is not a number", net.message.text())
+        self.assertIn("1,2 Z", net.message.text())
+        self.assertEqual(float(net.table.item(12, 2).text()), z)
+        self.assertEqual(surface.ControlPoints[12].z, z)
+        net.set_cell(1, 2, 2, z + 1.0)
+        self.assertFalse(net.message.isVisibleTo(net.form))
+        self.assertAlmostEqual(surface.ControlPoints[12].z, z + 1.0)
+        net.reject()
+        process_events()
+
+    def test_new_surface_isometric_net_on_top(self) -> None:
+        import math
+
+        from pivy import coin
+
+        obj = self.new_surface()
+        process_events()
+        view = FreeCADGui.activeDocument().activeView()
+        rotation = view.getCameraNode().orientation.getValue()
+        direction = rotation.multVec(coin.SbVec3f(0, 0, -1)).getValue()
+        # isometric: the view direction makes the same angle with the three axes, looking down
+        for component in direction:
+            self.assertAlmostEqual(abs(component), 1 / math.sqrt(3), places=4, msg=direction)
+        self.assertLess(direction[2], 0)
+        # the net in an annotation: drawn over the surface, control points under it show
+        proxy = obj.ViewObject.Proxy
+        self.assertTrue(proxy.net_root.isOfType(coin.SoAnnotation.getClassTypeId()))
+        for node in (proxy.lines, proxy.points):
+            self.assertTrue(in_scene(view, node))
+            self.assertGreaterEqual(proxy.net_root.findChild(node), 0)
+
+    def test_crosscheck_results_panel(self) -> None:
+        from BSplineCAM.gui import results_panel
+
+        obj = self.new_surface()
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(obj)
+        results_panel.ResultsPanel.last = None
+        FreeCADGui.runCommand("BSplineCAM_CrossCheck")
+        process_events()
+        panel = results_panel.ResultsPanel.last
+        self.assertIsNotNone(panel)
+        self.assertTrue(FreeCADGui.Control.activeDialog())
+        report = json.loads(obj.CrossCheck)
+        text = panel.figures.toPlainText()
+        for key, value in report["max_deviation_mm"].items():
+            self.assertIn(key, text)
+            if value is not None:
+                self.assertIn(f"{value:.3e} mm", text)
+        self.assertIn("exact route OK", text)
+        self.assertEqual(panel.getStandardButtons(), 0x200000)
+        self.assertTrue(panel.figures.isReadOnly())
+        flags = panel.figures.textInteractionFlags()
+        self.assertTrue(flags & QtCore.Qt.TextSelectableByMouse)
+        panel.copy.click()
+        self.assertEqual(QtGui.QApplication.clipboard().text(), text)
+        # a results panel does not keep the net editor away
+        self.assertTrue(is_active("BSplineCAM_EditNet"))
+        FreeCADGui.runCommand("BSplineCAM_EditNet")
+        process_events()
+        self.assertIsNotNone(obj.ViewObject.Proxy.panel)
+        obj.ViewObject.Proxy.panel.reject()
+        process_events()
+
+
+class TestReopenedDocument(CamTestCase):
+    """Every command on a job document saved, closed and opened again (fresh proxies)."""
+
+    def test_every_command_after_reopen(self) -> None:
+        from BSplineCAM.gui import cam_commands, results_panel
+        from BSplineCAM.orchestration import rs274
+
+        surface, job, op = self.make_job()
+        names = (surface.Name, job.Name, op.Name)
+        path = self.tmp / "job.FCStd"
+        self.doc.saveAs(str(path))
+        FreeCAD.closeDocument(self.doc.Name)
+        process_events()
+        clear_report()
+        self.doc = FreeCAD.openDocument(str(path))
+        self.doc_name = self.doc.Name
+        process_events()
+        surface, job, op = (self.doc.getObject(n) for n in names)
+        self.assertNotIn("Error", report_text())  # nothing red while it loads
+        self.assertEqual(type(op.ViewObject.Proxy).__name__, "FinishOpViewProvider")
+        before = op.Path.toGCode()
+        # post-process the reopened job (the op stands for it), checked by rs274
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(op)
+        self.assertTrue(is_active("BSplineCAM_PostProcess"))
+        program = self.tmp / "reopened.ngc"
+        cam_commands.PostProcess.last_check = None
+        with cam_dialogs(post="linuxcnc", save_path=str(program)), message_boxes() as boxes:
+            FreeCADGui.runCommand("BSplineCAM_PostProcess")
+        self.assertEqual(boxes, [])
+        self.assertTrue(program.is_file())
+        if rs274.available():
+            self.assertTrue(cam_commands.PostProcess.last_check["ok"])
+        # verify it: a simulated part and its figures
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(job)
+        self.assertTrue(is_active("BSplineCAM_Verify"))
+        count = len(self.doc.Objects)
+        with message_boxes() as boxes:
+            FreeCADGui.runCommand("BSplineCAM_Verify")
+            process_events()
+        self.assertEqual(boxes, [])
+        self.assertEqual(len(self.doc.Objects), count + 1)
+        self.assertIsNotNone(results_panel.ResultsPanel.current)
+        # the op recomputes after an edit, with progress, to the same program
+        op.ScallopHeight = float(op.ScallopHeight.Value)
+        op.touch()
+        with message_boxes() as boxes:
+            self.doc.recompute()
+        self.assertEqual(boxes, [])
+        self.assertTrue(op.isValid(), op.State)
+        self.assertEqual(op.Path.toGCode(), before)
+        # the surface commands on the reopened surface
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(surface)
+        with message_boxes() as boxes:
+            FreeCADGui.runCommand("BSplineCAM_CrossCheck")
+            process_events()
+        self.assertEqual(boxes, [])
+        self.assertTrue(json.loads(surface.CrossCheck)["exact_route_ok"])
+        for name, answer in (("BSplineCAM_ExportDat", self.tmp / "reopened.dat"),
+                             ("BSplineCAM_ExportStep", self.tmp / "reopened.step")):
+            FreeCADGui.Selection.clearSelection()
+            FreeCADGui.Selection.addSelection(surface)
+            with dialogs_answer(save_path=str(answer)), message_boxes() as boxes:
+                FreeCADGui.runCommand(name)
+            self.assertEqual(boxes, [])
+            self.assertTrue(answer.is_file(), name)
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(surface)
+        FreeCADGui.runCommand("BSplineCAM_EditNet")
+        process_events()
+        panel = surface.ViewObject.Proxy.panel
+        self.assertIsNotNone(panel)
+        panel.reject()
+        process_events()
+        # a second job on the reopened surface
+        panel = self.open_job_panel(surface)
+        with message_boxes() as boxes:
+            accepted = panel.accept()
+        if not accepted:
+            self.fail(f"the job panel refused: {panel.message.text()} {boxes}")
+        self.assertEqual(len([o for o in self.doc.Objects if cam_commands.is_job(o)]), 2)
+        self.assertNotIn("Error", report_text())
 
 
 class TestZScreenshots(PictureChecks, GuiTestCase):

@@ -128,6 +128,27 @@ class TestJob(JobFixture):
                 moves = read_gcode(text)
                 self.assertEqual(int(np.sum(moves.kind == MoveKind.LINE)), check.feeds, post)
 
+    def test_post_processor_is_the_users_choice(self):
+        """The job's PostProcessor (what CAM's own post command runs) is the post chosen."""
+        self.assertEqual(self.job.PostProcessor, "linuxcnc")
+        try:
+            self.post("grbl")
+            self.assertEqual(self.job.PostProcessor, "grbl")
+            cam.post_process(self.job, "fanuc", remember=False)
+            self.assertEqual(self.job.PostProcessor, "grbl")
+        finally:
+            cam.set_post_processor(self.job, "linuxcnc")
+
+    def test_one_cutting_length(self):
+        """The op's cutting length is the feed length of the posted program's text."""
+        text, _ = self.post()
+        program = read_gcode(text)
+        feeds = program.kind != MoveKind.RAPID
+        measured = float(program.lengths()[feeds].sum())
+        report = json.loads(self.op.Report)
+        self.assertAlmostEqual(report["cutting_length_mm"], measured, delta=1e-6 * measured + 0.01)
+        self.assertLess(report["pass_length_mm"], report["cutting_length_mm"])
+
     def test_unknown_post_is_named(self):
         with self.assertRaisesRegex(ValueError, "unknown post-processor 'nosuch'.*linuxcnc"):
             cam.post_process(self.job, "nosuch")
@@ -206,8 +227,8 @@ class TestBadInput(unittest.TestCase):
 
     def test_bad_parameters_write_nothing(self):
         cases = [
-            (["--tool-diameter", "0", "--scallop", "0.01"], "tool_diameter"),
-            (["--tool-diameter", "-6", "--scallop", "0.01"], "tool_diameter"),
+            (["--tool-diameter", "0", "--scallop", "0.01"], "tool[_-]diameter"),
+            (["--tool-diameter", "-6", "--scallop", "0.01"], "tool[_-]diameter"),
             (["--tool-diameter", "6", "--scallop", "0"], "scallop"),
             (["--tool-diameter", "6", "--scallop", "4"], "scallop"),
             (["--tool-diameter", "6", "--scallop", "0.01", "--tolerance", "5"], "tolerance"),
@@ -218,7 +239,7 @@ class TestBadInput(unittest.TestCase):
             with self.subTest(args=args):
                 code, err, files = self.run_cli(*args)
                 self.assertEqual(code, 2, err)
-                self.assertIn(word, err)
+                self.assertRegex(err, word)
                 self.assertNotIn("Traceback", err.split("bsplinecam toolpath: error")[-1])
                 self.assertEqual(files, [])
 

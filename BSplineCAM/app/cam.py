@@ -8,6 +8,7 @@ FreeCAD's default tool controller has zero feed, which a real controller refuses
 
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
 from dataclasses import dataclass
@@ -16,6 +17,9 @@ from pathlib import Path
 from . import compat
 
 FreeCAD = compat.ensure_freecad()
+
+#: The post-processor of new jobs and of the pipeline when the user names none.
+DEFAULT_POST = "linuxcnc"
 
 
 @dataclass(frozen=True)
@@ -44,6 +48,7 @@ def make_ballend_controller(diameter: float, cutting: Cutting = Cutting(), numbe
     _activate(doc)
     bit = compat.make_ballend_bit(doc, diameter)
     tc = compat.cam_module("controller").Create(f"TC: Ball end {diameter:g} mm", bit, number)
+    compat.make_proxy_restorable(tc)
     tc.HorizFeed = f"{cutting.horizontal_feed} mm/min"
     tc.VertFeed = f"{cutting.vertical_feed} mm/min"
     tc.HorizRapid = f"{cutting.rapid} mm/min"
@@ -54,14 +59,19 @@ def make_ballend_controller(diameter: float, cutting: Cutting = Cutting(), numbe
     return tc
 
 
-def make_job(model, tool_diameter: float, cutting: Cutting = Cutting(), name: str = "Job"):
+def make_job(model, tool_diameter: float, cutting: Cutting = Cutting(), name: str = "Job",
+             post: str = DEFAULT_POST):
     """A Job whose model is ``model`` (a solid B-spline surface object) and whose only tool
-    controller is a ball end of ``tool_diameter`` mm with ``cutting`` feeds."""
+    controller is a ball end of ``tool_diameter`` mm with ``cutting`` feeds; its stock is
+    sized from the exact surface (:class:`SurfaceStock`) and its PostProcessor is ``post``."""
     if model is None or not hasattr(model, "Shape") or model.Shape.isNull():
         raise ValueError("a job needs a model with a shape: create the B-spline surface first")
+    compat.post_module(post)  # an unknown post-processor is named before the document changes
     doc = model.Document
     _activate(doc)
     job = compat.cam_module("job").Create(name, [model])
+    use_surface_stock(job)
+    set_post_processor(job, post)
     tc = make_ballend_controller(tool_diameter, cutting, doc=doc)
     for old in list(job.Tools.Group):
         job.Tools.removeObject(old)
@@ -87,6 +97,146 @@ def _remove_tool_bit(doc, bit) -> None:
         doc.removeObject(name)
 
 
+def set_post_processor(job, post: str) -> None:
+    """Make ``post`` the job's PostProcessor (what CAM's own post command runs), if it differs."""
+    if getattr(job, "PostProcessor", post) != post:
+        compat.set_enumeration(job, "PostProcessor", post)
+
+
+# --- the stock and the heights from the exact surface ---------------------------------------
+def _is_surface(obj) -> bool:
+    from .surface_feature import is_surface
+
+    return is_surface(obj)
+
+
+def model_surfaces(models) -> list[tuple]:
+    """(surface object, model clone or None) per BSplineCAM surface behind ``models``."""
+    found = []
+    for model in models:
+        if _is_surface(model):
+            found.append((model, None))
+            continue
+        for candidate in [*getattr(model, "Objects", []), *getattr(model, "OutList", [])]:
+            if _is_surface(candidate):
+                found.append((candidate, model))
+                break
+    return found
+
+
+def surface_in_job(source, clone=None):
+    """The core Surface of a surface object in job coordinates: its global placement and
+    the job's model clone's placement applied to the control points (exact for affine maps)."""
+    import numpy as np
+
+    from ..core import Surface
+
+    surface = source.Proxy.surface(source)
+    matrix = source.getGlobalPlacement().toMatrix()
+    if clone is not None:
+        matrix = clone.Placement.toMatrix().multiply(matrix)
+    affine = np.array([[matrix.A[4 * r + c] for c in range(4)] for r in range(3)])
+    if not np.allclose(affine, np.eye(4)[:3]):
+        points = surface.control_points @ affine[:, :3].T + affine[:, 3]
+        surface = Surface(points, surface.knots, surface.name)
+    return surface
+
+
+def model_extent(models):
+    """A FreeCAD.BoundBox of ``models``: exact for BSplineCAM surfaces (the core's evaluation
+    of the surface, down to the solid's base plane), OCCT's box for any other model; None
+    when there is nothing.  Never OCCT's box of a B-spline face (it encloses the poles)."""
+    from .part import surface_extent
+
+    box = None
+    exact = model_surfaces(models)
+    covered = {id(clone or source) for source, clone in exact}
+    for source, clone in exact:
+        e = surface_extent(surface_in_job(source, clone))
+        z_min = e.z_min - float(source.BaseOffset) if getattr(source, "MakeSolid", False) else e.z_min
+        part = FreeCAD.BoundBox(e.x_min, e.y_min, z_min, e.x_max, e.y_max, e.z_max)
+        box = part if box is None else box.united(part)
+    for model in models:
+        if id(model) in covered or not hasattr(model, "Shape") or model.Shape.isNull():
+            continue
+        box = model.Shape.BoundBox if box is None else box.united(model.Shape.BoundBox)
+    return box
+
+
+def stock_box(stock):
+    """The box (FreeCAD.BoundBox, job coordinates) of a stock made from the job's models:
+    their exact extent plus the stock's Ext* allowances (mm); None without models."""
+    group = getattr(getattr(stock, "Base", None), "Group", None)
+    box = model_extent(group) if group else None
+    if box is None:
+        return None
+    return FreeCAD.BoundBox(
+        box.XMin - stock.ExtXneg.Value, box.YMin - stock.ExtYneg.Value, box.ZMin - stock.ExtZneg.Value,
+        box.XMax + stock.ExtXpos.Value, box.YMax + stock.ExtYpos.Value, box.ZMax + stock.ExtZpos.Value)
+
+
+@functools.cache
+def _surface_stock_class():
+    """:class:`SurfaceStock`, made on first use: its base is CAM's StockFromBase, whose module
+    differs between the series and is imported only when a job needs it."""
+
+    class SurfaceStock(compat.cam_module("stock").StockFromBase):
+        """CAM's stock "from base" (same properties and panel), sized from the exact surface.
+
+        CAM's own stock takes OCCT's box of the model (a B-spline face's poles, or its mesh
+        once the view draws it, so the box moves with the view) and keeps the placement it had
+        when it was made; this one takes :func:`stock_box` and follows the model when its
+        surface changes (the stock depends on the job's model group, so a recompute updates it).
+        """
+
+        def execute(self, obj) -> None:
+            box = stock_box(obj)
+            if box is None:
+                super().execute(obj)
+                return
+            import Part
+
+            corner = FreeCAD.Vector(box.XMin, box.YMin, box.ZMin)
+            placement = FreeCAD.Placement(corner, FreeCAD.Rotation())
+            current = obj.Placement
+            if (current.Base - corner).Length > 1e-12 or abs(current.Rotation.Angle) > 1e-12:
+                obj.Placement = placement
+            self.origin = FreeCAD.Vector()
+            self.length, self.width, self.height = box.XLength, box.YLength, box.ZLength
+            shape = Part.makeBox(box.XLength, box.YLength, box.ZLength)
+            shape.Placement = placement
+            obj.Shape = shape
+
+    SurfaceStock.__module__ = __name__
+    SurfaceStock.__qualname__ = "SurfaceStock"
+    return SurfaceStock
+
+
+def __getattr__(name: str):
+    """``cam.SurfaceStock`` (what documents name as the stock's proxy class), made lazily."""
+    if name == "SurfaceStock":
+        return _surface_stock_class()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def use_surface_stock(job) -> bool:
+    """Give a job's stock "from base" the :class:`SurfaceStock` proxy (new jobs, and jobs
+    saved before it existed) when the job machines a BSplineCAM surface; True if changed."""
+    stock = getattr(job, "Stock", None)
+    proxy = getattr(stock, "Proxy", None)
+    base_class = compat.cam_module("stock").StockFromBase
+    if stock is None or type(proxy) is not base_class or not hasattr(stock, "ExtZpos"):
+        return False
+    if not model_surfaces(getattr(stock.Base, "Group", [])):
+        return False
+    surface_stock = _surface_stock_class()
+    new = surface_stock.__new__(surface_stock)
+    new.__dict__.update(getattr(proxy, "__dict__", {}))
+    stock.Proxy = new
+    stock.touch()
+    return True
+
+
 def post_objects(job) -> list:
     """Objects in posting order: per operation its tool controller (on change) and the op."""
     objects = []
@@ -102,8 +252,12 @@ def post_objects(job) -> list:
     return objects
 
 
-def post_process(job, post: str = "linuxcnc", path: str | os.PathLike | None = None, header: bool = False) -> str:
+def post_process(job, post: str = "linuxcnc", path: str | os.PathLike | None = None, header: bool = False,
+                 remember: bool = True) -> str:
     """G-code of ``job`` by FreeCAD's post-processor ``post`` (linuxcnc, grbl, fanuc, ...).
+
+    ``remember`` makes ``post`` the job's PostProcessor (the user's choice, which CAM's own
+    post command then uses); a check that only reads the program passes False.
 
     The program is written to ``path`` only when complete (through a temporary file beside
     it).  Header and editor are off by default, for deterministic output.
@@ -111,6 +265,9 @@ def post_process(job, post: str = "linuxcnc", path: str | os.PathLike | None = N
     objects = post_objects(job)
     if not objects:
         raise ValueError(f"job {job.Label!r} has no active operation to post")
+    compat.post_module(post)  # an unknown post is named before anything changes
+    if remember:
+        set_post_processor(job, post)
     folder = Path(path).parent if path is not None else Path(tempfile.gettempdir())
     folder.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=".post-", suffix=".ngc", dir=folder)

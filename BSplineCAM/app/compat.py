@@ -105,6 +105,7 @@ _CAM_MODULES = {
     "controller": ("PathScripts.PathToolController", "Path.Tool.Controller", "Path.Tool.Controller"),
     "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface", "Path.Op.Surface"),
     "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils", "PathScripts.PathUtils"),
+    "stock": ("PathScripts.PathStock", "Path.Main.Stock", "Path.Main.Stock"),
     # GUI layer only (view providers); imported by gui/ when FreeCAD.GuiUp
     "toolbit_gui": ("PathScripts.PathToolBitGui", "Path.Tool.Gui.Bit", "Path.Tool.toolbit.ui.view"),
     "job_gui": ("PathScripts.PathJobGui", "Path.Main.Gui.Job", "Path.Main.Gui.Job"),
@@ -331,3 +332,34 @@ class _LegacyToolController:
 
     def __getattr__(self, name):
         return getattr(self._controller, name)
+
+
+def set_enumeration(obj, name: str, value: str) -> None:
+    """Set an enumeration property, adding ``value`` to its choices when missing (0.20 lists
+    only the post-processors enabled in the preferences in a job's ``PostProcessor``)."""
+    choices = list(obj.getEnumerationsOfProperty(name) or [])
+    if value not in choices:
+        current = getattr(obj, name)
+        setattr(obj, name, [*choices, value])
+        if current in choices:
+            setattr(obj, name, current)
+    setattr(obj, name, value)
+
+
+def make_proxy_restorable(obj) -> bool:
+    """Keep a CAM object's Python proxy from failing to restore ("setAttr failed" in red).
+
+    FreeCAD saves a proxy without ``dumps``/``__getstate__`` of its own through Python's
+    ``object.__getstate__`` (3.11+), which gives None for an empty ``__dict__``; on reading,
+    a proxy without ``loads``/``__setstate__`` then has None assigned to its ``__dict__``,
+    which fails.  CAM's ToolController (0.20, 1.0 and 1.1) is such a proxy.  One attribute in
+    its ``__dict__`` makes it save a dict, which restores.  True if the proxy was changed.
+    """
+    proxy = getattr(obj, "Proxy", None)
+    if proxy is None or not hasattr(proxy, "__dict__"):
+        return False
+    own = {name for klass in type(proxy).__mro__[:-1] for name in vars(klass)}
+    if own & {"dumps", "__getstate__", "loads", "__setstate__"} or proxy.__dict__:
+        return False
+    proxy.__dict__["restorable"] = True
+    return True

@@ -62,27 +62,66 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         obj.Version = OBJECT_VERSION
 
     def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
+        """Rebuild what the proxy needs from properties (a restored proxy has only its class):
+        missing properties, the job's exact-surface stock, a restorable tool controller."""
         self.ensure_properties(obj)
+        from . import cam
+
+        job = self.job_of(obj)
+        if job is not None:
+            cam.use_surface_stock(job)
+        if getattr(obj, "ToolController", None) is not None:
+            compat.make_proxy_restorable(obj.ToolController)
 
     def opSetDefaultValues(self, obj, job):  # noqa: N802 - FreeCAD API
         if obj.Surface is None:
             obj.Surface = find_surface_object(job)
 
+    def job_of(self, obj):
+        """The op's job, found from the document (never from state a restored proxy lacks)."""
+        return compat.cam_module("utils").findParentJob(obj)
+
     def surface(self, obj) -> Surface:
         """The exact surface in job coordinates (the model clone's placement applied)."""
-        source = obj.Surface or find_surface_object(self.job)
+        from . import cam
+
+        job = self.job_of(obj)
+        source = obj.Surface or find_surface_object(job)
         if source is None:
             raise ValueError(f"{obj.Label}: the job has no BSplineCAM surface to machine")
-        surface = source.Proxy.surface(source)
-        matrix = source.getGlobalPlacement().toMatrix()
-        clone = _model_clone_of(self.job, source)
-        if clone is not None:
-            matrix = clone.Placement.toMatrix().multiply(matrix)
-        affine = np.array([[matrix.A[4 * r + c] for c in range(4)] for r in range(3)])
-        if not np.allclose(affine, np.eye(4)[:3]):
-            points = surface.control_points @ affine[:, :3].T + affine[:, 3]
-            surface = Surface(points, surface.knots, surface.name)
-        return surface
+        return cam.surface_in_job(source, _model_clone_of(job, source))
+
+    def opUpdateDepths(self, obj):  # noqa: N802 - FreeCAD API
+        """Depths and the stock top from the exact surface, not OCCT's box of the model.
+
+        CAM's updateDepths takes the final depth from OCCT's box of the model (a B-spline
+        face's box encloses its poles) and the stock top from the stock object (which may not
+        be recomputed yet after an edit); here Final Depth is the surface's lowest point and
+        Start Depth and OpStockZMax (the clearance and safe heights' base) the top of the
+        stock computed from the exact surface (:func:`cam.stock_box`), so they move with the
+        surface and are the same on every recompute.
+        """
+        from . import cam
+        from .part import surface_extent
+
+        job = self.job_of(obj)
+        try:
+            extent = surface_extent(self.surface(obj))
+        except (ValueError, RuntimeError):
+            return  # no surface: opExecute names the problem
+        stock = getattr(job, "Stock", None) if job is not None else None
+        if stock is not None and hasattr(stock, "ExtZpos"):
+            box = cam.stock_box(stock)  # a stock "from base": around the exact surface
+        elif stock is not None and not stock.Shape.isNull():
+            box = stock.Shape.BoundBox  # the user's box or cylinder: its own exact box
+        else:
+            box = None
+        top = max(box.ZMax, extent.z_max) if box is not None else extent.z_max
+        bottom = box.ZMin if box is not None else extent.z_min
+        _set_length(obj, "OpStockZMax", top)
+        _set_length(obj, "OpStockZMin", bottom)
+        _set_length(obj, "OpFinalDepth", extent.z_min)
+        _set_length(obj, "OpStartDepth", top)
 
     def opExecute(self, obj):  # noqa: N802 - FreeCAD API
         """Record a failure in ``Report`` (for headless callers) before FreeCAD marks the op."""
@@ -106,35 +145,56 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         if "ball" not in shape_name.lower():
             raise ValueError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
         surface = self.surface(obj)
-        toolpath = generate(
-            surface,
-            strategy=obj.Strategy,
-            tool_diameter=2.0 * self.radius,
-            scallop=obj.ScallopHeight.Value,
-            tolerance=obj.Tolerance.Value,
-            angle=obj.Angle.Value,
-            direction=obj.Direction,
-            iso_direction=obj.IsoDirection,
-            clearance_height=obj.ClearanceHeight.Value,
-            progress=progress_reporter(obj),
-        )
+        try:
+            toolpath = generate(
+                surface,
+                strategy=obj.Strategy,
+                tool_diameter=2.0 * self.radius,
+                scallop=obj.ScallopHeight.Value,
+                tolerance=obj.Tolerance.Value,
+                angle=obj.Angle.Value,
+                direction=obj.Direction,
+                iso_direction=obj.IsoDirection,
+                clearance_height=obj.ClearanceHeight.Value,
+                progress=progress_reporter(obj),
+            )
+        except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
+            from .progress import previous_commands, report_cancelled
+
+            self.commandlist[:] = previous_commands(obj)
+            report_cancelled(obj, exc)
+            return
         if not toolpath.passes:
             raise ValueError(f"{obj.Label}: the strategy produced no pass")
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
-        moves = toolpath_common.to_moves(toolpath, obj.ClearanceHeight.Value, max(obj.SafeHeight.Value, lowest))
-        self.commandlist.extend(moves_to_commands(moves, self.horizFeed, self.vertFeed))
-        obj.Report = json.dumps(report(toolpath), sort_keys=True)
+        clearance = obj.ClearanceHeight.Value
+        moves = toolpath_common.to_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest))
+        commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
+        self.commandlist.extend(commands)
+        obj.Report = json.dumps(report(toolpath, commands), sort_keys=True)
         for region in toolpath.unreachable:
             FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
 
 
-def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float) -> list:
+def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,
+                      clearance: float | None = None) -> list:
     """Path commands for core moves; plunges (pure -Z feeds) use the vertical feed (mm/min).
 
+    With ``clearance`` (absolute Z, mm) the program starts as FreeCAD's own ops do: a lone
+    rise ``G0 Z<clearance>`` from wherever the tool stands (after a tool change, or jogged
+    low), then the rapid in XY alone to above the first pass, then the descent.
     FreeCAD's Path stores feeds in mm/s; post-processors convert to the machine's units.
     """
     commands = []
     last = None
+    moves = list(moves)
+    if clearance is not None and moves:
+        commands.append(Path.Command("G0", {"Z": float(clearance)}))
+        first = moves[0]
+        if first.kind == "rapid" and abs(first.z - clearance) < 1e-9:
+            commands.append(Path.Command("G0", {"X": first.x, "Y": first.y}))
+            last = (first.x, first.y, first.z)
+            moves = moves[1:]
     for move in moves:
         target = {"X": move.x, "Y": move.y, "Z": move.z}
         if move.kind == "rapid":
@@ -147,20 +207,42 @@ def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float) -> li
     return commands
 
 
-def report(toolpath) -> dict:
+def feed_length(commands) -> float:
+    """Length (mm) of the feed moves (G1) of Path commands, each from the previous position:
+    the cutting length Verify measures on the posted program's text."""
+    total = 0.0
+    position = None
+    for command in commands:
+        params = command.Parameters
+        if command.Name not in ("G0", "G00", "G1", "G01") or not params:
+            continue
+        target = [params.get(axis, position[i] if position else 0.0) for i, axis in enumerate("XYZ")]
+        if command.Name in ("G1", "G01") and position is not None:
+            total += float(np.linalg.norm(np.subtract(target, position)))
+        position = target
+    return total
+
+
+def report(toolpath, commands=None) -> dict:
+    """The op's statistics.  ``cutting_length_mm`` is the length of the program's feed moves
+    (approach feeds included), one definition with Verify's; ``pass_length_mm`` is the length
+    along the passes and stay-down links alone (the core's figure)."""
     stats = toolpath.stats
+    cutting = stats.cutting_length_mm if commands is None else feed_length(commands)
     return {
         "strategy": toolpath.strategy,
         "passes": stats.passes,
         "moves": stats.moves,
-        "cutting_length_mm": round(stats.cutting_length_mm, 6),
+        "cutting_length_mm": round(cutting, 6),
+        "pass_length_mm": round(stats.cutting_length_mm, 6),
         "seconds": round(stats.seconds, 4),
         "unreachable": [getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
     }
 
 
 def progress_reporter(obj):
-    """Progress shown in the GUI (when up) as FreeCAD's progress indicator; None headless."""
+    """The GUI's progress reporter (status-bar bar, Cancel and Esc raise ToolpathCancelled);
+    None headless.  See :mod:`BSplineCAM.app.progress`."""
     if not FreeCAD.GuiUp:
         return None
     from .progress import op_progress
@@ -182,10 +264,18 @@ def find_surface_object(job):
 def _model_clone_of(job, source):
     if job is None:
         return None
-    for model in job.Model.Group:
-        if model is not source and source in [*getattr(model, "Objects", []), *getattr(model, "OutList", [])]:
-            return model
+    from .cam import model_surfaces
+
+    for found, clone in model_surfaces(job.Model.Group):
+        if found is source:
+            return clone
     return None
+
+
+def _set_length(obj, name: str, value: float) -> None:
+    """Set a length property only when it changes (no needless touch)."""
+    if abs(getattr(obj, name).Value - value) > 1e-9:
+        setattr(obj, name, value)
 
 
 def _is_surface(obj) -> bool:

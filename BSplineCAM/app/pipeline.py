@@ -31,14 +31,16 @@ class FinishingParameters:
     iso_direction: str = "u"
 
 
-def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc):
-    """The surface object (solid), a job with a ball-end tool controller, and the finishing op."""
+def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc,
+              post: str = cam.DEFAULT_POST):
+    """The surface object (solid), a job with a ball-end tool controller and ``post`` as its
+    PostProcessor, and the finishing op."""
     from .finishing_op import Create
     from .surface_feature import make_surface
 
     model = make_surface(surface, doc=doc, solid=True)
     doc.recompute()
-    job = cam.make_job(model, params.tool_diameter, cutting)
+    job = cam.make_job(model, params.tool_diameter, cutting, post=post)
     op = Create("SurfaceFinish", parentJob=job)
     op.Surface = model
     op.Strategy = params.strategy
@@ -67,7 +69,7 @@ def machine(
     doc = FreeCAD.newDocument("BSplineCAMJob")
     try:
         started = time.perf_counter()
-        _, job, op = build_job(surface, params, cutting, doc)
+        _, job, op = build_job(surface, params, cutting, doc, post)
         doc.recompute()
         report = json.loads(op.Report or "{}")
         if "error" in report or not op.Path.Commands:

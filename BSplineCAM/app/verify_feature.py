@@ -202,7 +202,8 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
         progress(0.05)
         parsed = read_gcode(gcode, source=program)
         progress(0.15)
-        result = verify(surface, parsed, Tool(float(tool_diameter)), cell)
+        result = verify(surface, parsed, Tool(float(tool_diameter)), cell,
+                        progress=lambda f: progress(0.15 + 0.65 * f))
         progress(0.8)
         data = zmap_mesh(result, stride)
         mesh = to_mesh(data)
@@ -249,7 +250,7 @@ def deviation_of(obj) -> np.ndarray:
 def job_program(job, post: str = "linuxcnc") -> str:
     """The job's program posted (header off) to a temporary file and read back as text."""
     with tempfile.TemporaryDirectory(prefix="bsplinecam-verify-") as tmp:
-        return cam.post_process(job, post, Path(tmp) / "job.ngc")
+        return cam.post_process(job, post, Path(tmp) / "job.ngc", remember=False)
 
 
 def finishing_ops(job) -> list:
@@ -268,7 +269,7 @@ def job_of(obj):
     if hasattr(obj, "Operations") and hasattr(obj, "Tools"):
         return obj
     if isinstance(getattr(obj, "Proxy", None), ObjectSurfaceFinish):
-        return obj.Proxy.getJob(obj) if hasattr(obj.Proxy, "getJob") else _parent_job(obj)
+        return obj.Proxy.job_of(obj) or _parent_job(obj)
     return _parent_job(obj)
 
 

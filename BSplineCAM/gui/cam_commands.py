@@ -9,7 +9,11 @@
   program is checked by LinuxCNC's ``rs274`` when installed, the result in the report view.
 * ``BSplineCAM_Verify``: the selected job's program (posted to a temporary linuxcnc file), or
   a chosen G-code file on the selected surface, simulated from its text; the simulated part
-  appears coloured by deviation and the metrics go to the report view.
+  appears coloured by deviation with a colour bar fixed to the screen, and the figures in a
+  task panel (selectable, with a Copy button) and the report view.
+
+Long computations show a progress bar with a Cancel button in the status bar (Esc cancels
+too; :mod:`.progress_bar`); a cancelled op keeps its previous toolpath.
 
 Like :mod:`.commands`, the work runs through ``FreeCADGui.doCommand`` inside a transaction;
 dialogs go through replaceable ``ask_*`` functions (tests answer them).
@@ -18,6 +22,7 @@ dialogs go through replaceable ``ask_*`` functions (tests answer them).
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import os
 from collections.abc import Iterator
@@ -31,9 +36,9 @@ from ..app import compat
 from ..app.proxy import StatelessProxy
 from ..app.surface_feature import is_surface
 from ..core.toolpath.common import ToolpathCancelled
-from . import commands
+from . import commands, progress_bar, results_panel
 from .commands import BaseCommand, obj_ref, transaction, wait_cursor
-from .messages import report_error, show_info
+from .messages import report_error, show_info, task_buttons
 from .resources import icon
 
 GCODE_FILTER = "G-code (*.ngc *.nc *.gcode *.tap *.txt);;All files (*)"
@@ -168,7 +173,10 @@ def create_job(surface, params, cutting) -> tuple:
         job = next(o for o in made if is_job(o))
         op = next(o for o in made if is_finishing_op(o))
         attach_job_view_providers(job, op)
-        FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
+        try:
+            FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
+        finally:
+            progress_bar.finish()
         check_op(op)
     FreeCADGui.doCommand(f"{gui_ref(surface)}.Visibility = False")  # the job's clone shows it
     return job, op
@@ -176,6 +184,8 @@ def create_job(surface, params, cutting) -> tuple:
 
 def check_op(op) -> None:
     """Raise if the op's computation failed or was interrupted (its toolpath is unusable)."""
+    if progress_bar.cancelled(op):
+        raise ToolpathCancelled(f"{op.Label}: cancelled by the user; nothing was changed")
     status = op.getStatusString() if hasattr(op, "getStatusString") else ""
     if "interrupted" in status:
         raise ToolpathCancelled(f"{op.Label}: {status}; nothing was changed")
@@ -197,9 +207,12 @@ class JobPanel:
         self.surface = surface
         self.job = self.op = None
         self.form = QtGui.QWidget()
-        self.form.setWindowTitle(f"Machining job for {surface.Label}")
+        self.form.setWindowTitle("Machining job")  # short: the task box is as wide as its title
         self.form.setWindowIcon(QtGui.QIcon(icon("job")))
         layout = QtGui.QFormLayout(self.form)
+        layout.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)  # narrow docks: labels above
+        layout.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
+        self.layout = layout
 
         def spin(value, low, high, decimals, suffix, step):
             box = QtGui.QDoubleSpinBox()
@@ -223,9 +236,12 @@ class JobPanel:
         self.angle = spin(0.0, -360.0, 360.0, 2, " °", 15.0)
         self.direction = combo(DIRECTIONS, "zigzag")
         self.iso_direction = combo(ISO_DIRECTIONS, "u")
-        self.horizontal_feed = spin(1200.0, 0.0, 100000.0, 1, " mm/min", 100.0)
-        self.vertical_feed = spin(400.0, 0.0, 100000.0, 1, " mm/min", 50.0)
+        self.horizontal_feed = spin(1200.0, 0.0, 100000.0, 0, " mm/min", 100.0)
+        self.vertical_feed = spin(400.0, 0.0, 100000.0, 0, " mm/min", 50.0)
         self.spindle = spin(12000.0, 0.0, 100000.0, 0, " rpm", 500.0)
+        target = QtGui.QLabel(surface.Label)
+        target.setWordWrap(True)
+        layout.addRow("Surface", target)
         for label, widget, tip in (
             ("Ball-end diameter", self.tool, "Diameter of the ball-end cutter"),
             ("Scallop height", self.scallop, "Largest cusp left between passes"),
@@ -239,12 +255,30 @@ class JobPanel:
             ("Spindle speed", self.spindle, "Spindle speed (forward)"),
         ):
             widget.setToolTip(tip)
+            widget.setMinimumWidth(60)
             layout.addRow(label, widget)
         self.message = QtGui.QLabel("")
         self.message.setWordWrap(True)
         self.message.setStyleSheet("color: #b00000")
         layout.addRow(self.message)
+        self.strategy.currentIndexChanged.connect(self.show_strategy_fields)
+        self.show_strategy_fields()
         JobPanel.last = self
+
+    #: The fields each strategy reads (the others are hidden).
+    STRATEGY_FIELDS = {"raster": ("angle", "direction"), "waterline": (),
+                       "isoparametric": ("iso_direction", "direction")}
+
+    def show_strategy_fields(self, *_args) -> None:
+        """Show the raster angle, direction and iso direction only where they apply."""
+        wanted = self.STRATEGY_FIELDS.get(self.strategy.currentText(), ())
+        for name in ("angle", "direction", "iso_direction"):
+            widget = getattr(self, name)
+            shown = name in wanted
+            widget.setVisible(shown)
+            label = self.layout.labelForField(widget)
+            if label is not None:
+                label.setVisible(shown)
 
     def parameters(self) -> tuple:
         """(FinishingParameters, Cutting) from the form; ValueError names a bad field."""
@@ -265,7 +299,7 @@ class JobPanel:
         return params, cutting
 
     def getStandardButtons(self) -> int:  # noqa: N802 - FreeCAD API
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+        return task_buttons(QtGui.QDialogButtonBox.Ok, QtGui.QDialogButtonBox.Cancel)
 
     def accept(self) -> bool:
         """Validate, compute; the panel stays open (with the reason) when anything fails."""
@@ -302,13 +336,29 @@ class MakeJob(BaseCommand):
                 "scallop height, tolerance, strategy and feeds in a task panel")
 
     def active(self) -> bool:
-        return selected_surface() is not None and not FreeCADGui.Control.activeDialog()
+        return selected_surface() is not None and not results_panel.editing_dialog()
 
     def run(self) -> None:
-        FreeCADGui.Control.showDialog(JobPanel(selected_surface()))
+        surface = selected_surface()
+        results_panel.close_results()
+        FreeCADGui.Control.showDialog(JobPanel(surface))
 
 
 # -- post-processing -------------------------------------------------------------------------
+@contextlib.contextmanager
+def quiet_posts() -> Iterator[None]:
+    """FreeCAD's post scripts print chatter ("Show editor = 0", "postprocessing...") to
+    stdout, which the GUI shows in the report view: keep it in FreeCAD's log instead."""
+    chatter = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(chatter):
+            yield
+    finally:
+        for line in chatter.getvalue().splitlines():
+            if line.strip():
+                FreeCAD.Console.PrintLog(f"post-processor: {line}\n")
+
+
 def tool_table(job) -> dict[int, float]:
     return {int(tc.ToolNumber): float(tc.Tool.Diameter) for tc in job.Tools.Group}
 
@@ -339,7 +389,7 @@ class PostProcess(BaseCommand):
                                       f"{job.Label}{POST_SUFFIX.get(post, '.nc')}")
         if not path:
             return
-        with wait_cursor(), transaction("Post-process", job.Document):
+        with wait_cursor(), transaction("Post-process", job.Document), quiet_posts():
             FreeCADGui.doCommand("from BSplineCAM.app import cam")
             FreeCADGui.doCommand(f"cam.post_process({obj_ref(job)}, {post!r}, {path!r})")
         if not os.path.isfile(path):
@@ -369,7 +419,7 @@ class Verify(BaseCommand):
     menu_text = "Verify G-code..."
     tool_tip = ("Simulate the selected job's program (or a G-code file on the selected "
                 "surface) on a Z-map and show the part coloured by deviation: blue material "
-                "left, green on design, red gouge; metrics in the report view")
+                "left, green on design, red gouge; the figures in a task panel")
 
     def active(self) -> bool:
         return selected_job() is not None or selected_surface() is not None
@@ -391,9 +441,23 @@ class Verify(BaseCommand):
             if not diameter > 0:
                 return
             call = f"verify_feature.verify_file({obj_ref(surface)}, {path!r}, {diameter!r})"
-        with wait_cursor(), transaction("Verify G-code", doc):
-            FreeCADGui.doCommand("from BSplineCAM.app import verify_feature")
-            FreeCADGui.doCommand(f"verification = {call}")
+        earlier = progress_bar.ProgressBar.last
+        try:
+            with wait_cursor(), transaction("Verify G-code", doc), quiet_posts():
+                FreeCADGui.doCommand("from BSplineCAM.app import verify_feature")
+                FreeCADGui.doCommand(f"verification = {call}")
+        except Exception as exc:
+            # doCommand may hand the core's ToolpathCancelled on as another exception type
+            last = progress_bar.ProgressBar.last
+            if not (isinstance(exc, ToolpathCancelled)
+                    or (last is not earlier and last is not None and last.cancelled)):
+                raise
+            done = 100 * last.fraction if last is not None else 0.0
+            FreeCAD.Console.PrintMessage(f"Verify G-code: cancelled by the user at {done:.0f} % "
+                                         "of the work; nothing was changed\n")
+            return
+        finally:
+            progress_bar.finish()
         made = [o for o in doc.Objects if o.Name not in before]
         for obj in hidden_by_verification(job, surface):
             FreeCADGui.doCommand(f"{gui_ref(obj)}.Visibility = False")
@@ -405,6 +469,7 @@ class Verify(BaseCommand):
                       f"{100 * metrics['coverage']:.1f} %")
             FreeCADGui.Selection.clearSelection()
             FreeCADGui.Selection.addSelection(result)
+            results_panel.show(results_panel.verification_panel(result))
 
 
 def hidden_by_verification(job, surface) -> list:

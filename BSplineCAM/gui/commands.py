@@ -139,6 +139,8 @@ class NewSurface(BaseCommand):
             FreeCADGui.doCommand("App.ActiveDocument.recompute()")
         FreeCADGui.doCommand("Gui.Selection.clearSelection()")
         FreeCADGui.doCommand("Gui.Selection.addSelection(obj)")
+        # isometric: hill and hollow show (from the top they are invisible)
+        FreeCADGui.doCommand("Gui.activeDocument().activeView().viewIsometric()")
         FreeCADGui.doCommand("Gui.SendMsgToActiveView('ViewFit')")
 
 
@@ -149,10 +151,15 @@ class EditNet(BaseCommand):
     tool_tip = "Edit the selected surface's control points in a table, with live preview"
 
     def active(self) -> bool:
-        return len(selected_surfaces()) == 1 and not FreeCADGui.Control.activeDialog()
+        from .results_panel import editing_dialog
+
+        return len(selected_surfaces()) == 1 and not editing_dialog()
 
     def run(self) -> None:
+        from .results_panel import close_results
+
         obj = selected_surfaces()[0]
+        close_results()
         # the panel opens (and commits or aborts) its own transaction
         FreeCADGui.doCommand(
             f"Gui.getDocument({obj.Document.Name!r}).setEdit({obj.Name!r}, 0)"
@@ -170,11 +177,17 @@ class CrossCheck(BaseCommand):
         return bool(target_surfaces())
 
     def run(self) -> None:
+        import json
+
+        from . import results_panel
+
         targets = target_surfaces()
         with wait_cursor(), transaction("Cross-check"):
             FreeCADGui.doCommand("from BSplineCAM.app.surface_feature import run_crosscheck")
             for obj in targets:
                 FreeCADGui.doCommand(f"report = run_crosscheck({obj_ref(obj)})")
+        reports = [(obj, json.loads(obj.CrossCheck or "{}")) for obj in targets]
+        results_panel.show(results_panel.crosscheck_panel(reports))
 
 
 class ExportDat(BaseCommand):

@@ -24,3 +24,15 @@ def show_info(title: str, message: str) -> None:
     """Report view, plus the status bar so a long result does not need a dialog."""
     FreeCAD.Console.PrintMessage(f"{title}: {message}\n")
     FreeCADGui.getMainWindow().statusBar().showMessage(f"{title}: {message}", 15000)
+
+
+def task_buttons(*buttons) -> int:
+    """The int a task panel's ``getStandardButtons`` returns for QDialogButtonBox buttons.
+
+    PySide2 (FreeCAD 0.20, 1.0) turns its enums into ints with ``int()``; PySide6 (FreeCAD
+    1.1) has Python enums whose ``value`` is the int (``int()`` on them raises).
+    """
+    flags = 0
+    for button in buttons:
+        flags |= int(getattr(button, "value", button))
+    return flags

@@ -13,6 +13,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from ..app.surface_feature import KNOT_LAYOUTS, set_control_point
+from .messages import task_buttons
 from .resources import icon
 
 AXES = ("X", "Y", "Z")
@@ -34,16 +35,20 @@ class NetEditPanel:
     # -- the form ------------------------------------------------------------------------------
     def _build_form(self) -> QtGui.QWidget:
         form = QtGui.QWidget()
-        form.setWindowTitle(f"Control net of {self.obj.Label}")
+        form.setWindowTitle("Control net")  # short: FreeCAD's task box is as wide as its title
         form.setWindowIcon(QtGui.QIcon(icon("edit_net")))
         layout = QtGui.QVBoxLayout(form)
         top = QtGui.QFormLayout()
+        top.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)  # narrow docks: labels above
         self.knots = QtGui.QComboBox()
         self.knots.addItems(KNOT_LAYOUTS)
         self.knots.setCurrentIndex(KNOT_LAYOUTS.index(self.original_knots))
         self.knots.currentIndexChanged.connect(self._knots_changed)
         top.addRow("Knots", self.knots)
-        top.addRow("Net", QtGui.QLabel(f"{self.rows} x {self.cols} points (rows u, columns w)"))
+        size = QtGui.QLabel(f"{self.obj.Label}: {self.rows} x {self.cols} points (rows u, "
+                            "columns w)")
+        size.setWordWrap(True)
+        top.addRow("Net", size)
         self.live = QtGui.QCheckBox("Live preview")
         self.live.setChecked(True)
         self.live.toggled.connect(self._live_toggled)
@@ -58,6 +63,13 @@ class NetEditPanel:
         self.table.itemChanged.connect(self._item_changed)
         self.table.setMinimumHeight(300)
         layout.addWidget(self.table)
+        # bad entries are explained here, beside the table, not only in the report view
+        self.message = QtGui.QLabel("")
+        self.message.setObjectName("validation")
+        self.message.setWordWrap(True)
+        self.message.setStyleSheet("color: #b00000")
+        self.message.hide()
+        layout.addWidget(self.message)
         return form
 
     def _fill_table(self) -> None:
@@ -90,19 +102,29 @@ class NetEditPanel:
     def _item_changed(self, item) -> None:
         try:
             value = float(item.text())
+            if value != value or value in (float("inf"), float("-inf")):
+                raise ValueError(item.text())
         except ValueError:
-            FreeCAD.Console.PrintWarning(f"BSplineCAM: {item.text()!r} is not a number (mm)\n")
             old = self.obj.ControlPoints[item.row()][item.column()]
+            i, j = divmod(item.row(), self.cols)
+            self.show_message(f"Point {i},{j} {AXES[item.column()]}: {item.text()!r} is not a "
+                              f"number (mm); it keeps {old:.6g} mm")
             self.table.blockSignals(True)
             item.setText(f"{old:.6g}")
             self.table.blockSignals(False)
             return
+        self.show_message("")
         if self.live.isChecked():
             index = item.row()
             point = list(self.obj.ControlPoints[index])
             point[item.column()] = value
             set_control_point(self.obj, index // self.cols, index % self.cols, point)
             self._preview()
+
+    def show_message(self, text: str) -> None:
+        """The inline validation message under the table ('' hides it)."""
+        self.message.setText(text)
+        self.message.setVisible(bool(text))
 
     def _knots_changed(self, _index: int) -> None:
         if self.live.isChecked():
@@ -130,7 +152,7 @@ class NetEditPanel:
 
     # -- task dialog API -----------------------------------------------------------------------
     def getStandardButtons(self) -> int:  # noqa: N802 - FreeCAD API
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+        return task_buttons(QtGui.QDialogButtonBox.Ok, QtGui.QDialogButtonBox.Cancel)
 
     def accept(self) -> bool:
         """Record the edits as Python in the macro recorder, recompute, commit."""

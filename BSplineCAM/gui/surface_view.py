@@ -2,7 +2,8 @@
 """View provider of the B-spline surface: Part's shaded face plus the control polygon in Coin.
 
 The control net is drawn under the object's own root node (so it follows the Placement) in a
-switch driven by the ``ShowControlNet`` view property.  Like the feature, the proxy keeps only
+switch driven by the ``ShowControlNet`` view property, on top of the surface (an annotation:
+control points under the surface stay visible).  Like the feature, the proxy keeps only
 Coin nodes it rebuilds in ``attach``; it pickles as None.
 """
 
@@ -62,7 +63,10 @@ class SurfaceViewProvider(StatelessProxy):
         ensure_view_properties(vobj)
         self.ViewObject = vobj
         self.switch = coin.SoSwitch()
-        sep = coin.SoSeparator()
+        # an annotation: drawn after the surface, without depth test, so the points under the
+        # surface (a hollow's) show through it instead of hiding half the net
+        sep = coin.SoAnnotation()
+        self.net_root = sep
         self.light = coin.SoLightModel()
         self.light.model = coin.SoLightModel.BASE_COLOR
         self.color = coin.SoBaseColor()
@@ -132,8 +136,11 @@ class SurfaceViewProvider(StatelessProxy):
         return True
 
     def doubleClicked(self, vobj) -> bool:  # noqa: N802 - FreeCAD API
-        if FreeCADGui.Control.activeDialog():
+        from .results_panel import close_results, editing_dialog
+
+        if editing_dialog():
             return False
+        close_results()
         FreeCADGui.ActiveDocument.setEdit(vobj.Object.Name, EDIT_MODE_NET)
         return True
 

@@ -5,8 +5,13 @@ Colours per top vertex from the object's ``Deviation`` (machined - design, mm): 
 ``Band`` of the design, blending to blue where material is left (full blue at the scallop
 scale) and to red where the tool gouged (full red at the gouge scale); walls and base grey.
 The mesh is drawn by our own Coin nodes (a ``Deviation`` display mode, per-vertex material)
-beside a colour bar standing at the part's +x/-y corner with its values in mm.  The proxy
-keeps only nodes that ``attach`` rebuilds; it pickles as None.
+with a colour bar fixed to the screen, as FEM's result colour bar: it hangs in the display
+mode under an orthographic camera of its own (``LEAVE_ALONE``: x and y in [-1, 1] span the
+view whatever the 3D camera does), in an annotation (drawn last, over the part) inside a
+group that fitAll leaves out.  Its size on screen does not change with zoom or rotation, and it
+never overlaps the part from a side.  The figures themselves are in the results task panel
+(:mod:`.results_panel`).  The proxy keeps only nodes that ``attach`` rebuilds; it pickles as
+None.
 """
 
 from __future__ import annotations
@@ -105,7 +110,10 @@ class VerificationViewProvider(StatelessProxy):
         for node in (hints, self.coords, top, sides):
             self.root.addChild(node)
         self.legend_switch = coin.SoSwitch()
-        self.legend = coin.SoSeparator()
+        self.legend = screen_overlay()
+        self.hud_camera = self.legend.getChild(0).getChild(0)
+        self.legend_content = coin.SoSeparator()
+        self.legend.getChild(0).addChild(self.legend_content)
         self.legend_switch.addChild(self.legend)
         self.root.addChild(self.legend_switch)
         vobj.addDisplayMode(self.root, MODE)
@@ -165,63 +173,118 @@ class VerificationViewProvider(StatelessProxy):
                 faces.materialIndex.setNum(len(index))
         self.material.diffuseColor.setValues(0, n, [tuple(map(float, c)) for c in self.colours])
         self.material.diffuseColor.setNum(n)
-        self._build_legend(mesh.BoundBox)
+        self._build_legend()
         self.legend_switch.whichChild = 0 if getattr(vobj, "ShowLegend", True) else -1
 
-    def _build_legend(self, box) -> None:
-        """A colour bar standing beside the part: red (gouge) at the bottom, blue on top."""
+    def _build_legend(self) -> None:
+        """The colour bar in screen coordinates: red (gouge) at the bottom, blue on top."""
         from pivy import coin
 
-        self.legend.removeAllChildren()
+        content = self.legend_content
+        content.removeAllChildren()
         band, scallop, gouge = self.scale
-        size = max(box.XLength, box.YLength, 1.0)
-        x0 = box.XMax + 0.06 * size
-        width = 0.05 * size
-        z0, height = box.ZMin, max(box.ZLength, 0.3 * size)
+        x0, x1 = LEGEND_X
+        y0, y1 = LEGEND_Y
         stops = [(-gouge, RED), (-band, GREEN), (band, GREEN), (scallop, BLUE)]
         # heights of the stops on the bar: gouge quarter, green band, scallop half
         levels = [0.0, 0.25, 0.45, 1.0]
         verts, colours = [], []
         for (_, colour), level in zip(stops, levels):
-            z = z0 + level * height
-            verts += [(x0, box.YMin, z), (x0 + width, box.YMin, z)]
+            y = y0 + level * (y1 - y0)
+            verts += [(x0, y, 0.0), (x1, y, 0.0)]
             colours += [tuple(map(float, colour))] * 2
-        bar = coin.SoSeparator()
-        hints = coin.SoShapeHints()  # seen from both sides (the part's hints cull back faces)
-        hints.shapeType = coin.SoShapeHints.UNKNOWN_SHAPE_TYPE
-        hints.vertexOrdering = coin.SoShapeHints.UNKNOWN_ORDERING
-        light = coin.SoLightModel()
-        light.model = coin.SoLightModel.BASE_COLOR
         binding = coin.SoMaterialBinding()
         binding.value = coin.SoMaterialBinding.PER_VERTEX
         material = coin.SoMaterial()
         material.diffuseColor.setValues(0, len(colours), colours)
-        coords = coin.SoCoordinate3()
+        self.legend_coords = coords = coin.SoCoordinate3()
         coords.point.setValues(0, len(verts), verts)
         strip = coin.SoQuadMesh()
         strip.verticesPerRow = 2
         strip.verticesPerColumn = len(levels)
-        for node in (hints, light, binding, material, coords, strip):
+        bar = coin.SoSeparator()
+        for node in (binding, material, coords, strip):
             bar.addChild(node)
-        self.legend.addChild(bar)
-        labels = [(levels[0], f"-{gouge:.3g} mm gouge"), (0.5 * (levels[1] + levels[2]),
-                  f"±{band:.3g} mm on design"), (levels[3], f"+{scallop:.3g} mm material left")]
+        content.addChild(bar)
+        labels = [(levels[0], f"-{gouge:.3g} mm gouge"),
+                  (0.5 * (levels[1] + levels[2]), f"\u00b1{band:.3g} mm on design"),
+                  (levels[3], f"+{scallop:.3g} mm material left"),
+                  (1.1, "Deviation from design")]
+        self.legend_labels = []
         for level, text in labels:
             node = coin.SoSeparator()
             move = coin.SoTranslation()
-            move.translation = (x0 + 1.3 * width, box.YMin, z0 + level * height)
+            # to the right of the bar, which stands at the view's left edge (FreeCAD 1.1 lays
+            # its task panel over the right of the view)
+            move.translation = (x1 + 0.012, y0 + level * (y1 - y0) - 0.01, 0.0)
             colour = coin.SoBaseColor()
             colour.rgb = (0.05, 0.05, 0.05)
             font = coin.SoFont()
             font.size = 14
             label = coin.SoText2()
             label.string = text
+            label.justification = coin.SoText2.LEFT
             for child in (move, colour, font, label):
                 node.addChild(child)
-            self.legend.addChild(node)
+            content.addChild(node)
+            self.legend_labels.append(text)
+
+    # -- editing: the figures in a task panel ----------------------------------------------------
+    def setEdit(self, vobj, mode: int = 0):  # noqa: N802 - FreeCAD API
+        if mode != 0:
+            return None
+        from . import results_panel
+
+        results_panel.show(results_panel.verification_panel(vobj.Object))
+        return True
+
+    def unsetEdit(self, vobj, mode: int = 0):  # noqa: N802 - FreeCAD API
+        if mode != 0:
+            return None
+        return True
+
+    def doubleClicked(self, vobj) -> bool:  # noqa: N802 - FreeCAD API
+        from . import results_panel
+
+        return results_panel.show(results_panel.verification_panel(vobj.Object))
 
     def getIcon(self) -> str:  # noqa: N802 - FreeCAD API
         return icon("verify")
+
+
+#: Where the colour bar stands on screen: x and y from -1 (left, bottom) to 1 (right, top).
+LEGEND_X = (-0.94, -0.90)
+LEGEND_Y = (-0.55, 0.45)
+
+
+def screen_overlay():
+    """Nodes drawn fixed to the screen: a group fitAll leaves out (FreeCAD's
+    SoSkipBoundingGroup), holding an annotation (drawn last, no depth test) whose first child
+    is an orthographic camera mapping x, y in [-1, 1] onto the whole view."""
+    from pivy import coin
+
+    kind = coin.SoType.fromName("SoSkipBoundingGroup")
+    # FreeCAD's fitAll switches its SoSkipBoundingGroups to EXCLUDE_BBOX while it measures
+    group = coin.SoSeparator() if kind.isBad() else kind.createInstance()
+    overlay = coin.SoAnnotation()
+    camera = coin.SoOrthographicCamera()
+    camera.viewportMapping = coin.SoCamera.LEAVE_ALONE
+    camera.position = (0.0, 0.0, 5.0)
+    camera.height = 2.0
+    camera.aspectRatio = 1.0
+    camera.nearDistance = 1.0
+    camera.farDistance = 10.0
+    light = coin.SoLightModel()
+    light.model = coin.SoLightModel.BASE_COLOR
+    pick = coin.SoPickStyle()
+    pick.style = coin.SoPickStyle.UNPICKABLE
+    hints = coin.SoShapeHints()  # seen from both sides (the part's hints cull back faces)
+    hints.shapeType = coin.SoShapeHints.UNKNOWN_SHAPE_TYPE
+    hints.vertexOrdering = coin.SoShapeHints.UNKNOWN_ORDERING
+    for node in (camera, light, pick, hints):
+        overlay.addChild(node)
+    group.addChild(overlay)
+    return group
 
 
 def attach_view_provider(obj) -> None:
