@@ -243,6 +243,57 @@ class TestBadInput(unittest.TestCase):
                 self.assertNotIn("Traceback", err.split("bsplinecam toolpath: error")[-1])
                 self.assertEqual(files, [])
 
+    def test_making_an_op_is_quiet(self):
+        """No "SetupSheet has no support for SurfaceFinish" (the op is registered with it)."""
+        doc = FreeCAD.newDocument("TestBSplineCAMJobQuiet")
+        sys.stdout.flush()
+        sys.stderr.flush()
+        saved = os.dup(1), os.dup(2)
+        with tempfile.TemporaryFile() as log:
+            os.dup2(log.fileno(), 1)
+            os.dup2(log.fileno(), 2)
+            try:
+                pipeline.build_job(case_study(), pipeline.FinishingParameters(TOOL, 0.05),
+                                   cam.Cutting(), doc)
+            finally:
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+                for fd in saved:
+                    os.close(fd)
+                FreeCAD.closeDocument(doc.Name)
+            log.seek(0)
+            text = log.read().decode("utf-8", "replace")
+        self.assertNotIn("has no support", text)
+
+    def test_op_refuses_feeds_and_spindle_out_of_range(self):
+        """The op applies the command line's ranges: an infinite or absurd value is named."""
+        doc = FreeCAD.newDocument("TestBSplineCAMJobBadFeeds")
+        try:
+            params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=0.05)
+            _, job, op = pipeline.build_job(case_study(), params, cam.Cutting(), doc)
+            doc.recompute()
+            good = op.Path.toGCode()
+            tc = op.ToolController
+            for prop, value, word in (("SpindleSpeed", float("inf"), "SpindleSpeed"),
+                                      ("SpindleSpeed", 1e9, "SpindleSpeed"),
+                                      ("HorizFeed", 1e-6, "HorizFeed")):
+                with self.subTest(prop=prop, value=value):
+                    saved = getattr(tc, prop)
+                    setattr(tc, prop, value)
+                    op.touch()
+                    doc.recompute()
+                    self.assertIn(word, json.loads(op.Report).get("error", ""))
+                    self.assertIn("rpm" if prop == "SpindleSpeed" else "mm/min",
+                                  json.loads(op.Report)["error"])
+                    setattr(tc, prop, saved)
+            op.touch()
+            doc.recompute()
+            self.assertEqual(op.Path.toGCode(), good)
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+
     def test_job_without_model(self):
         with self.assertRaisesRegex(ValueError, "needs a model"):
             cam.make_job(None, TOOL)

@@ -106,6 +106,7 @@ _CAM_MODULES = {
     "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface", "Path.Op.Surface"),
     "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils", "PathScripts.PathUtils"),
     "stock": ("PathScripts.PathStock", "Path.Main.Stock", "Path.Main.Stock"),
+    "setup_sheet": ("PathScripts.PathSetupSheet", "Path.Base.SetupSheet", "Path.Base.SetupSheet"),
     # GUI layer only (view providers); imported by gui/ when FreeCAD.GuiUp
     "toolbit_gui": ("PathScripts.PathToolBitGui", "Path.Tool.Gui.Bit", "Path.Tool.toolbit.ui.view"),
     "job_gui": ("PathScripts.PathJobGui", "Path.Main.Gui.Job", "Path.Main.Gui.Job"),

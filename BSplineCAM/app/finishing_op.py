@@ -134,13 +134,13 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
 
     def _execute(self, obj) -> None:
         from ..core.toolpath import generate
+        from ..core.toolpath.common import RAPID_RANGE, CuttingParameters
 
-        if not self.horizFeed > 0 or not self.vertFeed > 0:
-            raise ValueError(
-                f"{obj.ToolController.Label}: feeds must be > 0 mm/min (horizontal {self.horizFeed}, "
-                f"vertical {self.vertFeed}); a controller refuses a zero feed")
-        if not float(obj.ToolController.SpindleSpeed) > 0:
-            raise ValueError(f"{obj.ToolController.Label}: spindle speed must be > 0 rpm")
+        # the command line's ranges (finite, a controller accepts them), named as in the panel
+        tc = obj.ToolController.Label
+        CuttingParameters.validate(
+            self.horizFeed, self.vertFeed, float(obj.ToolController.SpindleSpeed), RAPID_RANGE[0],
+            names=(f"{tc}: HorizFeed", f"{tc}: VertFeed", f"{tc}: SpindleSpeed", "rapid"))
         shape_name = compat.tool_shape_name(self.tool)
         if "ball" not in shape_name.lower():
             raise ValueError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
@@ -284,8 +284,15 @@ def _is_surface(obj) -> bool:
     return is_surface(obj)
 
 
+def register_with_setup_sheet() -> None:
+    """Tell CAM's setup sheet the op exists (it keeps none of its properties), so making an op
+    does not log "SetupSheet has no support for SurfaceFinish"."""
+    compat.cam_module("setup_sheet").RegisterOperation("SurfaceFinish", Create, lambda: [])
+
+
 def Create(name: str = "SurfaceFinish", obj=None, parentJob=None):  # noqa: N802, N803 - FreeCAD factory convention
     """A new finishing op in ``parentJob`` (default: the active job), like CAM's ops' Create."""
+    register_with_setup_sheet()
     if obj is None:
         obj = FreeCAD.ActiveDocument.addObject("Path::FeaturePython", name)
     obj.Proxy = ObjectSurfaceFinish(obj, name, parentJob)
