@@ -15,7 +15,13 @@ from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
 from ..core.gcode import MoveKind, read_gcode
 from ..core.toolpath import check_request
-from ..core.toolpath.common import CuttingParameters, Direction, IsoDirection, Strategy
+from ..core.toolpath.common import (
+    CuttingParameters,
+    Direction,
+    IsoDirection,
+    Strategy,
+    ToolParameters,
+)
 from . import rs274
 
 #: Option names, in the order the core's validators take them.
@@ -27,8 +33,10 @@ DEFAULT_RAPID = 5000.0
 
 def register(sub) -> None:
     p = sub.add_parser("toolpath", help="ball-end finishing toolpath on the exact surface, posted to G-code")
-    p.add_argument("net", help="control net: .json, .csv or .dat")
+    p.add_argument("net", help="control net (.json, .csv, .dat) or part (.step, .stp, .brep, .FCStd)")
     p.add_argument("--knots", choices=["uniform", "clamped"], help="override the file's knot layout")
+    p.add_argument("--faces", default=None,
+                   help="faces of a part to machine: up (default) or numbers such as 3,8,20")
     p.add_argument("--tool-diameter", type=float, required=True, help="ball-end diameter (mm)")
     p.add_argument("--scallop", type=float, required=True, help="largest scallop height left (mm)")
     p.add_argument("--tolerance", type=float, default=0.002, help="chordal tolerance along passes (mm, default 0.002)")
@@ -73,6 +81,13 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
     cutting_params = CuttingParameters.validate(args.feed, args.plunge_feed, args.spindle,
                                                 args.rapid, CUTTING_OPTIONS)
     check_output(args.out)
+    from . import parts
+
+    if parts.is_part(args.net):
+        return cmd_toolpath_part(args, cutting_params)
+    if args.faces is not None:
+        raise ParameterError(f"--faces applies to parts ({', '.join(parts.PART_SUFFIXES)}), "
+                             f"not to the control net {args.net}")
     surface = Surface.from_file(args.net, args.knots)
     strategy, tool, angle = check_request(surface, args.strategy, args.tool_diameter,
                                           args.scallop, args.tolerance, args.angle, TOOL_OPTIONS)
@@ -117,3 +132,40 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
         (stage / "toolpath.json").write_text(json_text(report))
     emit(report)
     return 0 if report.get("rs274", {"ok": True})["ok"] else EXIT_CHECK_FAILED
+
+
+#: The multi-face raster generator (issue 11); parts are refused until it is present.
+FACES_RASTER = "BSplineCAM.core.toolpath.faces_raster"
+
+
+def faces_raster_available() -> bool:
+    """True when the multi-face toolpath module can be imported."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec(FACES_RASTER) is not None
+    except ImportError:
+        return False
+
+
+def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameters) -> int:
+    """``toolpath PART --faces up|3,8,20``: the faces' raster by the multi-face drop-cutter."""
+    from . import parts
+
+    if args.knots is not None:
+        raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
+    selection = parts.parse_faces(args.faces)
+    if not faces_raster_available():
+        raise ParameterError(f"{args.net}: toolpaths on parts need the multi-face raster "
+                             f"({FACES_RASTER}), which this build does not have yet; "
+                             "machine a control net (.json, .csv, .dat) instead")
+    if args.strategy != Strategy.RASTER.value:
+        raise ParameterError(f"--strategy {args.strategy}: parts are machined by raster only "
+                             "(for now)")
+    tool = ToolParameters.validate(args.tool_diameter, args.scallop, args.tolerance,
+                                   TOOL_OPTIONS[:3])
+    from ..core.toolpath.common import check_angle
+
+    angle = check_angle(args.angle, TOOL_OPTIONS[3])
+    faces = parts.load_faces(args.net, parts._selection_text(selection))
+    return parts.machine_faces(args, faces, tool, angle, cutting_params)

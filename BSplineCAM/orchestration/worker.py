@@ -16,8 +16,16 @@ import numpy as np
 from ..core import Surface
 from ..core.netio import net_from_dict
 
+#: Request kinds of :mod:`BSplineCAM.orchestration.parts` (kept here so that a net request
+#: never imports it).
+PART_REQUESTS = ("part_faces", "part_check", "evaluate_faces")
+
 
 def handle(request: dict) -> dict:
+    if request.get("op") in PART_REQUESTS:  # parts and faces (orchestration/parts.py)
+        from .parts import handle as handle_part
+
+        return handle_part(request)
     surface = Surface.from_net(net_from_dict(request["net"], "request"))
     backend = request["backend"]
     op = request["op"]

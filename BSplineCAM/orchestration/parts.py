@@ -1,0 +1,420 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Parts (STEP, BREP, FreeCAD documents) as core faces for the command line.
+
+:func:`load_faces` reads a part with FreeCAD's OCCT (:mod:`BSplineCAM.app.faces`) and returns
+its faces as core :class:`~BSplineCAM.core.faces.Face` objects, the selected ones marked; it
+runs in this process when FreeCAD loads here (``bin/bsplinecam`` runs in freecadcmd) and in a
+FreeCAD worker otherwise.  :func:`check_part` is ``bsplinecam check PART``: every selected
+face's conversion, and the core's matrix evaluator against FreeCAD's OCCT and cadquery's OCCT
+at the same parameters inside the trim.  Faces cross between processes as
+:func:`~BSplineCAM.core.faces.to_dict` JSON.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Union
+
+import numpy as np
+
+from ..core import faces as core_faces
+from ..core.errors import BSplineCAMError
+from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
+from . import runtime
+
+if TYPE_CHECKING:
+    import argparse
+
+    from ..core.toolpath.common import CuttingParameters, ToolParameters, Toolpath
+
+#: File types read as parts (the rest are control nets); as in ``app.faces.PART_SUFFIXES``.
+PART_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".fcstd")
+#: Largest accepted distance (mm) of the matrix evaluator from either OCCT, relative to the
+#: face's size (the diagonal of its bounding box).
+RELATIVE_TOLERANCE = 1e-9
+#: Default grid points per side of the parameter box (cell centres inside the trim are kept).
+PART_SAMPLES = 31
+#: Worker request kinds handled here (``worker.handle`` passes them on).
+REQUESTS = ("part_faces", "part_check", "evaluate_faces")
+
+#: What ``--faces`` may hold: "up", "all" (check only), or 1-based face numbers.
+FacesArg = Union[str, list]
+
+
+def is_part(path: str | os.PathLike) -> bool:
+    """True for a .step, .stp, .brep, .brp or .FCStd file name (any case)."""
+    return Path(path).suffix.lower() in PART_SUFFIXES
+
+
+def parse_faces(text: str | None, option: str = "--faces", allow_all: bool = False,
+                default: str = "up") -> FacesArg:
+    """``--faces``: "up", "all" (when ``allow_all``), or distinct 1-based face numbers written
+    as ``3,8,20`` or ``Face3,Face8``; a FaceError naming the option for an
+    empty selection or a bad item.  Numbers are checked against the part's face count later
+    (``face 20 of 12``)."""
+    if text is None:
+        return default
+    if not isinstance(text, str):
+        raise FaceError(f"{option} must be 'up', a list of face numbers such as 3,8,20"
+                        + (" or 'all'" if allow_all else "") + f", got {text!r}")
+    word = text.strip().lower()
+    if word == "up":
+        return "up"
+    if word == "all":
+        if not allow_all:
+            raise FaceError(f"{option} all: only 'check' takes every face; a toolpath takes "
+                            "'up' or face numbers such as 3,8,20")
+        return "all"
+    items = [item.strip() for item in text.split(",")]
+    if not any(items):
+        raise FaceError(f"{option}: the face selection is empty (give 'up' or face numbers "
+                        "such as 3,8,20)")
+    numbers: list[int] = []
+    for item in items:
+        if not item:
+            raise FaceError(f"{option} {text!r}: an empty item (two commas in a row, or a "
+                            "comma at an end)")
+        match = re.fullmatch(r"(?i:face)?\s*(\d+)", item)
+        if not match:
+            raise FaceError(f"{option}: {item!r} is not a face number (3 or Face3), 'up'"
+                            + (" or 'all'" if allow_all else ""))
+        number = int(match.group(1))
+        if number < 1:
+            raise FaceError(f"{option}: face {number}: faces are numbered from 1")
+        if number not in numbers:
+            numbers.append(number)
+    return numbers
+
+
+def _selection_text(selection: FacesArg) -> str:
+    return selection if isinstance(selection, str) else ",".join(map(str, selection))
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_faces(path: str | os.PathLike, faces: str | None = None,
+               tolerance: float = DEFAULT_TOLERANCE, option: str = "--faces") -> list[Face]:
+    """Every face of the part at ``path`` as a core Face (mm), the ``faces`` selection
+    ("up" by default, or face numbers) marked ``selected``, the others check surfaces.
+
+    FreeCAD reads the part: here when it loads in this process, else in a FreeCAD worker.
+    ``tolerance`` is the trim polylines' chord tolerance (mm).  Errors (FaceError) name the
+    file and the face.
+    """
+    selection = parse_faces(faces, option)
+    path = str(path)
+    if runtime.freecad_in_process():
+        from .cli import captured_console, check_interrupted
+
+        with captured_console():
+            found = freecad_faces(path, selection, tolerance)
+        check_interrupted()
+        return found
+    reply = _freecad_worker({"op": "part_faces", "path": path,
+                             "faces": _selection_text(selection), "tolerance": tolerance})
+    return [core_faces.face_from_dict(doc, f"{path} (FreeCAD worker)") for doc in reply["faces"]]
+
+
+def _freecad_worker(request: dict) -> dict:
+    """A FreeCAD worker's reply; its input errors come back as FaceError with its message."""
+    try:
+        return runtime.run_worker("freecad", request)
+    except BSplineCAMError as exc:
+        text = re.sub(r"^freecad worker: (\w*Error: )?", "", str(exc))
+        raise FaceError(text) from None
+
+
+def _name_file(path: str, exc: FaceError) -> FaceError:
+    """``exc`` with the part's file name in front (a face's error names only the face)."""
+    text = str(exc)
+    return exc if text.startswith(path) else FaceError(f"{path}: {text}")
+
+
+def freecad_faces(path: str, selection: FacesArg, tolerance: float) -> list[Face]:
+    """In FreeCAD: read the part and extract its faces (``app.faces``)."""
+    from ..app import faces as app_faces
+
+    try:
+        shape = app_faces.read_part(path)
+        return app_faces.faces_from_shape(shape, selection, tolerance, where=path)
+    except FaceError as exc:
+        raise _name_file(path, exc) from None
+
+
+# --------------------------------------------------------------------------- check
+
+
+def _work_face(source):
+    """OCCT's B-spline face that ``app.faces`` took the core face from: the face itself for
+    a B-spline or Bézier surface, else OCCT's NURBS conversion of it."""
+    import Part
+
+    if isinstance(source.Surface, (Part.BSplineSurface, Part.BezierSurface)):
+        return source
+    return source.toNurbs().Faces[0]
+
+
+def freecad_check(path: str, selection: FacesArg, tolerance: float, samples: int) -> dict:
+    """In FreeCAD: extract every face of the part, select, and evaluate OCCT's B-spline face
+    (``valueAt``) at the sample parameters of each selected face.
+
+    Returns {"freecad": version, "face_count": n, "faces": [{"face": to_dict, "size_mm",
+    "uv", "freecad_points"}]}.
+    """
+    try:
+        return _freecad_check(path, selection, tolerance, samples)
+    except FaceError as exc:
+        raise _name_file(path, exc) from None
+
+
+def _freecad_check(path: str, selection: FacesArg, tolerance: float, samples: int) -> dict:
+    from ..app import compat
+    from ..app import faces as app_faces
+
+    shape = app_faces.read_part(path)
+    sources = shape.Faces
+    chosen = "all" if selection == "all" else core_faces.parse_selection(
+        selection, len(sources), path)
+    faces, works = [], []
+    for index, source in enumerate(sources, start=1):
+        face = app_faces.extract_face(source, index, tolerance, selected=False)
+        faces.append(face)
+        works.append(_work_face(source))
+    if chosen == "all":
+        from dataclasses import replace
+
+        faces = [replace(face, selected=True) for face in faces]
+    else:
+        reach = [app_faces.reaches_from_above(face, work) for face, work in zip(faces, works)]
+        faces = core_faces.apply_selection(faces, reach, chosen, path)
+    records = []
+    for face, work, source in zip(faces, works, sources):
+        if not face.selected:
+            continue
+        uv = core_faces.sample_points(face, samples)
+        v_occt = uv[:, 1]
+        if face.flipped_v:
+            knots = np.asarray(face.surface.knots_v, dtype=float)
+            v_occt = knots[0] + knots[-1] - v_occt
+        points = [tuple(work.valueAt(float(a), float(b))) for a, b in zip(uv[:, 0], v_occt)]
+        records.append({"face": core_faces.to_dict(face),
+                        "size_mm": float(source.BoundBox.DiagonalLength),
+                        "uv": uv.tolist(), "freecad_points": points})
+    return {"freecad": ".".join(map(str, compat.freecad_version())),
+            "face_count": len(sources), "faces": records}
+
+
+def evaluate_faces(faces: Sequence[dict], uvs: Sequence[Sequence[Sequence[float]]]) -> dict:
+    """In cadquery's Python: each face's NURBS (``to_dict`` data) built as an OCCT
+    Geom_BSplineSurface and evaluated (``Value``) at its (u, v) list."""
+    import OCP
+
+    from ..ocp.occ import nurbs_geom
+
+    out = []
+    for doc, uv in zip(faces, uvs):
+        s = doc["surface"]
+        weights = None if s["weights"] is None else np.asarray(s["weights"], dtype=float)
+        geom = nurbs_geom(np.asarray(s["poles"], dtype=float), s["knots_u"], s["knots_v"],
+                          s["degree_u"], s["degree_v"], weights=weights)
+        pts = []
+        for a, b in uv:
+            p = geom.Value(float(a), float(b))
+            pts.append((p.X(), p.Y(), p.Z()))
+        out.append(pts)
+    return {"points": out, "version": getattr(OCP, "__version__", "unknown")}
+
+
+def handle(request: dict) -> dict:
+    """A worker request of one of :data:`REQUESTS`."""
+    op = request["op"]
+    if op == "part_faces" and request["backend"] == "freecad":
+        selection = parse_faces(request["faces"])
+        found = freecad_faces(request["path"], selection, float(request["tolerance"]))
+        return {"faces": [core_faces.to_dict(face) for face in found]}
+    if op == "part_check" and request["backend"] == "freecad":
+        selection = parse_faces(request["faces"], allow_all=True)
+        return freecad_check(request["path"], selection, float(request["tolerance"]),
+                             int(request["samples"]))
+    if op == "evaluate_faces" and request["backend"] == "cadquery":
+        return evaluate_faces(request["faces"], request["uv"])
+    raise ValueError(f"operation {op!r} is not available for backend {request['backend']!r}")
+
+
+def check_part(path: str, faces: str | None, samples: int = PART_SAMPLES,
+               tolerance: float = DEFAULT_TOLERANCE) -> dict:
+    """``bsplinecam check PART``: per selected face ("all" by default) its source surface,
+    degrees, poles, rationality, holes, conversion deviation (mm, measured by ``app.faces``
+    against OCCT's original), and the largest distance of the core's matrix evaluator from
+    FreeCAD's OCCT (``valueAt`` of the B-spline face) and from cadquery's OCCT (the same NURBS
+    built in OCP) at the sample parameters, relative to the face's size; ``ok`` when every
+    relative deviation is at most :data:`RELATIVE_TOLERANCE`."""
+    selection = parse_faces(faces, allow_all=True, default="all")
+    if runtime.freecad_in_process():
+        from .cli import captured_console, check_interrupted
+
+        with captured_console():
+            fc = freecad_check(path, selection, tolerance, samples)
+        check_interrupted()
+    else:
+        fc = _freecad_worker({"op": "part_check", "path": path,
+                              "faces": _selection_text(selection), "tolerance": tolerance,
+                              "samples": samples})
+    docs = [record["face"] for record in fc["faces"]]
+    uvs = [record["uv"] for record in fc["faces"]]
+    if runtime.cadquery_in_process():
+        cq = evaluate_faces(docs, uvs)
+    else:
+        cq = runtime.run_worker("cadquery", {"op": "evaluate_faces", "faces": docs, "uv": uvs})
+    reports = []
+    for record, cq_points in zip(fc["faces"], cq["points"]):
+        face = core_faces.face_from_dict(record["face"], path)
+        uv = np.asarray(record["uv"], dtype=float)
+        ours = np.asarray(face.surface.evaluate(uv[:, 0], uv[:, 1]), dtype=float)
+        size = max(float(record["size_mm"]), 1e-300)
+        d_fc = float(np.linalg.norm(ours - np.asarray(record["freecad_points"]), axis=1).max())
+        d_cq = float(np.linalg.norm(ours - np.asarray(cq_points), axis=1).max())
+        relative = max(d_fc, d_cq, face.deviation) / size
+        surface = face.surface
+        reports.append({
+            "index": face.index, "name": face.name, "source": face.source,
+            "degree_u": surface.degree_u, "degree_v": surface.degree_v,
+            "poles": list(surface.shape), "rational": bool(surface.rational),
+            "holes": len(face.holes), "flipped_v": face.flipped_v,
+            "size_mm": size, "points": len(uv),
+            "conversion_deviation_mm": face.deviation,
+            "freecad_max_mm": d_fc, "cadquery_max_mm": d_cq,
+            "relative_max": relative, "ok": bool(relative <= RELATIVE_TOLERANCE)})
+    worst = max((r["relative_max"] for r in reports), default=0.0)
+    return {"part": str(path), "faces_selection": _selection_text(selection),
+            "face_count": fc["face_count"], "samples": samples,
+            "trim_tolerance_mm": tolerance, "relative_tolerance": RELATIVE_TOLERANCE,
+            "freecad": fc["freecad"], "cadquery_ocp": cq["version"],
+            "faces": reports, "max_relative_deviation": worst,
+            "ok": all(r["ok"] for r in reports)}
+
+
+# --------------------------------------------------------------------------- toolpath
+
+
+def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolParameters,
+                  angle: float, cutting_params: CuttingParameters) -> int:
+    """``toolpath PART``: the selected faces' raster (multi-face certified drop-cutter, the
+    unselected faces as check surfaces), posted by FreeCAD from a job whose model is the part;
+    writes --out/NAME.ngc, toolpath.json and NAME-job.FCStd, all or nothing."""
+    from ..core.errors import ParameterError
+    from ..core.toolpath.faces_raster import generate_faces_raster
+    from ..core.toolpath.faceset import FaceSet
+    from . import rs274
+    from .cli import (
+        EXIT_CHECK_FAILED,
+        _safe_name,
+        check_interrupted,
+        emit,
+        json_text,
+        staged_output,
+    )
+    from .cli_toolpath import machining_time
+
+    if not runtime.freecad_in_process():
+        raise runtime.BackendUnavailable("toolpath on a part: run bin/bsplinecam (FreeCAD's "
+                                         "Python) to post the program")
+    from ..app import cam, compat
+
+    try:
+        compat.post_module(args.post)
+    except ValueError as exc:
+        raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
+    toolpath = generate_faces_raster(FaceSet(faces), 2.0 * tool.radius, tool.scallop,
+                                     tool.tolerance, angle)
+    check_interrupted()
+    if not toolpath.passes:
+        raise FaceError(f"{args.net}: the selected faces gave no toolpath")
+    cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
+                          cutting_params.spindle, cutting_params.rapid)
+    name = _safe_name(Path(args.net).stem)
+    with staged_output(Path(args.out)) as stage:
+        program = stage / f"{name}.ngc"
+        from .cli import captured_console
+
+        with captured_console():
+            commands = post_toolpath(args.net, toolpath, 2.0 * tool.radius, cutting, args.post,
+                                     program, stage / f"{name}-job.FCStd")
+        check_interrupted()
+        text = program.read_text()
+        stats = toolpath.stats
+        report = {
+            "part": str(args.net), "faces": [f.index for f in faces if f.selected],
+            "check_faces": [f.index for f in faces if not f.selected],
+            "strategy": toolpath.strategy, "passes": stats.passes, "moves": stats.moves,
+            "commands": commands, "pass_length_mm": round(stats.cutting_length_mm, 6),
+            "seconds": round(stats.seconds, 4), "unreachable": [
+                getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
+            "clearance_height_mm": toolpath.clearance_height, "post": args.post,
+            "program": program.name,
+            "parameters": {"strategy": "raster", "angle_deg": angle,
+                           "tool_diameter_mm": 2.0 * tool.radius, "scallop_mm": tool.scallop,
+                           "tolerance_mm": tool.tolerance}}
+        report["cutting_length_mm"], report["machining_time_s"] = (
+            round(v, 3) for v in machining_time(text, cutting_params.rapid))
+        if not args.no_rs274 and rs274.available():
+            check = rs274.check(program, {1: 2.0 * tool.radius})
+            report["rs274"] = check.as_dict()
+            if not check.ok:
+                emit(report)
+                raise BSplineCAMError(f"{program.name}: LinuxCNC's rs274 rejects the program: "
+                                      f"{check.message}")
+        (stage / "toolpath.json").write_text(json_text(report))
+    emit(report)
+    return 0 if report.get("rs274", {"ok": True})["ok"] else EXIT_CHECK_FAILED
+
+
+def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: Any,
+                  post: str, program: Path, document: Path | None = None) -> int:
+    """In FreeCAD: a document with the part (Part::Feature), a job around it with a ball-end
+    tool controller, the toolpath as a path operation of that controller; posted by ``post``
+    to ``program`` (and saved to ``document``).  Returns the number of path commands."""
+    import FreeCAD
+    import Path as FreeCADPath
+
+    from ..app import cam
+    from ..app import faces as app_faces
+    from ..app.finishing_op import moves_to_commands
+    from ..core.toolpath.common import to_moves
+
+    shape = app_faces.read_part(path)
+    doc = FreeCAD.newDocument("BSplineCAMPart")
+    try:
+        model = doc.addObject("Part::Feature", "Part")
+        model.Shape = shape
+        model.Label = Path(path).stem
+        doc.recompute()
+        job = cam.make_job(model, tool_diameter, cutting, post=post)
+        tc = job.Tools.Group[0]
+        op = doc.addObject("Path::Feature", "FacesRaster")
+        op.Label = "Faces raster"
+        op.addProperty("App::PropertyLink", "ToolController", "Path", "tool controller")
+        op.addProperty("App::PropertyBool", "Active", "Path", "posted when true")
+        op.ToolController = tc
+        op.Active = True
+        clearance = toolpath.clearance_height
+        moves = to_moves(toolpath, clearance)  # rapids stop 1 mm above each pass start
+        commands = moves_to_commands(moves, tc.HorizFeed.Value, tc.VertFeed.Value, clearance)
+        op.Path = FreeCADPath.Path(commands)
+        job.Operations.addObject(op)
+        doc.recompute()
+        cam.post_process(job, post, program)
+        if document is not None:
+            doc.saveAs(str(document))
+        return len(commands)
+    finally:
+        FreeCAD.closeDocument(doc.Name)
+
+
+__all__ = ["PART_SAMPLES", "PART_SUFFIXES", "RELATIVE_TOLERANCE", "REQUESTS", "check_part",
+           "evaluate_faces", "freecad_check", "freecad_faces", "handle", "is_part",
+           "load_faces", "machine_faces", "parse_faces", "post_toolpath"]
