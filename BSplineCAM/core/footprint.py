@@ -10,9 +10,12 @@ lie outside the footprint.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from .matrix import evaluate_patch_orders
+from .simulate import THREADS
 from .surface import Surface
 from .typing import ArrayLike, FloatArray
 
@@ -38,9 +41,21 @@ def surface_height(surface: Surface, x: ArrayLike,
     u = np.full(px.size, np.nan)
     w = np.full(px.size, np.nan)
     inside = np.zeros(px.size, dtype=bool)
-    for lo in range(0, px.size, _CHUNK):
+    surface.patch_form  # noqa: B018 - built once here, not raced for by the threads
+
+    def run(lo: int) -> None:
         sl = slice(lo, lo + _CHUNK)
         z[sl], u[sl], w[sl], inside[sl] = _invert(surface, seeds, px[sl], py[sl])
+
+    # chunks are independent and write disjoint slices; numpy releases the GIL in its loops
+    starts = range(0, px.size, _CHUNK)
+    threads = min(THREADS, len(starts))
+    if threads <= 1:
+        for lo in starts:
+            run(lo)
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            list(pool.map(run, starts))
     return z.reshape(shape), u.reshape(shape), w.reshape(shape), inside.reshape(shape)
 
 
