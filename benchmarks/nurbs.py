@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,17 +26,8 @@ sys.path.insert(0, str(ROOT))
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.core.nurbs import NurbsSurface, expand_knots  # noqa: E402
 
-
-def best_interleaved(fns: dict, repeat: int) -> dict:
-    """Best wall time (s) of each function, run in turns so that a slow spell of a shared
-    machine hits every contender alike."""
-    times = {name: [] for name in fns}
-    for _ in range(repeat):
-        for name, fn in fns.items():
-            start = time.perf_counter()
-            fn()
-            times[name].append(time.perf_counter() - start)
-    return {name: min(values) for name, values in times.items()}
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from evaluate import best_interleaved  # noqa: E402
 
 
 def best_of(fn, repeat: int) -> float:
