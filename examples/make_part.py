@@ -8,6 +8,7 @@ fillets (rational B-spline faces, OCCT's approximation).  The top face is thus a
 B-spline face with a hole, bounded by two fillet faces and two walls.
 
 Run in the project's venv (cadquery):  .venv/bin/python examples/make_part.py [OUT.step]
+[--all-edges] (fillet all four top edges; the example fillets the two long ones)
 """
 
 from __future__ import annotations
@@ -33,8 +34,9 @@ def top_height(x: float, y: float) -> float:
     return BASE + hill + hollow + 0.04 * x
 
 
-def make_part() -> cq.Shape:
-    """The solid: block, B-spline top, through hole, filleted top edges."""
+def make_part(all_edges: bool = False) -> cq.Shape:
+    """The solid: block, B-spline top, through hole, filleted top edges (the two long ones,
+    or all four with ``all_edges``: the fillets then meet at the corners)."""
     margin = 5.0  # the surface reaches past the block so that the walls trim it
     xs = [-margin + (LENGTH + 2 * margin) * i / (GRID - 1) for i in range(GRID)]
     ys = [-margin + (WIDTH + 2 * margin) * j / (GRID - 1) for j in range(GRID)]
@@ -47,13 +49,13 @@ def make_part() -> cq.Shape:
     block = cq.Workplane().add(prism.intersect(box).clean())
     hole = cq.Solid.makeCylinder(HOLE[2], 3 * BASE, cq.Vector(HOLE[0], HOLE[1], -BASE / 2))
     block = block.cut(cq.Workplane().add(hole))
-    # The two long top edges (along x).  The short ones stay sharp: where four fillets meet
-    # at a corner, OCCT leaves their parameter curves up to 0.01 mm apart (covered by vertex
-    # tolerances only), which the trim reader refuses as an open wire.
+    # The two long top edges (along x), or all four.  Where fillets meet at a corner OCCT
+    # leaves their parameter curves up to 0.01 mm apart, within the vertex tolerances (the
+    # trim readers measure joints on the surface against them).
     shape = block.val()
     top_face = max(shape.Faces(), key=lambda f: f.Center().z)
     long_edges = [e for e in top_face.outerWire().Edges()
-                  if abs((e.endPoint() - e.startPoint()).x) > LENGTH / 2]
+                  if all_edges or abs((e.endPoint() - e.startPoint()).x) > LENGTH / 2]
     return shape.fillet(FILLET, long_edges).clean()
 
 
@@ -74,8 +76,10 @@ def max_degree(shape: cq.Shape) -> int:
 
 
 def main(argv: list[str]) -> int:
+    all_edges = "--all-edges" in argv
+    argv = [a for a in argv if a != "--all-edges"]
     out = Path(argv[1]) if len(argv) > 1 else Path(__file__).with_name("part.step")
-    shape = make_part()
+    shape = make_part(all_edges)
     if not shape.isValid():
         raise SystemExit("make_part: OCCT reports the part invalid")
     if max_degree(shape) > MAX_DEGREE:

@@ -244,6 +244,29 @@ def test_check_example_part(example_check):
 
 @needs_freecad
 @needs_cadquery
+def test_fillets_meeting_at_corners(tmp_path):
+    """Four fillets meet at the top's corners: OCCT leaves their parameter curves apart by up
+    to the vertex tolerance (~0.01 mm); both OCCTs' readers join them and every face passes."""
+    step = tmp_path / "corners.step"
+    subprocess.run([str(ROOT / ".venv" / "bin" / "python"), str(ROOT / "examples" / "make_part.py"),
+                    str(step), "--all-edges"], check=True, capture_output=True, timeout=300)
+    proc = run_bin("check", str(step), "--faces", "up")
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    fillets = [f for f in report["faces"] if f["source"] == "BSplineSurface" and f["rational"]]
+    assert len(fillets) >= 4 and report["ok"]
+    theirs = json.loads(cadquery(
+        "import json, sys\n"
+        "sys.path.insert(0, sys.argv[2])\n"
+        "from BSplineCAM.ocp import faces as F\n"
+        "fs = F.faces_from_shape(F.read_part(sys.argv[1]), 'up')\n"
+        "print(json.dumps([[f.index, len(f.holes)] for f in fs if f.selected]))",
+        str(step), str(ROOT)))
+    assert [[f["index"], f["holes"]] for f in report["faces"]] == theirs
+
+
+@needs_freecad
+@needs_cadquery
 def test_check_example_matches_cadquery(example_check):
     """Face count, surface kinds and holes as cadquery reads the same STEP."""
     proc, _ = example_check

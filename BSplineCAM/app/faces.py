@@ -195,15 +195,21 @@ def _edge_polyline(face: Part.Face, edge, surface, tolerance: float, name: str) 
 
 def _loops(face: Part.Face, tolerance: float, name: str) -> tuple[FloatArray, list[FloatArray]]:
     surface = face.Surface
-    u0, u1, v0, v1 = face.ParameterRange
-    gap = 1e-7 * max(u1 - u0, v1 - v0, 1e-300)
     outer_wire = face.OuterWire
+    size = max(face.BoundBox.DiagonalLength, 1e-300)
+
+    def gap_mm(a: FloatArray, b: FloatArray) -> float:
+        return float((surface.value(*map(float, a)) - surface.value(*map(float, b))).Length)
+
     loops, outer = [], None
     for n, wire in enumerate(face.Wires, start=1):
         is_outer = wire.isSame(outer_wire)
         which = "outer wire" if is_outer else f"wire {n}"
         pieces = [_edge_polyline(face, e, surface, tolerance, name) for e in wire.OrderedEdges]
-        loop = core_faces.join_edges(pieces, name, which, gap)
+        # edges meet at a vertex within its tolerance (OCCT leaves the parameter curves of
+        # fillets meeting at a corner up to ~0.01 mm apart): measured on the surface, in mm
+        gap = max([v.Tolerance for v in wire.Vertexes] + [0.0]) + 1e-7 * size
+        loop = core_faces.join_edges(pieces, name, which, gap, gap_mm, "on the surface (mm)")
         if is_outer:
             outer = loop
         else:

@@ -287,16 +287,25 @@ def period_shift(bounds: Sequence[float], requested: Sequence[float],
     return out[0], out[1]
 
 
-def join_edges(pieces: Sequence[FloatArray], name: str, which: str, gap_tol: float) -> FloatArray:
+def join_edges(pieces: Sequence[FloatArray], name: str, which: str, gap_tol: float,
+               gap_measure: Callable[[FloatArray, FloatArray], float] | None = None,
+               gap_unit: str = "in (u, v)") -> FloatArray:
     """One closed loop from edge polylines in wire order, each walked whichever way meets the
     previous one (so an edge's orientation need not be known); the joints must meet within
-    ``gap_tol`` in (u, v), else :class:`FaceError` naming the face, loop and edge."""
+    ``gap_tol``, else :class:`FaceError` naming the face, loop and edge.
+
+    Gaps are measured in (u, v) unless ``gap_measure(a, b)`` is given (e.g. the 3-D distance
+    of the two parameter points on the surface, in mm, against the wire's vertex tolerance:
+    OCCT leaves the parameter curves of edges meeting at a vertex apart by up to that much).
+    """
     pieces = [np.asarray(p, dtype=float) for p in pieces if len(p)]
     if not pieces:
         raise FaceError(f"{name}: {which} is empty: no edges")
 
     def dist(a: FloatArray, b: FloatArray) -> float:
         return float(np.hypot(*(a - b)))
+
+    measure = gap_measure or dist
 
     first = pieces[0]
     if len(pieces) > 1:
@@ -310,16 +319,16 @@ def join_edges(pieces: Sequence[FloatArray], name: str, which: str, gap_tol: flo
         end = out[-1][-1]
         if dist(piece[-1], end) < dist(piece[0], end):
             piece = piece[::-1]
-        gap = dist(piece[0], end)
+        gap = measure(piece[0], end)
         if gap > gap_tol:
             raise FaceError(f"{name}: {which} is not closed: edge {n} starts {gap:.3g} from "
-                            "where the previous edge ends in (u, v)")
+                            f"where the previous edge ends {gap_unit}")
         out.append(piece[1:])
     loop = np.concatenate(out)
-    gap = dist(loop[-1], loop[0])
+    gap = measure(loop[-1], loop[0])
     if gap > gap_tol:
-        raise FaceError(f"{name}: {which} is not closed: it ends {gap:.3g} from its start in "
-                        "(u, v)")
+        raise FaceError(f"{name}: {which} is not closed: it ends {gap:.3g} from its start "
+                        f"{gap_unit}")
     loop[-1] = loop[0]
     # Drop repeated points (a degenerate edge at a pole gives a zero-length piece).
     keep = np.ones(len(loop), dtype=bool)

@@ -161,12 +161,25 @@ def _xyz(p) -> tuple[float, float, float]:
 
 def _loops(face, tolerance: float, name: str):
     surface = BRep_Tool.Surface_s(face)
-    u0, u1, v0, v1 = BRepTools.UVBounds_s(face)
-    gap = 1e-7 * max(u1 - u0, v1 - v0, 1e-300)
     outer_wire = BRepTools.OuterWire_s(face)
 
     def point(uv):
         return np.array([_xyz(surface.Value(float(a), float(b))) for a, b in uv])
+
+    def gap_mm(a, b) -> float:
+        """Distance on the surface of two parameter points (mm), as app/faces.py measures."""
+        return float(np.linalg.norm(point([a])[0] - point([b])[0]))
+
+    from OCP.TopAbs import TopAbs_VERTEX
+
+    def vertex_tolerance(wire) -> float:
+        tol, vertices = 0.0, TopExp_Explorer(wire, TopAbs_VERTEX)
+        while vertices.More():
+            tol = max(tol, BRep_Tool.Tolerance_s(TopoDS.Vertex_s(vertices.Current())))
+            vertices.Next()
+        return tol
+
+    size = _diagonal(face)
 
     outer, holes = None, []
     explorer = TopExp_Explorer(face, TopAbs_WIRE)
@@ -192,8 +205,10 @@ def _loops(face, tolerance: float, name: str):
                 pieces.append(core_faces.densify_edge(pcurve, point, t0, t1, tolerance,
                                                       name=name))
             edges.Next()
+        # edges meet at a vertex within its tolerance: measured on the surface, in mm
+        gap = vertex_tolerance(wire) + 1e-7 * size
         loop = core_faces.join_edges(pieces, name, "outer wire" if is_outer else f"wire {n}",
-                                     gap)
+                                     gap, gap_mm, "on the surface (mm)")
         if is_outer:
             outer = loop
         else:
