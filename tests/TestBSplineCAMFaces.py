@@ -308,7 +308,7 @@ class TestBadInput(unittest.TestCase):
             bowtie = Part.Face(Part.makePolygon([V(0, 0, 0), V(10, 10, 0), V(10, 0, 0),
                                                  V(0, 10, 0), V(0, 0, 0)]))
             bowtie.extrude(V(0, 0, 5)).exportBrep(str(tmp / "broken.brep"))
-            self.assert_error(r"broken\.brep: broken geometry", app_faces.read_part,
+            self.assert_error(r"broken\.brep: broken geometry: (?!No error)\S", app_faces.read_part,
                               tmp / "broken.brep")
             (tmp / "junk.step").write_text("not a step file\n")
             self.assert_error(r"junk\.step", app_faces.read_part, tmp / "junk.step")

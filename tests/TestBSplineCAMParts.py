@@ -408,6 +408,8 @@ def test_check_bad_files(tmp_path):
         out = tmp_path / f"out-{name}"
         proc = run_bin("check", str(tmp_path / name), "--out", str(out))
         assert_refused(proc, f"{tmp_path / name}: {fragment}")
+        # readable: no exception dicts of FreeCAD 0.20, no "No error" from BRepCheck
+        assert "sclassname" not in proc.stderr and "No error" not in proc.stderr
         assert not out.exists()
 
 

@@ -66,7 +66,7 @@ def read_part(path: str | os.PathLike) -> Part.Shape:
     except BSplineCAMError:
         raise
     except Exception as exc:  # OCCT's reader errors come as Part.OCCError / RuntimeError
-        raise FaceError(f"{path}: cannot read the part ({exc})") from None
+        raise FaceError(f"{path}: cannot read the part ({_occ_message(exc)})") from None
     if shape.isNull() or not shape.Solids:
         raise FaceError(f"{path}: holds no solid")
     check_shape(shape, str(path))
@@ -104,12 +104,28 @@ def check_shape(shape: Part.Shape, where: str = "shape") -> None:
     """FaceError naming ``where`` if OCCT's checker (BRepCheck) finds the shape invalid."""
     if shape.isValid():
         return
+    findings = []
+    bad = [f"Face{i}" for i, f in enumerate(shape.Faces, start=1) if not f.isValid()]
+    if bad:
+        findings.append(f"invalid faces {', '.join(bad[:10])}{' ...' if len(bad) > 10 else ''}")
+    if any(not shell.isClosed() for shell in shape.Shells) and shape.Solids:
+        findings.append("a solid whose shell is not closed")
     try:
         shape.check(True)
-        detail = "BRepCheck reports it invalid"
     except Exception as exc:  # Part.OCCError with BRepCheck's findings
-        detail = " ".join(str(exc).split())[:300]
+        text = " ".join(w for w in str(exc).replace("No error", " ").split())
+        if text:
+            findings.append(text[:200])
+    detail = "; ".join(findings) or "OCCT's BRepCheck reports the shape invalid"
     raise FaceError(f"{where}: broken geometry: {detail}")
+
+
+def _occ_message(exc: BaseException) -> str:
+    """The message of an OCCT/FreeCAD exception (0.20 passes a dict of fields as its text)."""
+    arg = exc.args[0] if exc.args else exc
+    if isinstance(arg, dict):
+        return str(arg.get("sErrMsg") or arg.get("swhat") or type(exc).__name__)
+    return " ".join(str(arg).split()) or type(exc).__name__
 
 
 # --------------------------------------------------------------------------- one face
