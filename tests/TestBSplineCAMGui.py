@@ -992,6 +992,11 @@ class TestProgressAndPanels(CamTestCase):
         self.assertEqual(op.Report, report)
         self.assertTrue(op.isValid(), op.State)
         self.assertNotIn("Invalid", op.State)
+        # touched again by a timer once the recompute has ended (retried every 50 ms)
+        for _ in range(40):
+            if "Touched" in op.State:
+                break
+            wait(50)
         self.assertIn("Touched", op.State)
         lines = [ln for ln in report_text().splitlines() if "cancelled by the user" in ln]
         self.assertEqual(len(lines), 1, report_text())
@@ -1084,14 +1089,27 @@ class TestProgressAndPanels(CamTestCase):
 
     def test_new_surface_isometric_net_on_top(self) -> None:
         import math
+        import time
 
         from pivy import coin
 
         obj = self.new_surface()
         process_events()
         view = FreeCADGui.activeDocument().activeView()
-        rotation = view.getCameraNode().orientation.getValue()
-        direction = rotation.multVec(coin.SbVec3f(0, 0, -1)).getValue()
+
+        def view_direction():
+            rotation = view.getCameraNode().orientation.getValue()
+            return rotation.multVec(coin.SbVec3f(0, 0, -1)).getValue()
+
+        # FreeCAD may animate the turn to the isometric view: wait (up to 5 s) for it to settle
+        direction, deadline = view_direction(), time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            time.sleep(0.05)
+            process_events()
+            latest = view_direction()
+            if max(abs(a - b) for a, b in zip(latest, direction)) < 1e-7:
+                break
+            direction = latest
         # isometric: the view direction makes the same angle with the three axes, looking down
         for component in direction:
             self.assertAlmostEqual(abs(component), 1 / math.sqrt(3), places=4, msg=direction)
