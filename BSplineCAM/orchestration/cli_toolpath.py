@@ -85,9 +85,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
 
     if parts.is_part(args.net):
         return cmd_toolpath_part(args, cutting_params)
-    if args.faces is not None:
-        raise ParameterError(f"--faces applies to parts ({', '.join(parts.PART_SUFFIXES)}), "
-                             f"not to the control net {args.net}")
+    parts.refuse_faces_on_net(args.faces, args.net)
     surface = Surface.from_file(args.net, args.knots)
     strategy, tool, angle = check_request(surface, args.strategy, args.tool_diameter,
                                           args.scallop, args.tolerance, args.angle, TOOL_OPTIONS)

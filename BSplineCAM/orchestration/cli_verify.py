@@ -99,9 +99,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
     if parts.is_part(args.net):
         return cmd_verify_part(args, tool)
-    if args.faces is not None:
-        raise ParameterError(f"--faces applies to parts ({', '.join(parts.PART_SUFFIXES)}), "
-                             f"not to the control net {args.net}")
+    parts.refuse_faces_on_net(args.faces, args.net)
     surface = Surface.from_file(args.net, args.knots)
     check_tool_fits(surface, tool.diameter, "--tool-diameter")
     x0, x1, y0, y1 = footprint_bounds(surface)

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any, Union
 import numpy as np
 
 from ..core import faces as core_faces
-from ..core.errors import BSplineCAMError
+from ..core.errors import BSplineCAMError, ParameterError
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 from . import runtime
 
@@ -47,6 +47,13 @@ FacesArg = Union[str, list]
 def is_part(path: str | os.PathLike) -> bool:
     """True for a .step, .stp, .brep, .brp or .FCStd file name (any case)."""
     return Path(path).suffix.lower() in PART_SUFFIXES
+
+
+def refuse_faces_on_net(faces: str | None, net: str) -> None:
+    """``--faces`` given with a control net: a ParameterError naming both."""
+    if faces is not None:
+        raise ParameterError(f"--faces applies to parts ({', '.join(PART_SUFFIXES)}), "
+                             f"not to the control net {net}")
 
 
 def parse_faces(text: str | None, option: str = "--faces", allow_all: bool = False,
@@ -306,7 +313,6 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
     """``toolpath PART``: the selected faces' raster (multi-face certified drop-cutter, the
     unselected faces as check surfaces), posted by FreeCAD from a job whose model is the part;
     writes --out/NAME.ngc, toolpath.json and NAME-job.FCStd, all or nothing."""
-    from ..core.errors import ParameterError
     from ..core.toolpath.faces_raster import generate_faces_raster
     from ..core.toolpath.faceset import FaceSet
     from . import rs274
