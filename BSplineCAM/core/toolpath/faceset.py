@@ -27,6 +27,11 @@ control nets, so rational patches split exactly), and the returned height is wit
 * Lower bound: f at actual surface points inside the trim (the corner control points of a
   Bezier patch lie on the surface; trim vertices are evaluated), so the answer never exceeds
   the true height.
+* A local certificate around each query's best contact (:meth:`FaceSet._regions`): a box in
+  (u, v) on which f cannot exceed the contact's value, from the hemisphere's strong concavity
+  and Taylor bounds on the hodographs.  Sub-patches inside it are dropped at once, so the
+  halving no longer has to shrink the sub-patch holding the maximum (and its neighbours) down
+  to CERTIFY: about ten times fewer (query, sub-patch) pairs.
 * Level by level, every (query, sub-patch) pair whose upper bound exceeds its query's best lower
   bound by more than ``CERTIFY`` is halved along its longer side; the rest are dropped.  When
   none remain the best lower bound is certified.  Trim-edge contacts are the vertices on the
@@ -59,7 +64,7 @@ MAX_DEPTH = 48
 TOUCH = 1.0 + 1e-12
 #: Levels after which the best contacts are polished by Newton's method (a better lower bound
 #: early prunes more sub-patches).
-POLISH_LEVELS = (2, 5, 9)
+POLISH_LEVELS = (2, 4, 6, 9)
 #: Newton steps per polish.
 POLISH_STEPS = 4
 #: Local parameters of a patch's corners, in the order of ``_corner_index``.
@@ -69,12 +74,24 @@ CORNERS = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
 MAX_OPEN = 128
 #: Trim segments remembered per straddling sub-patch; with more, all of the face's are tested.
 MAX_SEGMENTS = 12
+#: Half-widths (fractions of the Bezier patch, largest first) of the boxes around a contact
+#: tried by the local certificate (:meth:`FaceSet._regions`).
+REGION_SIZES = (0.5, 0.25, 0.125, 0.0625, 0.03125)
+#: Most that f may exceed the contact's value inside a certified region (mm).
+REGION_SLACK = 1e-3 * CERTIFY
 
 
 def _bernstein_grid(p: int, q: int) -> FloatArray:
     """Design matrix [1, i/p, j/q] of the (p+1)(q+1) Greville abscissae of a Bezier patch."""
     s, t = np.meshgrid(np.arange(p + 1) / p, np.arange(q + 1) / q, indexing="ij")
     return np.column_stack([np.ones(s.size), s.ravel(), t.ravel()])
+
+
+def _bernstein(p: int, t: FloatArray) -> FloatArray:
+    """Bernstein polynomials of degree p at t (n,): (n, p+1)."""
+    i = np.arange(p + 1)
+    c = np.array([math.comb(p, k) for k in i], float)
+    return c * t[:, None] ** i * (1.0 - t[:, None]) ** (p - i)
 
 
 def _corner_index(p: int, q: int) -> np.ndarray:
@@ -96,6 +113,54 @@ def _split_into(work: FloatArray, axis: int, left: FloatArray, right: FloatArray
         w[: k - r] *= 0.5
         lv[r] = w[0]
         rv[k - 1 - r] = w[k - 1 - r]
+
+
+def _split_at(net: FloatArray, axis: int, t: FloatArray, keep_left: bool) -> FloatArray:
+    """One side of de Casteljau's split of nets (n, d, p+1, q+1) at per-net parameters t (n,)
+    along ``axis`` (2: u, 3: v) ("The NURBS Book" A1.5)."""
+    w = np.moveaxis(net, axis, 0).copy()
+    out = np.empty_like(w)
+    k = w.shape[0]
+    tt = t.reshape((1, -1) + (1,) * (w.ndim - 2))
+    if keep_left:
+        out[0] = w[0]
+    else:
+        out[k - 1] = w[k - 1]
+    for r in range(1, k):
+        w[: k - r] += tt[0] * (w[1 : k - r + 1] - w[: k - r])
+        if keep_left:
+            out[r] = w[0]
+        else:
+            out[k - 1 - r] = w[k - 1 - r]
+    return np.moveaxis(out, 0, axis)
+
+
+def _sub_net(net: FloatArray, s0: FloatArray, s1: FloatArray, t0: FloatArray,
+             t1: FloatArray) -> FloatArray:
+    """Nets of the sub-boxes [s0, s1] x [t0, t1] (local parameters in [0, 1], s0 < s1, t0 < t1)
+    of Bezier nets (n, d, p+1, q+1)."""
+    out = _split_at(net, 2, s1, True)
+    out = _split_at(out, 2, s0 / s1, False)
+    out = _split_at(out, 3, t1, True)
+    return _split_at(out, 3, t0 / t1, False)
+
+
+def _quadratic_bound(a: FloatArray, b: FloatArray, c: FloatArray) -> FloatArray:
+    """Largest eigenvalue of [[a, b], [b, c]]: d^T H d <= it * |d|^2 whenever H's diagonal is
+    at most (a, c) and its off-diagonal at most b in magnitude."""
+    return 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + b * b)
+
+
+def _second_differences(net: FloatArray, p: int, q: int) -> tuple:
+    """Bezier coefficients of the second partial derivatives (ss, st, tt) of scalar nets
+    (..., p+1, q+1) on the unit box (hodographs; zeros where the degree is 1)."""
+    z = np.zeros(net.shape[:-2] + (1, 1))
+    ss = (p * (p - 1) * (net[..., 2:, :] - 2 * net[..., 1:-1, :] + net[..., :-2, :])
+          if p >= 2 else z)
+    tt = (q * (q - 1) * (net[..., :, 2:] - 2 * net[..., :, 1:-1] + net[..., :, :-2])
+          if q >= 2 else z)
+    st = p * q * (net[..., 1:, 1:] - net[..., :-1, 1:] - net[..., 1:, :-1] + net[..., :-1, :-1])
+    return ss, st, tt
 
 
 def _clip(seg: FloatArray, box: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
@@ -200,12 +265,14 @@ class _FaceData:
         # coordinate planes (n, 4, p+1, q+1): reductions run over contiguous memory
         self.nets = np.ascontiguousarray(
             hom.reshape(nu * nv, self.p + 1, self.q + 1, 4).transpose(0, 3, 1, 2))
+        self.nu, self.nv = nu, nv
+        self.u_ends, self.v_ends = bez.u[:, 1].copy(), bez.v[:, 1].copy()
         uu, vv = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
         self.boxes = np.column_stack([bez.u[uu.ravel(), 0], bez.u[uu.ravel(), 1],
                                       bez.v[vv.ravel(), 0], bez.v[vv.ravel(), 1]])
         pts = bez.points.reshape(nu * nv, -1, 3)
         self.lo, self.hi = pts.min(axis=1), pts.max(axis=1)
-        self.inside = _Bands(face._edges)
+        self._bands = _Bands(face._edges)
         # Segments (u0, v0, u1, v1) that bound the material inside the domain: those lying on
         # the domain's own sides bound nothing more than the surface's edge does (an untrimmed
         # face has none left, so none of its sub-patches straddles).
@@ -222,6 +289,16 @@ class _FaceData:
         self.root_status, self.root_segs = status, segs
         keep = status > 0
         self.roots = np.flatnonzero(keep)
+
+    def inside(self, u: FloatArray, v: FloatArray) -> np.ndarray:
+        """Whether (u, v) lies in the material: the trim test of :func:`faces.inside`, with points
+        on the domain's own sides (where pnpoly's half-open rule would put the right and top
+        sides outside) moved a hair into the domain first."""
+        (u0, u1), (v0, v1) = self.face.surface.domain
+        eu, ev = 1e-12 * (u1 - u0), 1e-12 * (v1 - v0)
+        u = np.clip(np.asarray(u, dtype=float), u0 + eu, u1 - eu)
+        v = np.clip(np.asarray(v, dtype=float), v0 + ev, v1 - ev)
+        return self._bands(u, v)
 
     @property
     def selected(self) -> bool:
@@ -389,6 +466,8 @@ class FaceSet:
             groups.append((d, _Items(qi, d.nets[r], d.boxes[r], np.zeros(len(r), int),
                                      d.root_status[r], d.root_segs[r])))
         level = 0
+        reg_face = np.full(m, -1)
+        reg_box = np.zeros((m, 4))
         while groups:
             level += 1
             evaluated = []
@@ -409,10 +488,15 @@ class FaceSet:
                     bu[qq], bv[qq] = lu[order], lv[order]
             if level in POLISH_LEVELS:
                 self._polish(q, R, best, face, bu, bv)
+                reg_face, reg_box = self._regions(q, R, best, face, bu, bv)
             groups = []
             for d, it, ub in evaluated:
                 self.stats["pairs"] += len(it.query)
                 open_ = ub > best[it.query] + CERTIFY
+                rb = reg_box[it.query]
+                open_ &= ~((reg_face[it.query] == d.index) & (it.box[:, 0] >= rb[:, 0])
+                           & (it.box[:, 1] <= rb[:, 1]) & (it.box[:, 2] >= rb[:, 2])
+                           & (it.box[:, 3] <= rb[:, 3]))
                 deep = open_ & (it.depth >= MAX_DEPTH)
                 if deep.any():
                     np.maximum.at(gap, it.query[deep], ub[deep] - best[it.query[deep]])
@@ -473,6 +557,113 @@ class FaceSet:
                     break
             best[idx], bu[idx], bv[idx] = fbest, u, v
 
+    def _regions(self, q: FloatArray, R: float, best: FloatArray, face: np.ndarray,
+                 bu: FloatArray, bv: FloatArray) -> tuple[np.ndarray, FloatArray]:
+        """Boxes in (u, v) around each query's contact x* on which f <= f(x*) + REGION_SLACK is
+        proved (a local certificate; the box's face, -1 where none is found, and the box).
+
+        f(p) = p_z + sqrt(R^2 - |p_xy - q|^2) is concave in p with the hemisphere's Hessian at
+        most -I/R in xy, so for p0 = S(x*) and g = grad f(p0):
+
+            f(S(x)) - f(p0) <= g . (S(x) - p0) - |S_xy(x) - p0_xy|^2 / (2R)
+                             = [N(x) w(x) - |E(x)|^2 / (2R)] / w(x)^2
+
+        with the homogeneous net (A, w) of S, N = g . (A - w p0) and E = A_xy - w p0_xy, both
+        polynomial patches vanishing at x*.  Taylor's theorem with the Bezier hulls of their
+        second derivatives over the box (hodographs) bounds N <= n1 . d + lam |d|^2 / 2 and
+        |E| >= (sigma - M2 rho / 2) |d|, d = x - x* (rho the box's largest |d|, sigma the least
+        singular value of E's Jacobian at x*, n1 = grad N(x*), zero at an interior maximum).
+        Where k = (sigma - M2 rho / 2)^2 / (2R) - lam w_max / 2 > 0, the bracket is at most
+        (w_max |n1|)^2 / (4 k), so f <= f(x*) + that / w_min^2 on the whole box: a sub-patch
+        inside it can be dropped without halving it down to CERTIFY.  On a face's own side only
+        the directions into the face count for n1 (a maximum on the boundary)."""
+        m = len(q)
+        reg_face = np.full(m, -1)
+        reg_box = np.zeros((m, 4))
+        R2 = R * R
+        for d in self.data:
+            idx = np.flatnonzero(face == d.index)
+            if len(idx) == 0:
+                continue
+            s = d.face.surface
+            u, v = bu[idx], bv[idx]
+            iu = np.clip(np.searchsorted(d.u_ends, u, side="left"), 0, d.nu - 1)
+            iv = np.clip(np.searchsorted(d.v_ends, v, side="left"), 0, d.nv - 1)
+            root = iu * d.nv + iv
+            box = d.boxes[root]
+            wu, wv = box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]
+            cs = np.clip((u - box[:, 0]) / wu, 0.0, 1.0)
+            ct = np.clip((v - box[:, 2]) / wv, 0.0, 1.0)
+            j = s.derivatives(u, v)
+            p0 = j.point
+            D = p0[:, :2] - q[idx]
+            dd = (D * D).sum(axis=1)
+            valid = dd < R2 * (1.0 - 1e-9)
+            h0 = np.sqrt(np.maximum(R2 - dd, 1e-300))
+            g = np.column_stack([-D / h0[:, None], np.ones(len(idx))])
+            gp = (g * p0).sum(axis=1)
+            nets = d.nets[root]
+            if s.rational:
+                bs = _bernstein(d.p, cs)
+                bt = _bernstein(d.q, ct)
+                wstar = np.einsum("ni,nij,nj->n", bs, nets[:, 3], bt)
+            else:
+                wstar = np.ones(len(idx))
+            todo = valid.copy()
+            for rho in REGION_SIZES:
+                if not todo.any():
+                    break
+                k_ = np.flatnonzero(todo)
+                s0, s1 = np.maximum(cs[k_] - rho, 0.0), np.minimum(cs[k_] + rho, 1.0)
+                t0, t1 = np.maximum(ct[k_] - rho, 0.0), np.minimum(ct[k_] + rho, 1.0)
+                sub = _sub_net(nets[k_], s0, s1, t0, t1)
+                ls, lt = (cs[k_] - s0) / (s1 - s0), (ct[k_] - t0) / (t1 - t0)
+                du, dv = (s1 - s0) * wu[k_], (t1 - t0) * wv[k_]
+                gk, pk = g[k_], p0[k_]
+                hw = sub[:, 3]
+                N = np.einsum("nc,ncij->nij", gk, sub[:, :3]) - hw * gp[k_, None, None]
+                E = sub[:, :2] - hw[:, None] * pk[:, :2, None, None]
+                nss, nst, ntt = _second_differences(N, d.p, d.q)
+                lam = _quadratic_bound(nss.max(axis=(-2, -1)), np.abs(nst).max(axis=(-2, -1)),
+                                       ntt.max(axis=(-2, -1)))
+                ess, est, ett = _second_differences(E, d.p, d.q)
+                mc = _quadratic_bound(np.abs(ess).max(axis=(-2, -1)),
+                                      np.abs(est).max(axis=(-2, -1)),
+                                      np.abs(ett).max(axis=(-2, -1)))
+                m2 = np.hypot(mc[:, 0], mc[:, 1])
+                wmax, wmin = hw.max(axis=(1, 2)), hw.min(axis=(1, 2))
+                ws = wstar[k_]
+                js = j.su[k_] * du[:, None]
+                jt = j.sw[k_] * dv[:, None]
+                n1s = ws * (gk * js).sum(axis=1)
+                n1t = ws * (gk * jt).sum(axis=1)
+                a11, a12, a21, a22 = ws * js[:, 0], ws * jt[:, 0], ws * js[:, 1], ws * jt[:, 1]
+                fro = a11 * a11 + a12 * a12 + a21 * a21 + a22 * a22
+                det = np.abs(a11 * a22 - a12 * a21)
+                smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
+                sigma = np.where(smax > 0, det / np.where(smax > 0, smax, 1.0), 0.0)
+                rmax = np.hypot(np.maximum(ls, 1 - ls), np.maximum(lt, 1 - lt))
+                s_eff = sigma - 0.5 * m2 * rmax
+                es = np.where(ls <= 0, np.maximum(n1s, 0), np.where(ls >= 1, np.maximum(-n1s, 0),
+                                                                    np.abs(n1s)))
+                et = np.where(lt <= 0, np.maximum(n1t, 0), np.where(lt >= 1, np.maximum(-n1t, 0),
+                                                                    np.abs(n1t)))
+                A = wmax * np.hypot(es, et)
+                lam_w = np.where(lam >= 0, lam * wmax, lam * wmin)
+                kk = np.where(s_eff > 0, s_eff, 0.0) ** 2 / (2.0 * R) - 0.5 * lam_w
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    excess = A * A / (4.0 * kk * wmin * wmin)
+                ok = (s_eff > 0) & (kk > 0) & (wmin > 0) & (excess <= REGION_SLACK)
+                hit = k_[ok]
+                qi = idx[hit]
+                reg_face[qi] = d.index
+                b = box[hit]
+                reg_box[qi] = np.column_stack([
+                    b[:, 0] + s0[ok] * wu[hit], b[:, 0] + s1[ok] * wu[hit],
+                    b[:, 2] + t0[ok] * wv[hit], b[:, 2] + t1[ok] * wv[hit]])
+                todo[hit] = False
+        return reg_face, reg_box
+
     @staticmethod
     def _newton_step(s, u: FloatArray, v: FloatArray, qq: FloatArray, R2: float):
         """Newton step of f(u, v) (gradient and Hessian as in :meth:`DropCutter.refine`):
@@ -495,7 +686,15 @@ class FaceSet:
         safe = np.where(concave, det, 1.0)
         du = np.where(concave, -(Hww * gu - Huw * gw) / safe, 0.0)
         dw = np.where(concave, -(Huu * gw - Huw * gu) / safe, 0.0)
-        ok = concave & np.isfinite(du) & np.isfinite(dw)
+        # on a side of the domain with the ascent pointing out: Newton along the side only
+        (u0, u1), (v0, v1) = s.domain
+        pin_u = ((u <= u0) & (gu < 0)) | ((u >= u1) & (gu > 0))
+        pin_v = ((v <= v0) & (gw < 0)) | ((v >= v1) & (gw > 0))
+        side_u = pin_u & ~pin_v & (Hww < 0)
+        side_v = pin_v & ~pin_u & (Huu < 0)
+        du = np.where(side_u, 0.0, np.where(side_v, -gu / np.where(side_v, Huu, 1.0), du))
+        dw = np.where(side_v, 0.0, np.where(side_u, -gw / np.where(side_u, Hww, 1.0), dw))
+        ok = (concave | side_u | side_v) & np.isfinite(du) & np.isfinite(dw)
         return ok, u + np.where(ok, du, 0.0), v + np.where(ok, dw, 0.0)
 
     def _bounds(self, d: _FaceData, it: _Items, q: FloatArray, R: float):
