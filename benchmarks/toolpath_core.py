@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Time the finishing strategies on the case study (6 mm ball, 0.01 mm scallop by default).
 
-With ``--verify`` each toolpath is also posted as plain G-code (G21 G90, G0/G1 with F,
-4 decimals, M2) and simulated against the design (:func:`BSplineCAM.core.verify.verify`),
-reporting the largest gouge and scallop.
+Each toolpath's program is also counted with one-sided arcs (issue 14): moves and bytes of
+the same plain 4-decimal G-code without and with G2/G3.  With ``--verify`` both programs are
+simulated against the design (:func:`BSplineCAM.core.verify.verify`), reporting the largest
+gouge and scallop.
 
 Run with the project venv:  .venv/bin/python benchmarks/toolpath_core.py [--scallop 0.01]
 """
@@ -22,7 +23,8 @@ sys.path.insert(0, str(ROOT))
 from BSplineCAM.core import Surface  # noqa: E402
 from BSplineCAM.core.gcode import read_gcode  # noqa: E402
 from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.toolpath import generate, to_moves  # noqa: E402
+from BSplineCAM.core.toolpath import generate, program_moves, to_moves  # noqa: E402
+from BSplineCAM.core.toolpath.arcs import counts, plain_gcode  # noqa: E402
 from BSplineCAM.core.verify import verify  # noqa: E402
 
 
@@ -35,6 +37,18 @@ def gcode(toolpath, feed: float = 1000.0) -> str:
         lines.append(f"{word} X{m.x:.4f} Y{m.y:.4f} Z{m.z:.4f}{tail}")
     lines.append("M2")
     return "\n".join(lines) + "\n"
+
+
+def arc_fitting(surface, tp) -> dict:
+    """Program moves and G-code bytes (same 4-decimal writer) without and with arcs."""
+    start = time.perf_counter()
+    fitted = program_moves(tp, arcs=True, surface=surface)
+    seconds = time.perf_counter() - start
+    lines = to_moves(tp)
+    c = counts(fitted)
+    return {"program_moves_lines": len(lines), "program_moves_arcs": c["moves"],
+            "arcs": c["arcs"], "bytes_lines": len(plain_gcode(lines)),
+            "bytes_arcs": len(plain_gcode(fitted)), "arc_fit_seconds": round(seconds, 3)}
 
 
 def main() -> None:
@@ -57,10 +71,15 @@ def main() -> None:
             "moves": tp.stats.moves, "cutting_length_mm": round(tp.stats.cutting_length_mm, 1),
             "unreachable_regions": len(tp.unreachable),
         }
+        results[strategy].update(arc_fitting(surface, tp))
         if args.verify:
             m = verify(surface, read_gcode(gcode(tp)), Tool(args.diameter), cell=0.1).metrics
             results[strategy].update(gouge_max_mm=m["gouge_max_mm"],
                                      scallop_max_mm=m["scallop_max_mm"])
+            arcs = plain_gcode(program_moves(tp, arcs=True, surface=surface))
+            m = verify(surface, read_gcode(arcs), Tool(args.diameter), cell=0.1).metrics
+            results[strategy].update(arcs_gouge_max_mm=m["gouge_max_mm"],
+                                     arcs_scallop_max_mm=m["scallop_max_mm"])
     print(json.dumps(results, indent=1))
 
 

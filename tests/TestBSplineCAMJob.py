@@ -127,6 +127,9 @@ class TestJob(JobFixture):
                 self.assertGreater(check.feeds, 100)
                 moves = read_gcode(text)
                 self.assertEqual(int(np.sum(moves.kind == MoveKind.LINE)), check.feeds, post)
+                # the op fits arcs (G18 along X): every post writes them, rs274 counts them
+                self.assertGreater(check.arcs, 100, post)
+                self.assertEqual(int(np.sum(moves.kind >= MoveKind.ARC_CW)), check.arcs, post)
 
     def test_post_processor_is_the_users_choice(self):
         """The job's PostProcessor (what CAM's own post command runs) is the post chosen."""

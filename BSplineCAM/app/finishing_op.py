@@ -40,6 +40,7 @@ PROPERTIES = (
     ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane", 0, None),
     ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes", 0, DIRECTIONS),
     ("App::PropertyEnumeration", "IsoDirection", "Surface", "Parameter followed by iso-parametric passes", 0, ISO_DIRECTIONS),
+    ("App::PropertyBool", "Arcs", "Surface", "Fit passes with G2/G3 arcs (one-sided, within the tolerance) in the plane holding them", 0, True),
     ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)", 0, None),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
 )
@@ -63,8 +64,12 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
 
     def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
         """Rebuild what the proxy needs from properties (a restored proxy has only its class):
-        missing properties, the job's exact-surface stock, a restorable tool controller."""
+        missing properties, the job's exact-surface stock, a restorable tool controller.
+        Documents saved before arcs existed keep their straight moves (Arcs off)."""
+        had_arcs = hasattr(obj, "Arcs")
         self.ensure_properties(obj)
+        if not had_arcs:
+            obj.Arcs = False
         from . import cam
 
         job = self.job_of(obj)
@@ -168,7 +173,10 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             raise ValueError(f"{obj.Label}: the strategy produced no pass")
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
-        moves = toolpath_common.to_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest))
+        from ..core.toolpath import program_moves
+
+        moves = program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
+                              arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         obj.Report = json.dumps(report(toolpath, commands), sort_keys=True)
@@ -195,8 +203,14 @@ def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,
             commands.append(Path.Command("G0", {"X": first.x, "Y": first.y}))
             last = (first.x, first.y, first.z)
             moves = moves[1:]
+    arcs = ArcWords()
     for move in moves:
         target = {"X": move.x, "Y": move.y, "Z": move.z}
+        if move.kind in ("cw", "ccw"):
+            commands.extend(arcs.commands(move, last, horizontal_feed))
+            last = (move.x, move.y, move.z)
+            continue
+        commands.extend(arcs.restore())
         if move.kind == "rapid":
             commands.append(Path.Command("G0", target))
         else:
@@ -204,7 +218,82 @@ def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,
             feed = vertical_feed if vertical else horizontal_feed
             commands.append(Path.Command("G1", {**target, "F": feed}))
         last = (move.x, move.y, move.z)
+    commands.extend(arcs.restore())
     return commands
+
+
+#: Least difference (mm) between successive R, I or J words (see :class:`ArcWords`).
+WORD_STEP = 1e-5
+
+
+class ArcWords:
+    """Path commands of core arcs (:class:`BSplineCAM.core.toolpath.arcs.Arc`) that every
+    tested post writes correctly in FreeCAD 0.20, 1.0 and 1.1.
+
+    The plane word (G18, G19) goes before a run of arcs in another plane and G17 is restored
+    after it.  G17 arcs carry I/J (centre offsets, FreeCAD's own form, which its path view
+    draws); G18/G19 arcs carry R instead of I/K or J/K, because the linuxcnc, fanuc and
+    mach3_mach4 posts drop K from every command.  Posts that suppress a word equal to the
+    last one written (fanuc: OUTPUT_DOUBLES off, which compares every letter with its last
+    value in any command) would drop a repeated R, I or J, which are not modal: a value
+    within WORD_STEP of the last one is moved WORD_STEP away from it, so that it still differs
+    once the document stores the path with 6 decimals (an arc moves by at most that much,
+    0.01 um, two orders below the 1 um gouge bound; in practice R repeats where arcs are
+    clamped to the largest radius, and R changes a flat arc's height by far less).
+    """
+
+    def __init__(self) -> None:
+        self.plane = 17
+        self.last_words: dict[str, float] = {}
+
+    def _distinct(self, letter: str, value: float) -> float:
+        last = self.last_words.get(letter)
+        if last is not None and abs(value - last) < WORD_STEP:
+            value = last + WORD_STEP
+        self.last_words[letter] = value
+        return value
+
+    def restore(self) -> list:
+        if self.plane == 17:
+            return []
+        self.plane = 17
+        return [Path.Command("G17")]
+
+    def commands(self, arc, start, feed: float) -> list:
+        out = []
+        if arc.plane != self.plane:
+            out.append(Path.Command(f"G{arc.plane}"))
+            self.plane = arc.plane
+        words = {"X": arc.x, "Y": arc.y, "Z": arc.z}
+        if arc.plane == 17:
+            words["I"] = self._distinct("I", arc.cx - start[0])
+            words["J"] = self._distinct("J", arc.cy - start[1])
+        else:
+            words["R"] = self._distinct("R", arc.radius)
+        words["F"] = feed
+        out.append(Path.Command("G2" if arc.kind == "cw" else "G3", words))
+        return out
+
+
+def _arc_length(name: str, params: dict, start, end, plane: int) -> float:
+    """Length (mm) of a G2/G3 Path command from ``start`` to ``end``: R form (short arc) or
+    I/J centre offsets, helical travel along the plane's normal included."""
+    axes = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}[plane]
+    a1, a2, normal = axes
+    s = np.array([start[a1], start[a2]])
+    e = np.array([end[a1], end[a2]])
+    if "R" in params:
+        r = abs(float(params["R"]))
+        half = min(1.0, float(np.linalg.norm(e - s)) / (2.0 * r)) if r > 0 else 0.0
+        sweep = 2.0 * np.arcsin(half)
+    else:
+        offsets = {17: "IJ", 18: "KI", 19: "JK"}[plane]
+        c = s + np.array([float(params.get(k, 0.0)) for k in offsets])
+        r = float(np.linalg.norm(s - c))
+        t0 = np.arctan2(*(s - c)[::-1])
+        t1 = np.arctan2(*(e - c)[::-1])
+        sweep = (t1 - t0) % (2 * np.pi) if name in ("G3", "G03") else (t0 - t1) % (2 * np.pi)
+    return float(np.hypot(r * sweep, end[normal] - start[normal]))
 
 
 def feed_length(commands) -> float:
@@ -212,13 +301,19 @@ def feed_length(commands) -> float:
     the cutting length Verify measures on the posted program's text."""
     total = 0.0
     position = None
+    plane = 17
     for command in commands:
         params = command.Parameters
-        if command.Name not in ("G0", "G00", "G1", "G01") or not params:
+        if command.Name in ("G17", "G18", "G19"):
+            plane = int(command.Name[1:])
+            continue
+        if command.Name not in ("G0", "G00", "G1", "G01", "G2", "G02", "G3", "G03") or not params:
             continue
         target = [params.get(axis, position[i] if position else 0.0) for i, axis in enumerate("XYZ")]
         if command.Name in ("G1", "G01") and position is not None:
             total += float(np.linalg.norm(np.subtract(target, position)))
+        elif command.Name not in ("G0", "G00") and position is not None:
+            total += _arc_length(command.Name, params, position, target, plane)
         position = target
     return total
 
@@ -226,10 +321,11 @@ def feed_length(commands) -> float:
 def report(toolpath, commands=None) -> dict:
     """The op's statistics.  ``cutting_length_mm`` is the length of the program's feed moves
     (approach feeds included), one definition with Verify's; ``pass_length_mm`` is the length
-    along the passes and stay-down links alone (the core's figure)."""
+    along the passes and stay-down links alone (the core's figure); with ``commands``, also
+    ``program_moves`` (G0-G3) and ``arc_moves`` (G2/G3)."""
     stats = toolpath.stats
     cutting = stats.cutting_length_mm if commands is None else feed_length(commands)
-    return {
+    out = {
         "strategy": toolpath.strategy,
         "passes": stats.passes,
         "moves": stats.moves,
@@ -238,6 +334,10 @@ def report(toolpath, commands=None) -> dict:
         "seconds": round(stats.seconds, 4),
         "unreachable": [getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
     }
+    if commands is not None:
+        out["arc_moves"] = sum(c.Name in ("G2", "G3") for c in commands)
+        out["program_moves"] = sum(c.Name in ("G0", "G1", "G2", "G3") for c in commands)
+    return out
 
 
 def progress_reporter(obj):

@@ -29,6 +29,7 @@ class FinishingParameters:
     angle: float = 0.0
     direction: str = "zigzag"
     iso_direction: str = "u"
+    arcs: bool = True  # fit passes with one-sided G2/G3 arcs (core.toolpath.arcs)
 
 
 def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc,
@@ -49,6 +50,7 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     op.Angle = params.angle
     op.Direction = params.direction
     op.IsoDirection = params.iso_direction
+    op.Arcs = bool(params.arcs)
     return model, job, op
 
 

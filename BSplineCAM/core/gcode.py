@@ -741,6 +741,18 @@ def _arc_geometry(program: Program, index: IntArray) -> tuple[FloatArray, FloatA
     return sweep, radius, axial
 
 
+#: Largest sagitta (mm) of the chords that stand for arcs in a simulation: a chord inside a
+#: convex arc lowers the tool by its sagitta, which verification would report as a gouge.
+SIMULATION_ARC_SAGITTA_MM = 1e-4
+
+
+def simulation_chord_tolerance(cell: float) -> float:
+    """Chord tolerance (mm) for simulating arcs on a Z-map of ``cell`` mm: a tenth of the cell
+    (the scallop's resolution), at most SIMULATION_ARC_SAGITTA_MM (well below the 1 um gouge
+    bound), so one-sided arcs above the cutter-location curve simulate without fake gouges."""
+    return min(cell / 10.0, SIMULATION_ARC_SAGITTA_MM)
+
+
 def linearise(program: Program, tolerance: float) -> Segments:
     """Replace arcs by chords whose sagitta is at most ``tolerance`` (mm); lines pass through.
 

@@ -44,6 +44,8 @@ def register(sub) -> None:
     p.add_argument("--angle", type=float, default=0.0, help="raster direction from +X (degrees)")
     p.add_argument("--direction", default="zigzag", choices=[d.value for d in Direction])
     p.add_argument("--iso-direction", default="u", choices=[d.value for d in IsoDirection])
+    p.add_argument("--arcs", default="on", choices=["on", "off"],
+                   help="fit passes with one-sided G2/G3 arcs in their plane (default on)")
     p.add_argument("--post", default="linuxcnc", help="FreeCAD post-processor (linuxcnc, grbl, fanuc, mach3_mach4, ...)")
     p.add_argument("--feed", type=float, default=1200.0, help="cutting feed (mm/min)")
     p.add_argument("--plunge-feed", type=float, default=400.0, help="vertical feed (mm/min)")
@@ -98,7 +100,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
     params = pipeline.FinishingParameters(
         tool_diameter=2.0 * tool.radius, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, direction=args.direction,
-        iso_direction=args.iso_direction)
+        iso_direction=args.iso_direction, arcs=args.arcs == "on")
     cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
                           cutting_params.spindle, cutting_params.rapid)
     name = _safe_name(surface.name)
@@ -118,7 +120,8 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
         report["program"] = program.name
         report["parameters"] = {
             "strategy": strategy.value, "angle_deg": angle, "direction": args.direction,
-            "iso_direction": args.iso_direction, "tool_diameter_mm": 2.0 * tool.radius,
+            "iso_direction": args.iso_direction, "arcs": args.arcs,
+            "tool_diameter_mm": 2.0 * tool.radius,
             "scallop_mm": tool.scallop, "tolerance_mm": tool.tolerance}
         report["angle_deg"] = angle
         if not args.no_rs274 and rs274.available():

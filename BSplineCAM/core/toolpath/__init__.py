@@ -179,8 +179,29 @@ def generate(
     return toolpath
 
 
+def program_moves(toolpath: Toolpath, clearance_height: float | None = None,
+                  safe_height: float | None = None, arcs: bool = False,
+                  surface: Any = None) -> list:
+    """:func:`to_moves`, with every pass and link fitted by one-sided G2/G3 arcs when
+    ``arcs`` (:func:`arcs.fit_arcs`, within half the toolpath's chordal tolerance of the
+    polyline, which lies within the other half of the exact cutter-location curve).
+    Waterline contours (G17) are fitted only with ``surface`` (a core Surface), whose
+    drop-cutter tells their free side; without it they stay lines."""
+    moves = to_moves(toolpath, clearance_height, safe_height)
+    if not arcs:
+        return moves
+    from .arcs import contour_side, fit_arcs
+
+    side17 = None
+    if surface is not None and toolpath.strategy == Strategy.WATERLINE.value:
+        dc = DropCutter(surface, 0.5 * float(toolpath.parameters["tool_diameter"]))
+        side17 = contour_side(lambda xy: dc.heights(xy)[0])
+    return fit_arcs(moves, 0.5 * float(toolpath.parameters["tolerance"]), side17)
+
+
 __all__ = [
     "MAX_CUTTER_LOCATIONS", "Direction", "DropCutter", "IsoDirection", "Move", "Region",
     "Strategy", "Toolpath", "ToolpathCancelled", "ToolpathStats", "check_request",
-    "curved_stepover", "estimated_cutter_locations", "flat_stepover", "generate", "to_moves",
+    "curved_stepover", "estimated_cutter_locations", "flat_stepover", "generate", "program_moves",
+    "to_moves",
 ]
