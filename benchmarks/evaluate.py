@@ -4,6 +4,10 @@
 Peers, timed in this same process on the same net and parameters: SciPy's FITPACK
 (``bisplev``, points and first derivatives), geomdl (pure Python NURBS), and OCCT's per-point
 evaluation through cadquery's OCP (``Geom_BSplineSurface::D0``/``D1`` on a subset, scaled).
+Also the cost of unit normals against points alone, for each evaluator: "points+normals /
+points" is the time of the points plus that of the unit normals over the time of the points
+(ours timed in turns with the points, so a slow spell of the machine hits both alike).
+Set OPENBLAS_NUM_THREADS=1 and BSPLINECAM_NORMAL_THREADS=1 for single-core figures.
 Run with the project venv:  .venv/bin/python benchmarks/evaluate.py
 """
 
@@ -11,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import time
@@ -21,6 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from BSplineCAM import Surface  # noqa: E402
+from BSplineCAM.core import matrix  # noqa: E402
 
 
 def best_of(fn, repeat: int) -> float:
@@ -60,6 +66,8 @@ def main() -> None:
     parser.add_argument("--json", help="also write the figures to this file")
     args = parser.parse_args()
 
+    if os.environ.get("BSPLINECAM_NORMAL_THREADS"):
+        matrix.NORMAL_THREADS = max(1, int(os.environ["BSPLINECAM_NORMAL_THREADS"]))
     net = make_net()
     surface = Surface(net, "uniform", "bench")
     t = np.linspace(0.0, 1.0, args.n)
@@ -82,19 +90,22 @@ def main() -> None:
 
     check = np.stack(fitpack_points(), -1)
     figures["max_diff_vs_fitpack_mm"] = float(np.abs(check - surface.evaluate_grid(t, t)).max())
+    figures["max_normal_diff_vs_fitpack"] = float(
+        np.abs(fitpack_normals() - surface.normals(t, t, grid=True)).max())
     best = best_interleaved({
         "ours_points": lambda: surface.evaluate_grid(t, t),
+        "ours_normals": lambda: surface.normals(t, t, grid=True),
         "fitpack_points": fitpack_points,
     }, args.repeat)
-    normals = best_interleaved({
-        "ours_normals": lambda: surface.normals(t, t, grid=True),
-        "fitpack_normals": fitpack_normals,
-    }, max(2, args.repeat // 3))
+    normals = best_interleaved({"fitpack_normals": fitpack_normals}, max(2, args.repeat // 3))
     ours_points = best["ours_points"]
     figures["ours_points_s"] = ours_points
-    figures["ours_points_and_normals_s"] = ours_points + normals["ours_normals"]
+    figures["ours_points_and_normals_s"] = ours_points + best["ours_normals"]
+    figures["ours_normals_over_points"] = figures["ours_points_and_normals_s"] / ours_points
     figures["fitpack_points_s"] = best["fitpack_points"]
     figures["fitpack_points_and_normals_s"] = best["fitpack_points"] + normals["fitpack_normals"]
+    figures["fitpack_normals_over_points"] = (figures["fitpack_points_and_normals_s"]
+                                              / best["fitpack_points"])
 
     try:
         from geomdl import BSpline as GeomdlBSpline
@@ -108,6 +119,13 @@ def main() -> None:
         params = rng.uniform(0, 1, size=(args.geomdl_points, 2)).tolist()
         seconds = best_of(lambda: gs.evaluate_list(params), 1)
         figures["geomdl_points_s"] = seconds * total / args.geomdl_points
+        from geomdl import operations
+
+        few = params[: max(1, args.geomdl_points // 5)]
+        seconds = best_of(lambda: operations.normal(gs, few), 1)  # point and unit normal
+        figures["geomdl_points_and_normals_s"] = seconds * total / len(few)
+        figures["geomdl_normals_over_points"] = (figures["geomdl_points_and_normals_s"]
+                                                 / figures["geomdl_points_s"])
         ref = np.array(gs.evaluate_list(params[:200]))
         figures["max_diff_vs_geomdl_mm"] = float(np.abs(ref - surface.evaluate(*np.array(params[:200]).T)).max())
     except ImportError:
@@ -134,6 +152,8 @@ def main() -> None:
 
         figures["occt_points_s"] = best_of(occt_points, 2) * total / len(uv)
         figures["occt_points_and_normals_s"] = best_of(occt_d1, 2) * total / len(uv)
+        figures["occt_normals_over_points"] = (figures["occt_points_and_normals_s"]
+                                               / figures["occt_points_s"])
     except ImportError:
         figures["occt_points_s"] = float("nan")
 
@@ -144,13 +164,19 @@ def main() -> None:
         "occt_per_point_points": figures["occt_points_s"] / ours_points,
         "occt_per_point_points_and_normals": figures.get("occt_points_and_normals_s", float("nan")) / figures["ours_points_and_normals_s"],
     }
-    print(f"grid {args.n} x {args.n} on a 16 x 16 net, best of {args.repeat}; numpy {np.__version__}, {platform.python_version()}")
+    print(f"grid {args.n} x {args.n} on a 16 x 16 net, best of {args.repeat}; numpy {np.__version__}, {platform.python_version()}; "
+          f"normals in {matrix.NORMAL_THREADS} thread(s)")
     print(f"  ours      points {ours_points * 1e3:9.1f} ms   points+normals {figures['ours_points_and_normals_s'] * 1e3:9.1f} ms")
     print(f"  FITPACK   points {figures['fitpack_points_s'] * 1e3:9.1f} ms   points+normals {figures['fitpack_points_and_normals_s'] * 1e3:9.1f} ms")
     print(f"  geomdl    points {figures['geomdl_points_s'] * 1e3:9.1f} ms   (extrapolated from {args.geomdl_points} points)")
     print(f"  OCCT      points {figures['occt_points_s'] * 1e3:9.1f} ms   points+normals {figures.get('occt_points_and_normals_s', float('nan')) * 1e3:9.1f} ms (per point, extrapolated)")
     for key, value in ratios.items():
         print(f"  speed-up vs {key:36s} {value:10.1f}x")
+    cost = ", ".join(f"{name} {figures.get(f'{key}_normals_over_points', float('nan')):.1f}x"
+                     for name, key in (("ours", "ours"), ("FITPACK", "fitpack"),
+                                       ("geomdl", "geomdl"), ("OCCT", "occt")))
+    print(f"  points+normals / points: {cost}")
+    print(f"  max |unit normal ours - FITPACK| = {figures['max_normal_diff_vs_fitpack']:.2e}")
     print(f"  max |ours - FITPACK| = {figures['max_diff_vs_fitpack_mm']:.2e} mm, max |ours - geomdl| = {figures.get('max_diff_vs_geomdl_mm', float('nan')):.2e} mm")
     if args.json:
         Path(args.json).write_text(json.dumps({"figures": figures, "ratios": ratios}, indent=1))

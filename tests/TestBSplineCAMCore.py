@@ -197,6 +197,73 @@ def test_grid_with_normals_shapes():
     assert points.shape == normals.shape == (31, 17, 3)
 
 
+def _cox_de_boor_grid_normals(net, layout, u, w):
+    """Unit normals on the grid u x w from Cox–de Boor basis derivatives (independent)."""
+    ku, kw = (knot_vector(n, layout) for n in net.shape[:2])
+    bu, du = cox_de_boor(ku, 3, u), cox_de_boor(ku, 3, u, derivative=1)
+    bw, dw = cox_de_boor(kw, 3, w), cox_de_boor(kw, 3, w, derivative=1)
+    su = np.einsum("ai,ijc,bj->abc", du, net, bw)
+    sw = np.einsum("ai,ijc,bj->abc", bu, net, dw)
+    n = np.cross(su, sw)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def _wild_net(rng):
+    """Control points scattered at random: folds, near-vanishing normals, a badly conditioned
+    product Su x Sw."""
+    return rng.normal(scale=30.0, size=(7, 9, 3))
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+@pytest.mark.parametrize("make", [random_net, _wild_net, lambda rng: Surface.from_json(
+    CASE_STUDY).control_points], ids=["wavy", "wild", "case-study"])
+def test_grid_normals_equal_cox_de_boor_and_the_tangent_path(layout, make, rng):
+    """Grid normals (evaluated as one Bernstein polynomial per patch) against Cox–de Boor
+    tangents crossed per point, and against the blocked tangent path, within 1e-12: on a
+    regular grid and on unsorted parameters, clamped and uniform."""
+    net = np.asarray(make(rng), dtype=float)
+    surface = Surface(net, layout)
+    for u, w in ((np.linspace(0, 1, 61), np.linspace(0, 1, 47)), (rng.random(23), rng.random(19))):
+        fast = surface.normals(u, w, grid=True)
+        np.testing.assert_allclose(fast, _cox_de_boor_grid_normals(net, layout, u, w), atol=1e-12)
+        slow, degenerate = matrix.grid_normals(net, layout, u, w)
+        assert not degenerate.any()
+        np.testing.assert_allclose(fast, slow, atol=1e-12)
+    points, normals = surface.grid_with_normals(31, 17)
+    np.testing.assert_array_equal(normals, surface.normals(np.linspace(0, 1, 31),
+                                                           np.linspace(0, 1, 17), grid=True))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_large_grid_normals_in_threads_equal_the_tangent_path(threads, monkeypatch):
+    """A grid large enough to be shared among threads gives the same normals."""
+    monkeypatch.setattr(matrix, "NORMAL_THREADS", threads)
+    surface = Surface.from_json(CASE_STUDY)
+    u, w = np.linspace(0, 1, 420), np.linspace(0, 1, 390)
+    assert len(u) * len(w) >= 1.2 * matrix.NORMAL_THREAD_POINTS
+    slow, _ = matrix.grid_normals(surface.control_points, surface.knots, u, w)
+    np.testing.assert_allclose(surface.normals(u, w, grid=True), slow, atol=1e-12)
+
+
+def test_grid_normals_on_a_collapsed_edge_match_the_tangent_path():
+    """A net with its u = 0 edge collapsed to a point: the zero normals there are flagged and
+    replaced the same way as the blocked tangent path does, the rest agree within 1e-12."""
+    x, y = np.meshgrid(np.linspace(0, 30, 6), np.linspace(0, 30, 5), indexing="ij")
+    net = np.stack([x, y, 0.02 * (x - 15) ** 2 + 0.01 * y * x], -1)
+    net[0, :] = net[0, 0]
+    surface = Surface(net, "clamped")
+    u, w = np.linspace(0, 1, 41), np.linspace(0, 1, 33)
+    form = surface.patch_form
+    fast, degenerate = matrix.grid_unit_normals(form, matrix.normal_form(form), u, w)
+    slow, slow_degenerate = matrix.grid_normals(net, "clamped", u, w)
+    np.testing.assert_array_equal(degenerate, slow_degenerate)
+    assert degenerate[0].all() and not degenerate[1:].any()
+    np.testing.assert_allclose(fast, slow, atol=1e-12)
+    normals = surface.normals(u, w, grid=True)
+    assert np.isfinite(normals).all()
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=-1), 1.0, atol=1e-12)
+
+
 # --- properties (hypothesis) ------------------------------------------------------------------
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 params = st.floats(0.0, 1.0, allow_nan=False)

@@ -119,6 +119,12 @@ class Surface:
         """Power-basis coefficients of every patch (:func:`matrix.patch_form`), built once."""
         return matrix.patch_form(self.control_points, self.knots)
 
+    @cached_property
+    def normal_form(self) -> matrix.NormalCoefficients:
+        """Bezier coefficients of Su x Sw on every patch (:func:`matrix.normal_form`), built
+        once: grid normals evaluate them like points, with no per-point cross product."""
+        return matrix.normal_form(self.patch_form)
+
     def evaluate(self, u: ArrayLike, w: ArrayLike, du: int = 0, dw: int = 0) -> FloatArray:
         """Points (or the (du, dw) partial derivative) at parameters u, w (broadcast): (..., 3)."""
         u, w = self._check_params(u, w)
@@ -155,7 +161,8 @@ class Surface:
         fallback = lambda: self._nudged_normals(u, w, grid)  # noqa: E731
         if grid:
             u, w = self._check_params(np.atleast_1d(u), np.atleast_1d(w))
-            normal, degenerate = matrix.grid_normals(self.control_points, self.knots, u, w)
+            normal, degenerate = matrix.grid_unit_normals(self.patch_form, self.normal_form,
+                                                          u, w)
             if np.any(degenerate):
                 normal[degenerate] = fallback()[degenerate]
             return normal
