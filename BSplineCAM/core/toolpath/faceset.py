@@ -231,6 +231,49 @@ class _Bands:
         return ((np.count_nonzero(hits, axis=1) % 2) == 1).reshape(shape)
 
 
+class _SegmentGrid:
+    """Trim segments filed by the cells of a G x G grid over the domain that their boxes
+    meet: the segments near a point are found among its cell's few."""
+
+    def __init__(self, edges: FloatArray, domain, cells: int = 64):
+        (u0, u1), (v0, v1) = domain
+        self.edges = edges
+        self.o = np.array([u0, v0])
+        self.h = np.array([(u1 - u0) / cells or 1.0, (v1 - v0) / cells or 1.0])
+        self.g = cells
+        rows: dict = {}
+        if len(edges):
+            lo = self._cell(np.minimum(edges[:, :2], edges[:, 2:]) - 1e-9 * self.h * cells)
+            hi = self._cell(np.maximum(edges[:, :2], edges[:, 2:]) + 1e-9 * self.h * cells)
+            for k in range(len(edges)):
+                for i in range(lo[k, 0], hi[k, 0] + 1):
+                    for j in range(lo[k, 1], hi[k, 1] + 1):
+                        rows.setdefault(i * cells + j, []).append(k)
+        width = max([len(r) for r in rows.values()] + [1])
+        self.table = np.full((cells * cells, width), -1, dtype=np.intp)
+        for c, r in rows.items():
+            self.table[c, : len(r)] = r
+
+    def _cell(self, pts: FloatArray) -> np.ndarray:
+        return np.clip(np.floor((pts - self.o) / self.h), 0, self.g - 1).astype(np.intp)
+
+    def near(self, u: FloatArray, v: FloatArray, eps: float):
+        pts = np.column_stack([u, v])
+        c = self._cell(pts)
+        cand = self.table[c[:, 0] * self.g + c[:, 1]]  # (n, width)
+        qi, slot = np.nonzero(cand >= 0)
+        si = cand[qi, slot]
+        if len(si) == 0:
+            return qi, si
+        e = self.edges[si]
+        a, d = e[:, :2], e[:, 2:] - e[:, :2]
+        L2 = (d * d).sum(axis=1)
+        t = np.clip(((pts[qi] - a) * d).sum(axis=1) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+        r = pts[qi] - (a + t[:, None] * d)
+        keep = (r * r).sum(axis=1) <= eps * eps
+        return qi[keep], si[keep]
+
+
 @dataclass
 class _Items:
     """(query, sub-patch) pairs of one face: homogeneous nets, parameter boxes, trim state.
@@ -283,6 +326,7 @@ class _FaceData:
         for c, side in ((0, du0), (0, du1), (1, dv0), (1, dv1)):
             on_side |= (np.abs(e[:, c] - side) <= eps) & (np.abs(e[:, c + 2] - side) <= eps)
         self.edges = e[~on_side]
+        self._grid = _SegmentGrid(self.edges, face.surface.domain)
         self.design = _bernstein_grid(self.p, self.q)
         self.pinv = np.linalg.pinv(self.design)  # (3, K)
         status, segs = self.classify(self.boxes, np.full((len(self.boxes), 1), -2))
@@ -299,6 +343,10 @@ class _FaceData:
         u = np.clip(np.asarray(u, dtype=float), u0 + eu, u1 - eu)
         v = np.clip(np.asarray(v, dtype=float), v0 + ev, v1 - ev)
         return self._bands(u, v)
+
+    def segments_at(self, u: FloatArray, v: FloatArray, eps: float):
+        """(point index, segment index) of the trim segments within ``eps`` of each (u, v)."""
+        return self._grid.near(u, v, eps)
 
     @property
     def selected(self) -> bool:
@@ -556,6 +604,53 @@ class FaceSet:
                 if not good.any():
                     break
             best[idx], bu[idx], bv[idx] = fbest, u, v
+            if len(d.edges):
+                self._edge_polish(d, q, R, idx, best, bu, bv)
+
+    def _edge_polish(self, d: _FaceData, q: FloatArray, R: float, idx: np.ndarray,
+                     best: FloatArray, bu: FloatArray, bv: FloatArray) -> None:
+        """Newton's method along the trim segments that hold a contact (a maximum on the trim
+        edge, where the ball rests on the face's boundary): the contacts the halving finds
+        there (trim vertices, clipped segment ends) are polished to machine precision, so that
+        neighbouring heights along a pass agree to far better than CERTIFY."""
+        (u0, u1), (v0, v1) = d.face.surface.domain
+        eps = 1e-10 * max(u1 - u0, v1 - v0)
+        qi, si = d.segments_at(bu[idx], bv[idx], eps)
+        if len(qi) == 0:
+            return
+        rows = idx[qi]
+        e = d.edges[si]
+        a = e[:, :2]
+        dd = e[:, 2:] - a
+        L2 = (dd * dd).sum(axis=1)
+        t = np.clip(((np.column_stack([bu[rows], bv[rows]]) - a) * dd).sum(axis=1)
+                    / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+        qq = q[rows]
+        R2 = R * R
+        s = d.face.surface
+        ft = np.full(len(rows), -np.inf)
+        for _ in range(2 * POLISH_STEPS):
+            uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                gu, gw, huu, huw, hww = self._grad_hess(s, uu, vv, qq, R2)
+                f1 = gu * dd[:, 0] + gw * dd[:, 1]
+                f2 = huu * dd[:, 0] ** 2 + 2 * huw * dd[:, 0] * dd[:, 1] + hww * dd[:, 1] ** 2
+                step = np.where(f2 < 0, -f1 / f2, np.sign(f1))
+            nt = np.clip(t + np.nan_to_num(step), 0.0, 1.0)
+            p = s.evaluate(a[:, 0] + nt * dd[:, 0], a[:, 1] + nt * dd[:, 1])
+            pd = ((p[:, :2] - qq) ** 2).sum(axis=1)
+            fv = np.where(pd <= R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)), -np.inf)
+            better = fv > ft
+            t = np.where(better, nt, t)
+            ft = np.where(better, fv, ft)
+            if not better.any():
+                break
+        uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
+        order = np.argsort(ft, kind="stable")  # later (larger) assignments win
+        rows, ft, uu, vv = rows[order], ft[order], uu[order], vv[order]
+        up = ft > best[rows]
+        best[rows[up]] = ft[up]
+        bu[rows[up]], bv[rows[up]] = uu[up], vv[up]
 
     def _regions(self, q: FloatArray, R: float, best: FloatArray, face: np.ndarray,
                  bu: FloatArray, bv: FloatArray) -> tuple[np.ndarray, FloatArray]:
@@ -665,9 +760,9 @@ class FaceSet:
         return reg_face, reg_box
 
     @staticmethod
-    def _newton_step(s, u: FloatArray, v: FloatArray, qq: FloatArray, R2: float):
-        """Newton step of f(u, v) (gradient and Hessian as in :meth:`DropCutter.refine`):
-        (concave here, new u, new v)."""
+    def _grad_hess(s, u: FloatArray, v: FloatArray, qq: FloatArray, R2: float):
+        """Gradient (gu, gw) and Hessian (Huu, Huw, Hww) of f(u, v) = S_z + sqrt(R^2 -
+        |S_xy - q|^2)."""
         j = s.derivatives(u, v)
         D = j.point[:, :2] - qq
         h = np.sqrt(np.maximum(R2 - (D * D).sum(axis=1), 1e-300))
@@ -681,6 +776,13 @@ class FaceSet:
         Hww = j.sww[:, 2] - ((Dw * Dw).sum(1) + (D * j.sww[:, :2]).sum(1)) / h - dDw ** 2 / h3
         Huw = (j.suw[:, 2] - ((Du * Dw).sum(1) + (D * j.suw[:, :2]).sum(1)) / h
                - dDu * dDw / h3)
+        return gu, gw, Huu, Huw, Hww
+
+    @staticmethod
+    def _newton_step(s, u: FloatArray, v: FloatArray, qq: FloatArray, R2: float):
+        """Newton step of f(u, v) (gradient and Hessian as in :meth:`DropCutter.refine`):
+        (concave here, new u, new v)."""
+        gu, gw, Huu, Huw, Hww = FaceSet._grad_hess(s, u, v, qq, R2)
         det = Huu * Hww - Huw * Huw
         concave = (Huu < 0) & (det > 0)
         safe = np.where(concave, det, 1.0)

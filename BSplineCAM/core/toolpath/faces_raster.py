@@ -1,0 +1,231 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Raster finishing of trimmed faces: the certified drop-cutter over a whole :class:`FaceSet`.
+
+Like :mod:`.raster` (one surface), passes are vertical planes at ``angle`` from +X, spaced by
+the scallop height from the curvature and slope of the selected faces
+(:func:`.raster.cross_section_stepover`, the smallest allowance of the band each step spans).
+Along a pass the tool tip is the certified :meth:`FaceSet.drop_ball` height over ALL faces
+(check surfaces included, so nothing on the model is gouged), sampled every sqrt(8 R tol) mm,
+refined where a midpoint departs more than tol/2 from the chord, thinned by Douglas-Peucker to
+tol/2 and made one-sided by :func:`.chords.lift_chords`.  A pass is cut only where the ball's
+contact lies on a selected face; elsewhere it is split and the tool rises between the pieces
+(stay-down links by :func:`.links.stay_down_links`, or a retract).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..faces import sample_points
+from ..typing import FloatArray
+from .chords import ChordSamples, lift_chords
+from .common import (
+    Jet,
+    Monitor,
+    ProgressFn,
+    ToolParameters,
+    Toolpath,
+    ToolpathStats,
+    check_angle,
+    normal_curvature,
+    simplify,
+)
+from .faceset import FaceSet
+from .raster import cross_section_stepover
+
+#: Rounds of midpoint refinement along a pass.
+REFINE_ROUNDS = 5
+#: Longest stay-down link between passes, in tool radii.
+STAY_DOWN_LINK = 2.0
+
+
+class FaceQuery:
+    """Tip heights and their gradients over a face set for one ball (for chords and links)."""
+
+    def __init__(self, faceset: FaceSet, radius: float):
+        self.faceset = faceset
+        self.radius = float(radius)
+
+    def heights(self, xy: FloatArray):
+        """(tip z, face, u, v, on selected) from :meth:`FaceSet.drop_ball` (mm)."""
+        return self.faceset.drop_ball(xy, self.radius)
+
+    def slopes(self, xy: FloatArray, face: np.ndarray, u: FloatArray, v: FloatArray) -> FloatArray:
+        """Gradient of the tip height (envelope theorem, see :meth:`DropCutter.slopes`)."""
+        q = np.asarray(xy, dtype=float).reshape(-1, 2)
+        grad = np.full((len(q), 2), np.nan)
+        for k, f in enumerate(self.faceset.faces):
+            idx = np.flatnonzero(face == k)
+            if len(idx) == 0:
+                continue
+            p = f.surface.evaluate(u[idx], v[idx])
+            d = p[:, :2] - q[idx]
+            h = np.sqrt(np.maximum(self.radius ** 2 - (d * d).sum(axis=1), 0.0))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                grad[idx] = d / h[:, None]
+        return grad
+
+    def heights_and_slopes(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        tip, face, u, v, _ = self.heights(xy)
+        grad = self.slopes(xy, face, u, v)
+        grad[~np.isfinite(tip)] = np.nan
+        return tip, grad
+
+
+def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
+                    across: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Across-coordinate of the ball centre and the allowed XY stepover (mm) at samples of the
+    selected faces, sorted by the former (as :meth:`RasterPlanner.stepover_field`)."""
+    offs, allowed = [], []
+    for f in faceset.faces:
+        if not f.selected:
+            continue
+        uv = sample_points(f, count=60, boundary=400)
+        s = f.surface
+        d = s.derivatives(uv[:, 0], uv[:, 1])
+        nz = np.cross(d.su, d.sw)[:, 2]
+        sign = 1.0 if float(nz.sum()) >= 0 else -1.0
+        jet = Jet(uv[:, 0], uv[:, 1], d.point, d.su, d.sw, d.suu, d.suw, d.sww, sign)
+        n = jet.normal
+        nzc = np.clip(n[:, 2], 1e-3, 1.0)
+        tz = -(n[:, 0] * across[0] + n[:, 1] * across[1]) / nzc
+        t = np.column_stack([np.full(len(tz), across[0]), np.full(len(tz), across[1]), tz])
+        kappa = normal_curvature(jet, t)
+        xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, across, along)
+        allowed.append(np.maximum(xy, 0.02 * tool.flat_stepover))
+        offs.append((d.point[:, :2] + tool.radius * n[:, :2]) @ across)
+    b = np.concatenate(offs)
+    a = np.concatenate(allowed)
+    order = np.argsort(b)
+    return b[order], a[order]
+
+
+def _line_offsets(b_off: FloatArray, allowed: FloatArray, b0: float, b1: float,
+                  tool: ToolParameters, gap: float) -> list[float]:
+    """Pass offsets from b0 to b1: each step the least allowance in the band it spans."""
+    lines = [b0]
+    b = b0
+    widest = min(float(allowed.max(initial=tool.flat_stepover)), tool.radius)
+    while b < b1 - 1e-9:
+        step = widest
+        for _ in range(8):
+            lo, hi = np.searchsorted(b_off, [b - gap, b + step + gap])
+            need = float(allowed[lo:hi].min()) if hi > lo else step
+            if need >= step * 0.999:
+                break
+            step = need
+        b = min(b + step, b1)
+        lines.append(b)
+    return lines
+
+
+def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float,
+                          tolerance: float, angle: float = 0.0,
+                          progress: ProgressFn = None) -> Toolpath:
+    """Zig-zag raster toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
+
+    tool_diameter, scallop (cusp height) and tolerance (one-sided chordal) in mm, angle in
+    degrees from +X.  Heights are the certified drop-cutter over every face of the set.
+    """
+    started = time.perf_counter()
+    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
+    angle = check_angle(angle)
+    monitor = Monitor(progress, None, "raster")
+    monitor(0.0)
+    R = tool.radius
+    query = FaceQuery(faceset, R)
+    theta = math.radians(angle)
+    along = np.array([math.cos(theta), math.sin(theta)])
+    across = np.array([-math.sin(theta), math.cos(theta)])
+    lo, hi = faceset.bounds(selected_only=True)
+    corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
+    # ball centres over the selected faces' extent, as the net raster keeps them over the
+    # surface's: further out the ball only grazes a border with its equator
+    a0, a1 = float((corners @ along).min()), float((corners @ along).max())
+    b0, b1 = float((corners @ across).min()), float((corners @ across).max())
+    b_off, allowed = _stepover_field(faceset, tool, along, across)
+    offsets = _line_offsets(b_off, allowed, b0, b1, tool, 0.5 * tool.flat_stepover)
+    step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
+    n = max(2, math.ceil((a1 - a0) / step) + 1)
+    base = np.linspace(a0, a1, n)
+    bvals = np.asarray(offsets)
+    line = np.repeat(np.arange(len(offsets)), n)
+    a = np.tile(base, len(offsets))
+
+    def xy_of(a_, line_):
+        return a_[:, None] * along + bvals[line_][:, None] * across
+
+    z, face, _u, _v, sel = query.heights(xy_of(a, line))
+    monitor(0.5)
+    half = 0.5 * tool.tolerance
+    for r in range(REFINE_ROUNDS):
+        ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
+        idx = np.flatnonzero(ok & (np.diff(a) > 1e-4))
+        if len(idx) == 0:
+            break
+        am = 0.5 * (a[idx] + a[idx + 1])
+        lm = line[idx]
+        zm, fm, _um, _vm, sm = query.heights(xy_of(am, lm))
+        bad = np.isfinite(zm) & (np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > half)
+        # keep also where the contact changes between selected and not (sharper split)
+        bad |= (sel[idx] != sel[idx + 1]) & np.isfinite(zm)
+        if not bad.any():
+            break
+        line = np.concatenate([line, lm[bad]])
+        a = np.concatenate([a, am[bad]])
+        z = np.concatenate([z, zm[bad]])
+        sel = np.concatenate([sel, sm[bad]])
+        order = np.lexsort((a, line))
+        line, a, z, sel = line[order], a[order], z[order], sel[order]
+        monitor(0.5 + 0.05 * (r + 1))
+    cut = np.isfinite(z) & sel
+    brk = np.flatnonzero((line[1:] != line[:-1]) | (cut[1:] != cut[:-1]))
+    bounds = np.concatenate([[0], brk + 1, [len(z)]])
+    runs = [(s, e) for s, e in zip(bounds[:-1], bounds[1:]) if e - s >= 2 and cut[s]]
+    passes: list = []
+    lift_stats: dict = {}
+    if runs:
+        idx = np.concatenate([np.arange(s, e) for s, e in runs])
+        xy = xy_of(a[idx], line[idx])
+        pts = np.column_stack([xy, z[idx]])
+        starts = np.cumsum([0] + [e - s for s, e in runs])
+        keep = simplify(pts, starts, half, "vertical")
+        run_id = np.repeat(np.arange(len(runs)), np.diff(starts))
+        _, grad = query.heights_and_slopes(xy)
+        samples = ChordSamples(a[idx], xy, z[idx], grad, run_id, keep, z[idx].copy())
+        monitor(0.85)
+        lift_stats = lift_chords(query.heights_and_slopes, samples, half)
+        vxy, vz, vline = samples.vertices()
+        cuts = np.flatnonzero(np.diff(vline)) + 1
+        for (s, _e), pxy, pz in zip(runs, np.split(vxy, cuts), np.split(vz, cuts)):
+            passes.append((int(line[s]), np.column_stack([pxy, pz])))
+    ordered = []
+    for k in sorted({k for k, _ in passes}):
+        group = [p for kk, p in passes if kk == k]
+        if k % 2:
+            group = [r[::-1] for r in group[::-1]]
+        ordered.extend(group)
+    monitor(0.95)
+    steps = np.diff(bvals)
+    parameters = {"strategy": "raster", "tool_diameter": 2.0 * R, "scallop": tool.scallop,
+                  "tolerance": tool.tolerance, "angle": angle, "direction": "zigzag",
+                  "faces": [f.name for f in faceset.faces if f.selected]}
+    stats = ToolpathStats(stepover_min_mm=float(steps.min()) if len(steps) else float("nan"),
+                          stepover_max_mm=float(steps.max()) if len(steps) else float("nan"))
+    extra = {"line_offsets_mm": bvals.tolist(), "chord_lift": lift_stats,
+             "angle_frame": (along.tolist(), across.tolist()),
+             "dropcutter": dict(faceset.stats)}
+    toolpath = Toolpath("raster", ordered, parameters, [], stats, extra=extra)
+    toolpath.finish(started, None)
+    from .links import stay_down_links
+
+    toolpath.links = stay_down_links(query, toolpath.passes, STAY_DOWN_LINK * R, tool.tolerance)
+    toolpath.finish(started, None)
+    monitor(1.0)
+    return toolpath
+
+
+__all__ = ["FaceQuery", "generate_faces_raster"]
