@@ -143,8 +143,6 @@ def run_main(capsys, *argv: str) -> tuple[int, str, str]:
       "OUT"], ["--faces applies to parts"]),
     (["verify", str(EXAMPLE), "p.ngc", "--faces", "", "--tool-diameter", "6", "--out", "OUT"],
      ["--faces", "empty"]),
-    (["verify", str(EXAMPLE), "p.ngc", "--tool-diameter", "6", "--out", "OUT"],
-     ["part.step", "multi-face verifier"]),
 ])
 def test_refused_in_process(capsys, tmp_path, argv, fragments):
     out = tmp_path / "out"

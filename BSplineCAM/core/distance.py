@@ -101,6 +101,81 @@ def squared_distance(mask: np.ndarray) -> FloatArray:
     return np.minimum(out, big)
 
 
+def _line_distances(mask: np.ndarray, axis: int, cap: int) -> np.ndarray:
+    """Distance (cells, int32) along ``axis`` from each cell to the nearest set cell of its
+    line, capped at ``cap`` (also where the line has none)."""
+    n = mask.shape[axis]
+    shape = [1, 1]
+    shape[axis] = n
+    idx = np.arange(n, dtype=np.int32).reshape(shape)
+    far = np.int32(cap + n + 1)
+    left = np.where(mask, idx, -far)
+    np.maximum.accumulate(left, axis=axis, out=left)
+    np.subtract(idx, left, out=left)
+    right = np.where(mask, idx, np.int32(n) + far)
+    right = np.flip(np.minimum.accumulate(np.flip(right, axis), axis=axis), axis)
+    np.subtract(right, idx, out=right)
+    np.minimum(left, right, out=left)
+    np.minimum(left, np.int32(cap), out=left)
+    return left
+
+
+#: The direct dilation is used while it visits at most this many cells per grid cell.
+DIRECT_WORK = 40
+
+
+def _dilate_direct(mask: np.ndarray, radius: float) -> np.ndarray | None:
+    """Disk dilation, exactly as thresholding :func:`squared_distance`, by the separable form
+    d^2 = min over dy of dy^2 + g(y + dy)^2 (g the distance along the row) evaluated only
+    where it is in doubt: a cell with g^2 <= r^2 is in; a cell more than r along its column
+    from every such cell is out; the rest (a band along the set cells' rims) takes the
+    minimum over the |dy| <= r.  None when that band is too large for this to pay."""
+    ny, nx = mask.shape
+    k = int(np.floor(radius))
+    r2 = radius * radius + 1e-9
+    g = _line_distances(mask, 1, k + 1)
+    f = g * g  # int32, at most (k + 1)^2
+    direct = f <= r2
+    vertical = _line_distances(direct, 0, k + 1)
+    doubt = ~direct & (vertical <= k)
+    rows = np.flatnonzero(doubt.any(axis=1))
+    if not len(rows):
+        return direct
+    # runs of consecutive rows in doubt, each with the columns its doubtful cells span
+    cut = np.flatnonzero(np.diff(rows) > 1) + 1
+    runs = []
+    work = 0
+    for run in np.split(rows, cut):
+        a, b = int(run[0]), int(run[-1]) + 1
+        cols = np.flatnonzero(doubt[a:b].any(axis=0))
+        c0, c1 = int(cols[0]), int(cols[-1]) + 1
+        runs.append((a, b, c0, c1))
+        work += (b - a) * (c1 - c0)
+    if work * (2 * k + 1) > DIRECT_WORK * mask.size:
+        return None
+    for a, b, c0, c1 in runs:
+        best = f[a:b, c0:c1].copy()
+        tmp = np.empty_like(best)
+        for dy in range(1, k + 1):
+            cost = np.int32(dy * dy)
+            # rows y - dy (from above) and y + dy (from below) of the run's rows y
+            lo, hi = max(a - dy, 0), min(b - dy, ny)
+            if hi > lo:
+                t = tmp[: hi - lo]
+                np.add(f[lo:hi, c0:c1], cost, out=t)
+                dest = best[lo + dy - a: hi + dy - a]
+                np.minimum(dest, t, out=dest)
+            lo, hi = max(a + dy, 0), min(b + dy, ny)
+            if hi > lo:
+                t = tmp[: hi - lo]
+                np.add(f[lo:hi, c0:c1], cost, out=t)
+                dest = best[lo - dy - a: hi - dy - a]
+                np.minimum(dest, t, out=dest)
+        block = direct[a:b, c0:c1]
+        block |= doubt[a:b, c0:c1] & (best <= r2)
+    return direct
+
+
 def dilate_disk(mask: np.ndarray, radius: float, outside: bool = True) -> np.ndarray:
     """Cells within ``radius`` cells (centre to centre, inclusive) of a set cell.
 
@@ -111,8 +186,10 @@ def dilate_disk(mask: np.ndarray, radius: float, outside: bool = True) -> np.nda
     if outside:
         k = int(np.floor(radius)) + 1
         mask = np.pad(mask, k, constant_values=True)
-    d2 = squared_distance(mask)
-    out = d2 <= radius * radius + 1e-9
+    out = _dilate_direct(mask, radius) if mask.size and mask.ndim == 2 else None
+    if out is None:
+        d2 = squared_distance(mask)
+        out = d2 <= radius * radius + 1e-9
     if outside:
         out = out[k:-k, k:-k]
     return out

@@ -30,7 +30,7 @@ from enum import Enum
 import numpy as np
 
 from .errors import ParameterError
-from .gcode import Program, Segments, linearise
+from .gcode import Program, Segments, linearise, simulation_chord_tolerance
 from .typing import FloatArray
 
 #: Cells evaluated per batch: (K, H, W) temporaries stay in the processor's cache.
@@ -187,7 +187,7 @@ class Simulation:
 def simulate_program(program: Program, tool: Tool, grid: Grid, top: float,
                      chord_tolerance: float | None = None) -> Simulation:
     """Simulate a program; arcs become chords within ``chord_tolerance`` (default cell/10)."""
-    tol = grid.cell / 10.0 if chord_tolerance is None else chord_tolerance
+    tol = simulation_chord_tolerance(grid.cell) if chord_tolerance is None else chord_tolerance
     return simulate(linearise(program, tol), tool, grid, top)
 
 
@@ -203,9 +203,11 @@ def simulate(segments: Segments, tool: Tool, grid: Grid, top: float,
     height = np.full((grid.ny, grid.nx), float(top), dtype=np.float32)
     start = np.asarray(segments.start, dtype=float)
     end = np.asarray(segments.end, dtype=float)
-    window = _windows(start, end, tool.radius, grid)
     low = np.minimum(start[:, 2], end[:, 2])
-    live = (window[:, 1] >= window[:, 0]) & (window[:, 3] >= window[:, 2]) & (low < top)
+    full = _windows(start, end, tool.radius, grid)
+    live = (full[:, 1] >= full[:, 0]) & (full[:, 3] >= full[:, 2]) & (low < top)
+    window = _windows(start, end, tool.radius, grid,
+                      _along_ranges(start, end, tool, live & ~segments.rapid))
     collisions: list[Collision] = []
     risky = np.flatnonzero(live & segments.rapid)
     begin = 0
@@ -231,10 +233,71 @@ def _merge(collisions: list[Collision]) -> tuple[Collision, ...]:
     return tuple(best[k] for k in sorted(best))
 
 
-def _windows(start: FloatArray, end: FloatArray, radius: float, grid: Grid) -> np.ndarray:
-    """Inclusive cell ranges (ix_lo, ix_hi, iy_lo, iy_hi) each segment's tool can reach."""
-    lo = np.minimum(start[:, :2], end[:, :2]) - radius
-    hi = np.maximum(start[:, :2], end[:, :2]) + radius
+def _along_ranges(start: FloatArray, end: FloatArray, tool: Tool,
+                  feed: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    """Along each segment's XY direction (mm from its start): the stretch of cells where its
+    envelope can be the lowest of the program's, (lo, hi); the full reach is (-R, L + R).
+
+    The envelope at a cell is min over t in [0, L] of g(t), g convex (see :func:`_envelope`);
+    its minimiser t* = qa - tau*(qp) lies inside (0, L) only for qa in [tau_min, L + tau_max],
+    tau* between 0 and R s, s = m / sqrt(1 + m^2) for the ball, sign(m) for the others.  Where
+    t* is clamped to an end, the value is the tool standing at that end, which is no lower
+    than the interior minimum of the neighbouring segment wherever that one's t* is inside.
+    So for a chain of feed segments that continue one another in the same XY direction
+    (raster passes), segment i needs the cells where it is interior plus the wedge beyond its
+    end where both it and the next clamp to the shared point: qa up to L + max(tau_max of
+    both).  A chain's first segment keeps its start's whole ball (-R), its last its end's
+    (L + R); every other segment keeps its whole reach.
+    """
+    n = len(start)
+    R = tool.radius
+    d = end[:, :2] - start[:, :2]
+    L = np.hypot(d[:, 0], d[:, 1])
+    lo = np.full(n, -R)
+    hi = L + R
+    if n < 2:
+        return lo, hi
+    moving = L > 1e-9
+    safe = np.where(moving, L, 1.0)
+    ux, uy = d[:, 0] / safe, d[:, 1] / safe
+    m = (end[:, 2] - start[:, 2]) / safe
+    s = m / np.sqrt(1.0 + m * m) if tool.shape is ToolShape.BALL else np.sign(m)
+    tau_lo = np.minimum(0.0, R * s)
+    tau_hi = np.maximum(0.0, R * s)
+    ok = feed & moving
+    link = (ok[:-1] & ok[1:]
+            & np.all(end[:-1] == start[1:], axis=1)
+            & (np.abs(ux[:-1] - ux[1:]) <= 1e-12) & (np.abs(uy[:-1] - uy[1:]) <= 1e-12))
+    after = np.zeros(n, bool)  # linked to the next segment
+    after[:-1] = link
+    before = np.zeros(n, bool)  # linked to the previous one
+    before[1:] = link
+    next_hi = np.zeros(n)
+    next_hi[:-1] = tau_hi[1:]
+    lo = np.where(before, tau_lo, lo)
+    hi = np.where(after, L + np.maximum(tau_hi, next_hi), hi)
+    return lo, hi
+
+
+def _windows(start: FloatArray, end: FloatArray, radius: float, grid: Grid,
+             along: tuple[FloatArray, FloatArray] | None = None) -> np.ndarray:
+    """Inclusive cell ranges (ix_lo, ix_hi, iy_lo, iy_hi) each segment's tool can reach, or
+    with ``along`` = (lo, hi) the cells within ``radius`` across the segment's XY line and
+    from lo to hi mm along it (its direction from start to end)."""
+    if along is not None:
+        d = end[:, :2] - start[:, :2]
+        L = np.hypot(d[:, 0], d[:, 1])
+        moving = L > 1e-9
+        safe = np.where(moving, L, 1.0)
+        u = np.where(moving[:, None], d / safe[:, None], np.array([1.0, 0.0]))
+        a, b = along
+        # the rectangle [a, b] x [-R, R] in the segment's frame: its corners' XY box
+        ext = np.abs(u) * ((b - a) / 2.0)[:, None] + np.abs(u[:, ::-1]) * radius
+        mid = start[:, :2] + u * ((a + b) / 2.0)[:, None]
+        lo, hi = mid - ext, mid + ext
+    else:
+        lo = np.minimum(start[:, :2], end[:, :2]) - radius
+        hi = np.maximum(start[:, :2], end[:, :2]) + radius
     origin = np.array([grid.x0, grid.y0])
     first = np.ceil((lo - origin) / grid.cell - 0.5).astype(np.int64)
     last = np.floor((hi - origin) / grid.cell - 0.5).astype(np.int64)

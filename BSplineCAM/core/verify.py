@@ -11,13 +11,18 @@ Definitions (all heights at cell centres, mm):
 * coverage = fraction of all footprint cells machined to within ``coverage_tolerance`` of
   the design (machined - design <= tolerance): the share of the surface the tool finished.
 * machining time = sum of feed-move lengths / their feeds + rapid lengths / the rapid rate.
+
+:func:`verify_faces` measures against a model given as trimmed faces (a part from STEP): the
+design is the top-most face above each cell (:mod:`.faces_height`), gouge is measured over
+the whole model (check faces included), scallop and coverage on the selected faces away from
+their borders by one tool radius.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import Enum
 from typing import TypeVar
@@ -26,8 +31,10 @@ import numpy as np
 
 from .distance import dilate_disk
 from .errors import ParameterError
+from .faces import Face
+from .faces_height import FacesHeight
 from .footprint import footprint_bounds, surface_height
-from .gcode import MoveKind, Program, linearise
+from .gcode import MoveKind, Program, linearise, simulation_chord_tolerance
 from .simulate import Grid, Simulation, Tool, simulate
 from .surface import Surface
 from .toolpath.common import check_tool_fits
@@ -84,15 +91,8 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     ``progress(fraction)``, if given, is called at least every 50 ms while the simulation runs
     (so a GUI stays responsive) and may raise to abandon it (see :func:`run_reporting`).
     """
-    for name, value, unit in (("cell", cell, "mm"), ("rapid rate", rapid_rate, "mm/min"),
-                              ("coverage tolerance", coverage_tolerance, "mm")):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ParameterError(f"{name} must be positive ({unit}), got {value!r}")
-    if not (math.isfinite(stock_margin) and stock_margin >= 0):
-        raise ParameterError(f"stock margin must be >= 0 (mm), got {stock_margin!r}")
+    _check_arguments(cell, rapid_rate, coverage_tolerance, stock_margin, program)
     stock_top = StockTop.parse(stock_top)
-    if len(program) == 0:
-        raise ParameterError("the program has no moves")
     x0, x1, y0, y1 = footprint_bounds(surface)
     check_tool_fits(surface, tool.diameter, "tool diameter")
     grid = Grid.covering(x0, x1, y0, y1, cell)
@@ -100,38 +100,141 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     design, _, _, inside = surface_height(surface, xs[None, :], ys[:, None])
     if not np.any(inside):
         raise ParameterError("no cell centre lies on the surface's footprint: cell too large")
-    feeds = program.kind != MoveKind.RAPID
-    if stock_top is StockTop.PROGRAM:
-        if not np.any(feeds):
-            raise ParameterError("stock top 'program' needs feed moves (G1/G2/G3)")
-        top = float(program.end[feeds, 2].max())
-    else:
-        top = float(np.nanmax(design)) + stock_margin
-    segments = linearise(program, grid.cell / 10.0 if chord_tolerance is None else chord_tolerance)
-    if progress is None:
-        sim = simulate(segments, tool, grid, top)
-    else:
-        progress(0.1)
-        sim = run_reporting(lambda: simulate(segments, tool, grid, top), progress, 0.1, 0.95)
+    top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
+    sim, segments = _simulate(program, tool, grid, top, chord_tolerance, progress)
     inner = inside & ~_dilate(~inside, tool.diameter / cell)
     if not np.any(inner):
         raise ParameterError(
             f"the footprint shrunk by the tool diameter ({tool.diameter:g} mm) is empty: "
             "tool too large for the part"
         )
-    metrics = _metrics(program, sim, design, inside, inner, tool, rapid_rate, coverage_tolerance)
+    metrics = _metrics(program, sim, design, inside, inner, inner, inside & ~inner, inside, tool,
+                       rapid_rate, coverage_tolerance)
+    _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
+    if progress is not None:
+        progress(1.0)
+    return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics)
+
+
+def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: float = 0.1,
+                 stock_top: str | StockTop = StockTop.DESIGN,
+                 stock_margin: float = DEFAULT_STOCK_MARGIN,
+                 rapid_rate: float = DEFAULT_RAPID_RATE,
+                 coverage_tolerance: float = DEFAULT_COVERAGE_TOLERANCE,
+                 chord_tolerance: float | None = None,
+                 progress: Callable[[float], None] | None = None) -> Verification:
+    """Simulate ``program`` over a model given as faces and measure it against them.
+
+    The design at each cell centre is the top-most face point above it
+    (:class:`.faces_height.FacesHeight`, exact to 1e-7 mm in XY); cells with no face above
+    (holes, outside the model) are not measured.  Definitions as for a surface except where:
+
+    * gouge (``gouge_max_mm``, ``gouge_cells``) is taken over the whole model, every face,
+      selected or not, edges included (an unselected face is a check surface: it must not be
+      cut anywhere); ``gouge_selected_max_mm`` and ``gouge_check_max_mm`` split it;
+    * scallop and coverage are taken on the selected faces away from their borders: the cells
+      of selected faces whose distance from any cell not on a selected face is more than the
+      tool radius (the selection's union, so a seam between two selected faces is no border);
+      the band within the radius is the edge band (``edge_*``).
+
+    ``verification.inside`` is the model's mask, ``inner`` the measured part of the selection.
+    """
+    _check_arguments(cell, rapid_rate, coverage_tolerance, stock_margin, program)
+    stock_top = StockTop.parse(stock_top)
+    faces = list(faces)
+    if not any(f.selected for f in faces):
+        raise ParameterError("no face is selected: select the faces the program machines")
+    heights = FacesHeight(faces, cell)
+    x0, x1, y0, y1 = heights.bounds()
+    grid = Grid.covering(x0 - cell, x1 + cell, y0 - cell, y1 + cell, cell)
+    xs, ys = grid.centres()
+    hm = heights.grid(xs, ys)
+    model = hm.found
+    chosen = np.array([f.selected for f in faces] + [False])  # face -1: none
+    selected = chosen[hm.face]
+    if not np.any(selected):
+        names = ", ".join(f.name for f in faces if f.selected)
+        raise ParameterError(f"no cell centre of the {cell:g} mm grid lies on the selected "
+                             f"faces ({names}) seen from above: nothing to measure")
+    design = hm.z
+    top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
+    sim, segments = _simulate(program, tool, grid, top, chord_tolerance, progress)
+    # the selection closed over gaps of a cell or two (cell centres on a seam between faces
+    # that both fall outside their trim polylines), then shrunk by the tool radius
+    closing = 1.5
+    closed = ~dilate_disk(dilate_disk(selected, closing, outside=False) == 0, closing,
+                          outside=True)
+    inner = selected & closed & ~_dilate(~closed, tool.radius / cell)
+    if not np.any(inner):
+        raise ParameterError(
+            f"the selected faces shrunk by the tool radius ({tool.radius:g} mm) are empty: "
+            "tool too large for the selection, or cell too large")
+    metrics = _metrics(program, sim, design, model, model, inner, selected & ~inner, inner, tool,
+                       rapid_rate, coverage_tolerance)
+    dev = sim.height - np.where(model, design, 0.0)
+    for key, mask in (("gouge_selected_max_mm", selected), ("gouge_check_max_mm",
+                                                             model & ~selected)):
+        metrics[key] = float(max(0.0, -dev[mask].min())) if mask.any() else 0.0
     metrics.update(
-        cell_mm=grid.cell, grid_cells=[grid.ny, grid.nx], stock_top_mm=top,
-        stock_top=stock_top.value, moves=len(program), segments=len(segments),
+        faces=[f.index for f in faces if f.selected],
+        check_faces=[f.index for f in faces if not f.selected],
+        model_cells=int(model.sum()), selected_cells=int(selected.sum()),
+        face_cells={f.name: int(n) for f, n in
+                    zip(faces, np.bincount(hm.face[model], minlength=len(faces)))},
+    )
+    metrics.pop("footprint_cells", None)
+    _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
+    if progress is not None:
+        progress(1.0)
+    return Verification(sim, np.where(model, design, np.nan), model, inner, metrics)
+
+
+def _check_arguments(cell: float, rapid_rate: float, coverage_tolerance: float,
+                     stock_margin: float, program: Program) -> None:
+    for name, value, unit in (("cell", cell, "mm"), ("rapid rate", rapid_rate, "mm/min"),
+                              ("coverage tolerance", coverage_tolerance, "mm")):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} must be positive ({unit}), got {value!r}")
+    if not (math.isfinite(stock_margin) and stock_margin >= 0):
+        raise ParameterError(f"stock margin must be >= 0 (mm), got {stock_margin!r}")
+    if len(program) == 0:
+        raise ParameterError("the program has no moves")
+
+
+def _stock_top(program: Program, stock_top: StockTop, design_top: float) -> float:
+    if stock_top is StockTop.PROGRAM:
+        feeds = program.kind != MoveKind.RAPID
+        if not np.any(feeds):
+            raise ParameterError("stock top 'program' needs feed moves (G1/G2/G3)")
+        return float(program.end[feeds, 2].max())
+    return design_top
+
+
+def _simulate(program: Program, tool: Tool, grid: Grid, top: float,
+              chord_tolerance: float | None,
+              progress: Callable[[float], None] | None) -> tuple[Simulation, int]:
+    segments = linearise(program, simulation_chord_tolerance(grid.cell)
+                         if chord_tolerance is None else chord_tolerance)
+    if progress is None:
+        sim = simulate(segments, tool, grid, top)
+    else:
+        progress(0.1)
+        sim = run_reporting(lambda: simulate(segments, tool, grid, top), progress, 0.1, 0.95)
+    return sim, len(segments)
+
+
+def _describe(metrics: dict, program: Program, sim: Simulation, segments: int, tool: Tool,
+              stock_top: StockTop, footprint: tuple[float, float, float, float]) -> None:
+    grid = sim.grid
+    metrics.update(
+        cell_mm=grid.cell, grid_cells=[grid.ny, grid.nx], stock_top_mm=sim.top,
+        stock_top=stock_top.value, moves=len(program), segments=segments,
         source_units=program.source_units, converted_from_inches=program.converted_from_inches,
         tool={"shape": tool.shape.value, "diameter_mm": tool.diameter,
               "corner_radius_mm": tool.corner_radius},
         program_tools=list(program.tools), program_warnings=list(program.warnings),
-        warnings=extent_warnings(program, (x0, x1, y0, y1), tool.radius),
+        warnings=extent_warnings(program, footprint, tool.radius),
     )
-    if progress is not None:
-        progress(1.0)
-    return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics)
 
 
 def run_reporting(work: Callable[[], T], progress: Callable[[float], None], f0: float,
@@ -209,19 +312,23 @@ def extent_warnings(program: Program, footprint: tuple[float, float, float, floa
 
 
 def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.ndarray,
-             inner: np.ndarray, tool: Tool, rapid_rate: float, coverage_tolerance: float) -> dict:
+             gouge: np.ndarray, inner: np.ndarray, edge: np.ndarray, coverage: np.ndarray,
+             tool: Tool, rapid_rate: float, coverage_tolerance: float) -> dict:
+    """Metrics over masks of the grid: ``inside`` where the design is defined, ``gouge`` where
+    gouge is measured, ``inner`` where scallop is, ``edge`` the band reported apart and
+    ``coverage`` where coverage and the uncut fraction are."""
     dev = sim.height - np.where(inside, design, 0.0)
     inner_dev = dev[inner]
-    edge = inside & ~inner
+    gouge_dev = dev[gouge]
     edge_dev = dev[edge]
     lengths = program.lengths()
     rapid = program.kind == MoveKind.RAPID
     cutting = float(lengths[~rapid].sum())
     feed_time = float(np.sum(lengths[~rapid] / program.feed[~rapid]) * 60.0)
     rapid_time = float(lengths[rapid].sum() / rapid_rate * 60.0)
-    gouged = inner_dev < -GOUGE_TOLERANCE_MM
+    gouged = gouge_dev < -GOUGE_TOLERANCE_MM
     return {
-        "gouge_max_mm": float(max(0.0, -inner_dev.min())),
+        "gouge_max_mm": float(max(0.0, -gouge_dev.min())) if gouge_dev.size else 0.0,
         "gouge_cells": int(gouged.sum()),
         "gouge_tolerance_mm": GOUGE_TOLERANCE_MM,
         "scallop_max_mm": float(max(0.0, inner_dev.max())),
@@ -229,9 +336,9 @@ def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.n
         "scallop_mean_mm": float(max(0.0, inner_dev.mean())),
         "edge_scallop_max_mm": float(max(0.0, edge_dev.max())) if edge_dev.size else 0.0,
         "edge_gouge_max_mm": float(max(0.0, -edge_dev.min())) if edge_dev.size else 0.0,
-        "coverage": float(np.mean(dev[inside] <= coverage_tolerance)),
+        "coverage": float(np.mean(dev[coverage] <= coverage_tolerance)),
         "coverage_tolerance_mm": coverage_tolerance,
-        "uncut_fraction": float(np.mean(sim.height[inside] >= sim.top - 1e-6)),
+        "uncut_fraction": float(np.mean(sim.height[coverage] >= sim.top - 1e-6)),
         "rapid_collisions": [c.to_dict() for c in sim.collisions],
         "cutting_length_mm": cutting,
         "rapid_length_mm": float(lengths[rapid].sum()),

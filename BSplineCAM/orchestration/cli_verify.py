@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""``bsplinecam verify NET PROGRAM --tool-diameter D --out DIR``: simulate and measure G-code.
+"""``bsplinecam verify NET|PART PROGRAM --tool-diameter D --out DIR``: simulate and measure G-code
+(a part: ``--faces up|all|3,8``, measured against its exact faces).
 
 Writes DIR/verify.json (metrics, see ``core/verify.py`` for the definitions), DIR/deviation.png
 and DIR/simulated.png, all or nothing.
@@ -56,9 +57,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "highest feed move")
     p.add_argument("--stock-margin", type=float, default=DEFAULT_STOCK_MARGIN,
                    help=f"stock above the design's top (mm, default {DEFAULT_STOCK_MARGIN:g})")
-    p.add_argument("--rapid-rate", type=float, default=DEFAULT_RAPID_RATE,
-                   help=f"rapid traverse rate for the time estimate (mm/min, default "
-                        f"{DEFAULT_RAPID_RATE:g})")
+    p.add_argument("--rapid-rate", "--rapid", type=float, default=DEFAULT_RAPID_RATE,
+                   help=f"rapid traverse rate for the time estimates, also each axis's "
+                        f"velocity limit (mm/min, default {DEFAULT_RAPID_RATE:g})")
+    add_machine_options(p)
     p.add_argument("--coverage-tolerance", type=float, default=DEFAULT_COVERAGE_TOLERANCE,
                    help="a cell counts as finished within this much of the design (mm, default "
                         f"{DEFAULT_COVERAGE_TOLERANCE:g})")
@@ -72,6 +74,35 @@ CELL_RANGE = (1e-3, 100.0)
 COVERAGE_TOLERANCE_RANGE = (0.0, 100.0)
 
 
+def add_machine_options(p: argparse.ArgumentParser) -> None:
+    """Options of the machine model behind ``machining_time_with_acceleration_s``."""
+    from ..core.machining_time import DEFAULT_ACCELERATION, DEFAULT_JUNCTION_DEVIATION
+
+    p.add_argument("--accel", default=str(DEFAULT_ACCELERATION),
+                   help="axis acceleration for the machine time: one value or X,Y,Z "
+                        f"(mm/s^2, default {DEFAULT_ACCELERATION:g})")
+    p.add_argument("--junction-deviation", type=float, default=DEFAULT_JUNCTION_DEVIATION,
+                   help="corner speed model as grbl's (mm, default "
+                        f"{DEFAULT_JUNCTION_DEVIATION:g})")
+
+
+def check_machine_limits(args: argparse.Namespace):
+    """--accel, --rapid-rate and --junction-deviation as validated MachineLimits."""
+    from ..core.machining_time import MachineLimits, parse_axis_values
+
+    accel = parse_axis_values(args.accel, "--accel", "mm/s^2")
+    return MachineLimits.checked(accel, args.rapid_rate, args.junction_deviation,
+                                 names=("--accel", "--rapid-rate", "--junction-deviation",
+                                        "--rapid-rate"))
+
+
+def machine_time_metrics(args: argparse.Namespace, program) -> dict:
+    """The program's time on the machine of the options, for verify.json."""
+    from ..core.machining_time import machining_time
+
+    return machining_time(program, check_machine_limits(args)).metrics()
+
+
 def check_options(args: argparse.Namespace) -> Tool:
     """Every numeric option finite and in range, errors naming the option and its unit."""
     d = check_range(args.tool_diameter, "--tool-diameter", "mm", MIN_TOOL_DIAMETER,
@@ -80,6 +111,7 @@ def check_options(args: argparse.Namespace) -> Tool:
     check_range(args.cell, "--cell", "mm", *CELL_RANGE)
     check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
     check_range(args.rapid_rate, "--rapid-rate", "mm/min", *RAPID_RANGE)
+    check_machine_limits(args)
     check_range(args.coverage_tolerance, "--coverage-tolerance", "mm",
                 *COVERAGE_TOLERANCE_RANGE, low_open=True)
     try:
@@ -110,6 +142,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
                     coverage_tolerance=args.coverage_tolerance)
     check_interrupted()
     metrics = {"net": str(Path(args.net)), "program": str(Path(args.program)), **result.metrics,
+               **machine_time_metrics(args, program),
                "elapsed_s": round(time.perf_counter() - started, 3)}
     with staged_output(Path(args.out)) as stage:
         report.plot_deviation(result, stage / "deviation.png")
@@ -119,22 +152,56 @@ def cmd_verify(args: argparse.Namespace) -> int:
         print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
     summary = {k: metrics[k] for k in ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
                                        "edge_scallop_max_mm", "coverage", "rapid_collisions",
-                                       "cutting_length_mm", "machining_time_s")}
+                                       "cutting_length_mm", "machining_time_s",
+                                       "machining_time_with_acceleration_s")}
     emit({"out": str(Path(args.out).resolve()), **summary,
           "warnings": metrics.get("warnings", [])})
     return 0
 
 
 def cmd_verify_part(args: argparse.Namespace, tool: Tool) -> int:
-    """``verify PART PROGRAM --faces ...``: the options and the face selection are checked
-    here; measuring a program against several exact faces needs a multi-face verifier
-    (``verify_faces`` in ``core/verify.py``), so parts are refused with one line until the
-    coordinator wires it (see :func:`BSplineCAM.orchestration.parts.load_faces`)."""
-    from . import parts
+    """``verify PART PROGRAM --faces up|all|3,8``: the program measured against the part's
+    exact faces (``core.verify.verify_faces``): gouge over the whole model, scallop and
+    coverage on the selected faces away from their borders; the same outputs as for a net,
+    plus the selected and check faces."""
+    from . import parts, report
+    from .cli import check_interrupted, emit, json_text, staged_output
 
+    started = time.perf_counter()
     if args.knots is not None:
         raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
-    parts.parse_faces(args.faces)
-    raise ParameterError(f"{args.net}: verifying a program on a part needs the multi-face "
-                         "verifier, which this build does not have yet; verify against a "
-                         "control net (.json, .csv, .dat) instead")
+    parts.parse_faces(args.faces, allow_all=True)
+    faces = parts.load_faces(args.net, args.faces, allow_all=True)
+    check_interrupted()
+    program = read_gcode_file(args.program)
+    result = verify_faces_checked(args, faces, program, tool)
+    check_interrupted()
+    metrics = {"part": str(Path(args.net)), "program": str(Path(args.program)),
+               **result.metrics, **machine_time_metrics(args, program),
+               "elapsed_s": round(time.perf_counter() - started, 3)}
+    with staged_output(Path(args.out)) as stage:
+        report.plot_deviation(result, stage / "deviation.png")
+        report.plot_simulated(result, stage / "simulated.png")
+        (stage / "verify.json").write_text(json_text(metrics), encoding="utf-8")
+    for warning in metrics.get("warnings", []):
+        print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
+    summary = {k: metrics[k] for k in ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
+                                       "edge_scallop_max_mm", "coverage", "rapid_collisions",
+                                       "cutting_length_mm", "machining_time_s",
+                                       "machining_time_with_acceleration_s", "faces",
+                                       "check_faces")}
+    emit({"out": str(Path(args.out).resolve()), **summary,
+          "warnings": metrics.get("warnings", [])})
+    return 0
+
+
+def verify_faces_checked(args: argparse.Namespace, faces, program, tool: Tool):
+    """``core.verify.verify_faces`` after the Z-map size check over the part's extent."""
+    from ..core.faces_height import FacesHeight
+    from ..core.verify import verify_faces
+
+    x0, x1, y0, y1 = FacesHeight(faces, args.cell).bounds()
+    zmap_shape(x1 - x0 + 2 * args.cell, y1 - y0 + 2 * args.cell, args.cell, "--cell")
+    return verify_faces(faces, program, tool, cell=args.cell, stock_top=args.stock_top,
+                        stock_margin=args.stock_margin, rapid_rate=args.rapid_rate,
+                        coverage_tolerance=args.coverage_tolerance)

@@ -104,15 +104,22 @@ def _selection_text(selection: FacesArg) -> str:
 
 
 def load_faces(path: str | os.PathLike, faces: str | None = None,
-               tolerance: float = DEFAULT_TOLERANCE, option: str = "--faces") -> list[Face]:
+               tolerance: float = DEFAULT_TOLERANCE, option: str = "--faces",
+               allow_all: bool = False) -> list[Face]:
     """Every face of the part at ``path`` as a core Face (mm), the ``faces`` selection
     ("up" by default, or face numbers) marked ``selected``, the others check surfaces.
 
     FreeCAD reads the part: here when it loads in this process, else in a FreeCAD worker.
     ``tolerance`` is the trim polylines' chord tolerance (mm).  Errors (FaceError) name the
-    file and the face.
+    file and the face.  With ``allow_all``, "all" marks every face selected (verification
+    measures every face seen from above).
     """
-    selection = parse_faces(faces, option)
+    selection = parse_faces(faces, option, allow_all=allow_all)
+    if selection == "all":
+        from dataclasses import replace
+
+        return [replace(face, selected=True) for face in load_faces(path, "up", tolerance,
+                                                                    option)]
     path = str(path)
     if runtime.freecad_in_process():
         from .cli import captured_console, check_interrupted
