@@ -366,7 +366,22 @@ def faces_from_shape(shape: Part.Shape, selection: core_faces.Selection = "up",
     return core_faces.apply_selection([face for face, _ in pairs], reach, chosen, where)
 
 
+def faces_and_reach(shape: Part.Shape, tolerance: float = DEFAULT_TOLERANCE,
+                    where: str = "shape") -> tuple[list[Face], list[tuple[bool, str]]]:
+    """Every face of ``shape`` (unselected, mm) and whether a 3-axis tool reaches it from
+    above (:func:`reaches_from_above`): what :func:`faces_from_shape` selects from, for
+    callers that combine the faces of several shapes (the finishing op's ``Base``)."""
+    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+        raise FaceError(f"{where}: trim tolerance must be a positive length in mm, "
+                        f"got {tolerance!r}")
+    if shape.isNull() or not shape.Faces:
+        raise FaceError(f"{where}: has no faces")
+    check_shape(shape, where)
+    pairs = [_extract(f, i, tolerance, False) for i, f in enumerate(shape.Faces, 1)]
+    return [face for face, _ in pairs], [reaches_from_above(face, work) for face, work in pairs]
+
+
 __all__ = [
     "PART_SUFFIXES", "RELATIVE_DEVIATION", "UP_TOLERANCE", "check_shape", "extract_face",
-    "faces_from_shape", "measure", "reaches_from_above", "read_part",
+    "faces_and_reach", "faces_from_shape", "measure", "reaches_from_above", "read_part",
 ]

@@ -6,13 +6,23 @@ lives in a standard Job, takes its tool from a ToolController and its heights fr
 setup sheet.  ``opExecute`` reads the properties, calls the numeric core
 (:func:`BSplineCAM.core.toolpath.generate`) and turns the plain moves into Path commands.
 
+Faces, like CAM's own ops (issue 11): ``Base`` = [(object, ["Face3", "Face8"])] from any
+object with a Shape (Part, PartDesign, an imported STEP, the job's model clone), or, when
+``Base`` is empty and the job's model is no BSplineCAM surface, every face of the job's models
+a 3-axis tool reaches from above ("up").  The faces become core faces
+(:mod:`BSplineCAM.app.faces`) and are machined by the certified drop-cutter over a
+:class:`~BSplineCAM.core.toolpath.faceset.FaceSet` in which every other face of the job's
+models is a check surface, never cut (:func:`job_faces`).
+
 Linking: lateral rapids run at the clearance height; a rapid descends only to the safe height
 (above the stock), the rest of the approach is a feed at the vertical feed rate.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import re
 
 import numpy as np
 
@@ -34,6 +44,9 @@ ISO_DIRECTIONS = [d.value for d in toolpath_common.IsoDirection]
 #: (type, name, group, tooltip, flags, default) of the operation's own properties.
 PROPERTIES = (
     ("App::PropertyLink", "Surface", "Surface", "BSplineCAM surface to machine (default: the job's model)", 0, None),
+    ("App::PropertyLinkSubListGlobal", "Base", "Surface",
+     "Faces to machine, e.g. (Part, ['Face3']); empty: the BSplineCAM surface, or else every "
+     "face of the job's model a 3-axis tool reaches from above", 0, None),
     ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z) or isoparametric", 0, STRATEGIES),
     ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature", 0, 0.01),
     ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass", 0, 0.002),
@@ -86,6 +99,35 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         """The op's job, found from the document (never from state a restored proxy lacks)."""
         return compat.cam_module("utils").findParentJob(obj)
 
+    def uses_faces(self, obj) -> bool:
+        """True when the op machines faces (``Base`` set, or no BSplineCAM surface to take)."""
+        if getattr(obj, "Base", None):
+            return True
+        return obj.Surface is None and find_surface_object(self.job_of(obj)) is None
+
+    def faces(self, obj) -> list:
+        """The op's faces (:func:`job_faces`), cached while the shapes and Base stay the same
+        (the proxy's cache is rebuilt from the document after a restore)."""
+        job = self.job_of(obj)
+        key = _faces_key(obj, job)
+        cached = getattr(self, "_faces_cache", None)
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        faces = job_faces(obj, job)
+        self._faces_cache = (key, faces)
+        return faces
+
+    def faceset(self, obj):
+        from ..core.toolpath.faceset import FaceSet
+
+        key = _faces_key(obj, self.job_of(obj))
+        cached = getattr(self, "_faceset_cache", None)
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        faceset = FaceSet(self.faces(obj))
+        self._faceset_cache = (key, faceset)
+        return faceset
+
     def surface(self, obj) -> Surface:
         """The exact surface in job coordinates (the model clone's placement applied)."""
         from . import cam
@@ -111,9 +153,12 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
 
         job = self.job_of(obj)
         try:
-            extent = surface_extent(self.surface(obj))
+            if self.uses_faces(obj):
+                extent = _faces_extent(self.faceset(obj))
+            else:
+                extent = surface_extent(self.surface(obj))
         except (ValueError, RuntimeError):
-            return  # no surface: opExecute names the problem
+            return  # no surface or bad faces: opExecute names the problem
         stock = getattr(job, "Stock", None) if job is not None else None
         if stock is not None and hasattr(stock, "ExtZpos"):
             box = cam.stock_box(stock)  # a stock "from base": around the exact surface
@@ -149,6 +194,9 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         shape_name = compat.tool_shape_name(self.tool)
         if "ball" not in shape_name.lower():
             raise ValueError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
+        if self.uses_faces(obj):
+            self._execute_faces(obj)
+            return
         surface = self.surface(obj)
         try:
             toolpath = generate(
@@ -182,6 +230,42 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         obj.Report = json.dumps(report(toolpath, commands), sort_keys=True)
         for region in toolpath.unreachable:
             FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
+
+    def _execute_faces(self, obj) -> None:
+        """Raster finishing of the op's faces (:func:`job_faces`) by the certified drop-cutter
+        over all of the job's faces; the other strategies are not available on faces yet."""
+        from ..core.toolpath import program_moves
+        from ..core.toolpath.faces_raster import generate_faces_raster
+
+        if obj.Strategy != toolpath_common.Strategy.RASTER.value:
+            raise ValueError(f"{obj.Label}: Strategy {obj.Strategy!r} is not available on faces "
+                             "yet: use raster (or a BSplineCAM surface)")
+        if obj.Direction != toolpath_common.Direction.ZIGZAG.value:
+            raise ValueError(f"{obj.Label}: Direction {obj.Direction!r} is not available on faces "
+                             "yet: use zigzag")
+        faceset = self.faceset(obj)
+        try:
+            toolpath = generate_faces_raster(
+                faceset, 2.0 * self.radius, obj.ScallopHeight.Value, obj.Tolerance.Value,
+                obj.Angle.Value, progress_reporter(obj))
+        except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
+            from .progress import previous_commands, report_cancelled
+
+            self.commandlist[:] = previous_commands(obj)
+            report_cancelled(obj, exc)
+            return
+        if not toolpath.passes:
+            raise ValueError(f"{obj.Label}: the raster produced no pass on the selected faces")
+        lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
+        clearance = obj.ClearanceHeight.Value
+        moves = program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
+                              arcs=bool(getattr(obj, "Arcs", False)))
+        commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
+        self.commandlist.extend(commands)
+        out = report(toolpath, commands)
+        out["faces"] = [f.name for f in faceset.faces if f.selected]
+        out["check_faces"] = sum(not f.selected for f in faceset.faces)
+        obj.Report = json.dumps(out, sort_keys=True)
 
 
 def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,
@@ -359,6 +443,151 @@ def find_surface_object(job):
             if _is_surface(candidate):
                 return candidate
     return None
+
+
+#: A face's sub-element name in ``Base``.
+FACE_NAME = re.compile(r"Face([1-9][0-9]*)")
+
+
+def _model_of(job, obj):
+    """The job's model (its clone) that ``obj`` is or stands behind, or None."""
+    if job is None:
+        return None
+    for model in job.Model.Group:
+        if obj is model or obj in [*getattr(model, "Objects", []), *getattr(model, "OutList", [])]:
+            return model
+    return None
+
+
+def _shape_key(target) -> tuple:
+    shape = target.Shape
+    try:
+        code = shape.hashCode()
+    except Exception:  # noqa: BLE001 - no hashCode: compare by the box alone
+        code = None
+    return (target.Name, code, str(shape.BoundBox), str(shape.Placement), len(shape.Faces))
+
+
+def _faces_key(obj, job) -> tuple:
+    """What the op's faces depend on: Base, the trim tolerance and the shapes involved."""
+    base = tuple((o.Name, tuple(subs)) for o, subs in (getattr(obj, "Base", None) or []))
+    models = list(job.Model.Group) if job is not None else []
+    others = [o for o, _ in (getattr(obj, "Base", None) or [])]
+    return (base, tuple(_shape_key(t) for t in [*models, *others] if hasattr(t, "Shape")))
+
+
+def _requested_faces(obj, job) -> list[tuple[object, list[int]]]:
+    """(target object, 1-based face numbers) per object of ``Base``; a Base object that is the
+    original behind a job model becomes that model (the clone, in job coordinates).  Errors
+    name the op, the object and the sub-element."""
+    from ..core.faces import FaceError
+
+    requested: list[tuple[object, list[int]]] = []
+    for source, subs in obj.Base:
+        names = [s for s in subs if s]
+        if not names:
+            raise FaceError(f"{obj.Label}: Base names {source.Label} but no face of it: the "
+                            "selection is empty (select faces, e.g. Face3)")
+        shape = getattr(source, "Shape", None)
+        if shape is None or shape.isNull():
+            raise FaceError(f"{obj.Label}: Base object {source.Label} has no shape")
+        numbers = []
+        for name in names:
+            match = FACE_NAME.fullmatch(name)
+            if match is None:
+                raise FaceError(f"{obj.Label}: Base {source.Label}.{name} is not a face: the "
+                                "op machines faces (Face1, Face2, ...)")
+            number = int(match.group(1))
+            if number > len(shape.Faces):
+                raise FaceError(f"{obj.Label}: Base {source.Label}.{name}: no such face "
+                                f"({source.Label} has {len(shape.Faces)} faces)")
+            numbers.append(number)
+        target = _model_of(job, source) or source
+        for known, chosen in requested:
+            if known is target:
+                chosen.extend(n for n in numbers if n not in chosen)
+                break
+        else:
+            requested.append((target, list(dict.fromkeys(numbers))))
+    return requested
+
+
+def job_faces(obj, job) -> list:
+    """Core faces (mm, job coordinates) of the op: selected per ``Base`` (or every face of the
+    job's models a 3-axis tool reaches from above when ``Base`` is empty); every other face of
+    the job's models, and of the Base objects, is a check surface (``selected=False``).  Face
+    names are "<object label>.Face<n>".  FaceError names the op, object and face at fault: a
+    sub-element that is no face, an empty selection, a face seen from below, no upward face.
+    """
+    from ..core import faces as core_faces
+    from ..core.faces import FaceError
+    from .faces import faces_and_reach
+
+    models = [m for m in (job.Model.Group if job is not None else [])
+              if getattr(m, "Shape", None) is not None and not m.Shape.isNull()]
+    base = list(getattr(obj, "Base", None) or [])
+    requested = _requested_faces(obj, job) if base else []
+    chosen = {id(target): numbers for target, numbers in requested}
+    targets = [*models, *[t for t, _ in requested if all(t is not m for m in models)]]
+    if not targets:
+        raise FaceError(f"{obj.Label}: the job has no model with faces to machine")
+    out = []
+    for target in targets:
+        where = f"{obj.Label}: {target.Label}"
+        faces, reach = faces_and_reach(target.Shape, where=where)
+        numbers = chosen.get(id(target))
+        if numbers is not None:
+            faces = core_faces.apply_selection(faces, reach, numbers, where)
+        elif not base:
+            faces = [dataclasses.replace(f, selected=up) for f, (up, _) in zip(faces, reach)]
+        hidden = hidden_faces(target.Shape)
+        out.extend(dataclasses.replace(f, name=f"{target.Label}.{f.name}") for f in faces
+                   if f.selected or f.index not in hidden)
+    if not any(f.selected for f in out):
+        raise FaceError(f"{obj.Label}: no face of the job's model is reachable from above by a "
+                        "3-axis tool: select faces in Base")
+    return out
+
+
+def hidden_faces(shape) -> set[int]:
+    """1-based numbers of the faces of a closed solid that no ball dropped from above can
+    touch first: planes whose outward normal is horizontal or points down, and cylinders
+    with a vertical axis.  Leaving them out of the check surfaces changes no height.
+
+    Why: the ball's lowest centre over a solid S is max f over S, f(p) = p_z +
+    sqrt(R^2 - |p_xy - q|^2), which grows with p_z.  At a point inside such a face (or on an
+    edge between two of them, a vertical line or a downward one) S holds p + t·z for small
+    t > 0 (the material lies above a downward face; a vertical face holds the vertical line),
+    so f is larger there and the maximum is never inside them: it lies on the other faces,
+    which hold every edge that bounds these from above (a closed shell: each edge has two
+    faces).  Exact for these surface types, so only they are left out; none for a shape
+    that is not made of closed shells.
+    """
+    import Part
+
+    if not shape.Solids or not shape.Shells or not all(sh.isClosed() for sh in shape.Shells):
+        return set()
+    out = set()
+    for number, face in enumerate(shape.Faces, start=1):
+        surface = face.Surface
+        try:
+            if isinstance(surface, Part.Plane):
+                u0, u1, v0, v1 = face.ParameterRange
+                if face.normalAt(0.5 * (u0 + u1), 0.5 * (v0 + v1)).z <= 1e-12:
+                    out.add(number)
+            elif isinstance(surface, Part.Cylinder) and abs(abs(surface.Axis.z) - 1.0) < 1e-12:
+                out.add(number)
+        except Exception:  # noqa: BLE001 - no normal there: keep the face as a check surface
+            continue
+    return out
+
+
+def _faces_extent(faceset):
+    """The selected faces' box (FaceSet.bounds, within 1e-6 of their size) as an Extent."""
+    from .part import Extent
+
+    lo, hi = faceset.bounds(selected_only=True)
+    return Extent(*(float(v) for v in (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])))
 
 
 def _model_clone_of(job, source):

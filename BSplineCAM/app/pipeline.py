@@ -54,6 +54,30 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     return model, job, op
 
 
+def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = cam.Cutting(),
+                    faces=None, post: str = cam.DEFAULT_POST):
+    """A job around ``model`` (any object with a Shape: Part, PartDesign, an imported STEP)
+    with a ball-end tool controller and the finishing op on its faces.
+
+    ``faces``: face names or numbers of ``model`` ("Face3" or 3) for the op's ``Base`` (on the
+    job's model clone), or None for the default: every face a 3-axis tool reaches from above.
+    Returns (job, op); the document is not recomputed.
+    """
+    from .finishing_op import Create
+
+    job = cam.make_job(model, params.tool_diameter, cutting, post=post)
+    op = Create("SurfaceFinish", parentJob=job)
+    if faces is not None:
+        names = [f if isinstance(f, str) else f"Face{int(f)}" for f in faces]
+        op.Base = [(job.Model.Group[0], names)]
+    for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
+                        ("Tolerance", params.tolerance), ("Angle", params.angle),
+                        ("Direction", params.direction), ("IsoDirection", params.iso_direction),
+                        ("Arcs", bool(params.arcs))):
+        setattr(op, prop, value)
+    return job, op
+
+
 def machine(
     surface: Surface,
     params: FinishingParameters,

@@ -4,7 +4,10 @@
 * ``BSplineCAM_Job``: a task panel asks the tool, scallop, tolerance, strategy and feeds, then
   one transaction makes the surface solid, adds a Path/CAM Job with a ball-end tool controller
   and the finishing op, and computes it (progress in the status bar, Esc interrupts); any
-  failure or interruption aborts the transaction, so the document is left as it was.
+  failure or interruption aborts the transaction, so the document is left as it was.  With
+  faces of any object selected in the 3D view instead of a surface, the job is made on that
+  object and the op machines those faces (its ``Base``; the panel's face list takes more
+  faces from the selection, like CAM's Base geometry page).
 * ``BSplineCAM_PostProcess``: a post (linuxcnc, grbl, fanuc, mach3_mach4) and a file; the
   program is checked by LinuxCNC's ``rs274`` when installed, the result in the report view.
 * ``BSplineCAM_Verify``: the selected job's program (posted to a temporary linuxcnc file), or
@@ -88,6 +91,22 @@ def selected_job():
 def selected_surface():
     selection = FreeCADGui.Selection.getSelection()
     return selection[0] if len(selection) == 1 and is_surface(selection[0]) else None
+
+
+def selected_faces() -> list[tuple[object, list[str]]]:
+    """(object, face names) of the faces picked in the 3D view, in selection order ([] when
+    anything else is selected; cheap)."""
+    out = []
+    for sel in FreeCADGui.Selection.getSelectionEx():
+        names = [n for n in sel.SubElementNames if n.startswith("Face")]
+        if not names or len(names) != len(sel.SubElementNames):
+            return []
+        out.append((sel.Object, names))
+    return out
+
+
+def faces_text(faces) -> str:
+    return "; ".join(f"{obj.Label}: {', '.join(names)}" for obj, names in faces)
 
 
 def gui_ref(obj) -> str:
@@ -182,6 +201,42 @@ def create_job(surface, params, cutting) -> tuple:
     return job, op
 
 
+def create_faces_job(faces, params, cutting) -> tuple:
+    """:func:`create_job` for faces of any object: the job's model is the first face's object,
+    the op's ``Base`` the faces (one transaction, aborted on any failure)."""
+    model = faces[0][0]
+    doc = model.Document
+    before = {o.Name for o in doc.Objects}
+    with wait_cursor(), app_toolbit_factory(), compat.toolbits_keep_transaction(), \
+            transaction("BSplineCAM job", doc):
+        cut = (f"cam.Cutting(horizontal_feed={cutting.horizontal_feed!r}, "
+               f"vertical_feed={cutting.vertical_feed!r}, "
+               f"spindle_speed={cutting.spindle_speed!r}, rapid={cutting.rapid!r})")
+        FreeCADGui.doCommand("from BSplineCAM.app import cam, finishing_op")
+        FreeCADGui.doCommand(f"model = {obj_ref(model)}")
+        FreeCADGui.doCommand(f"job = cam.make_job(model, {params.tool_diameter!r}, {cut})")
+        FreeCADGui.doCommand("op = finishing_op.Create('SurfaceFinish', parentJob=job)")
+        base = ", ".join(f"({obj_ref(obj)}, {list(names)!r})" for obj, names in faces)
+        FreeCADGui.doCommand(f"op.Base = [{base}]")
+        for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
+                            ("Tolerance", params.tolerance), ("Angle", params.angle),
+                            ("Direction", params.direction),
+                            ("IsoDirection", params.iso_direction)):
+            FreeCADGui.doCommand(f"op.{prop} = {value!r}")
+        made = [o for o in doc.Objects if o.Name not in before]
+        job = next(o for o in made if is_job(o))
+        op = next(o for o in made if is_finishing_op(o))
+        attach_job_view_providers(job, op)
+        try:
+            FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
+        finally:
+            progress_bar.finish()
+        check_op(op)
+    if model.ViewObject is not None and model.ViewObject.Visibility:
+        FreeCADGui.doCommand(f"{gui_ref(model)}.Visibility = False")  # the job's clone shows it
+    return job, op
+
+
 def check_op(op) -> None:
     """Raise if the op's computation failed or was interrupted (its toolpath is unusable)."""
     if progress_bar.cancelled(op):
@@ -201,10 +256,11 @@ class JobPanel:
     #: The panel last opened (for scripting and tests; not saved).
     last: JobPanel | None = None
 
-    def __init__(self, surface) -> None:
+    def __init__(self, surface, faces=None) -> None:
         from ..app.finishing_op import DIRECTIONS, ISO_DIRECTIONS, STRATEGIES
 
         self.surface = surface
+        self.faces = [(obj, list(names)) for obj, names in (faces or [])]
         self.job = self.op = None
         self.form = QtGui.QWidget()
         self.form.setWindowTitle("Machining job")  # short: the task box is as wide as its title
@@ -239,9 +295,12 @@ class JobPanel:
         self.horizontal_feed = spin(1200.0, 0.0, 100000.0, 0, " mm/min", 100.0)
         self.vertical_feed = spin(400.0, 0.0, 100000.0, 0, " mm/min", 50.0)
         self.spindle = spin(12000.0, 0.0, 100000.0, 0, " rpm", 500.0)
-        target = QtGui.QLabel(surface.Label)
-        target.setWordWrap(True)
-        layout.addRow("Surface", target)
+        if surface is not None:
+            target = QtGui.QLabel(surface.Label)
+            target.setWordWrap(True)
+            layout.addRow("Surface", target)
+        else:
+            self.add_face_list(layout)
         for label, widget, tip in (
             ("Ball-end diameter", self.tool, "Diameter of the ball-end cutter"),
             ("Scallop height", self.scallop, "Largest cusp left between passes"),
@@ -264,6 +323,48 @@ class JobPanel:
         self.strategy.currentIndexChanged.connect(self.show_strategy_fields)
         self.show_strategy_fields()
         JobPanel.last = self
+
+    def add_face_list(self, layout) -> None:
+        """The faces to machine, with "Add selected faces" and "Remove" (CAM's Base page)."""
+        self.face_list = QtGui.QListWidget()
+        self.face_list.setSelectionMode(QtGui.QAbstractItemView.ExtendedSelection)
+        self.face_list.setMaximumHeight(120)
+        self.face_list.setToolTip("Faces the op machines; every other face of the model is "
+                                  "a check surface, never cut")
+        add = QtGui.QPushButton("Add selected faces")
+        add.setToolTip("Add the faces selected in the 3D view")
+        remove = QtGui.QPushButton("Remove")
+        remove.setToolTip("Remove the faces selected in this list")
+        add.clicked.connect(self.add_selected_faces)
+        remove.clicked.connect(self.remove_faces)
+        buttons = QtGui.QHBoxLayout()
+        buttons.addWidget(add)
+        buttons.addWidget(remove)
+        layout.addRow("Faces", self.face_list)
+        layout.addRow(buttons)
+        self.fill_face_list()
+
+    def fill_face_list(self) -> None:
+        self.face_list.clear()
+        for obj, names in self.faces:
+            for name in names:
+                self.face_list.addItem(f"{obj.Label}.{name}")
+
+    def add_selected_faces(self, *_args) -> None:
+        for obj, names in selected_faces():
+            for known, chosen in self.faces:
+                if known is obj:
+                    chosen.extend(n for n in names if n not in chosen)
+                    break
+            else:
+                self.faces.append((obj, list(names)))
+        self.fill_face_list()
+
+    def remove_faces(self, *_args) -> None:
+        gone = {item.text() for item in self.face_list.selectedItems()}
+        self.faces = [(obj, kept) for obj, names in self.faces
+                      if (kept := [n for n in names if f"{obj.Label}.{n}" not in gone])]
+        self.fill_face_list()
 
     #: The fields each strategy reads (the others are hidden).
     STRATEGY_FIELDS = {"raster": ("angle", "direction"), "waterline": (),
@@ -305,7 +406,13 @@ class JobPanel:
         """Validate, compute; the panel stays open (with the reason) when anything fails."""
         try:
             params, cutting = self.parameters()
-            self.job, self.op = create_job(self.surface, params, cutting)
+            if self.surface is not None:
+                self.job, self.op = create_job(self.surface, params, cutting)
+            elif not self.faces:
+                raise ValueError("no face to machine: select faces in the 3D view and press "
+                                 "Add selected faces")
+            else:
+                self.job, self.op = create_faces_job(self.faces, params, cutting)
         except ToolpathCancelled as exc:
             self.message.setText(f"Interrupted: {exc}")
             FreeCAD.Console.PrintWarning(f"BSplineCAM job: {exc}\n")
@@ -332,16 +439,19 @@ class MakeJob(BaseCommand):
     name = "BSplineCAM_Job"
     pixmap = "job"
     menu_text = "Machining job..."
-    tool_tip = ("Make a Path/CAM job finishing the selected surface with a ball end: tool, "
-                "scallop height, tolerance, strategy and feeds in a task panel")
+    tool_tip = ("Make a Path/CAM job finishing the selected surface, or the faces selected "
+                "in the 3D view, with a ball end: tool, scallop height, tolerance, strategy "
+                "and feeds in a task panel")
 
     def active(self) -> bool:
-        return selected_surface() is not None and not results_panel.editing_dialog()
+        return ((selected_surface() is not None or bool(selected_faces()))
+                and not results_panel.editing_dialog())
 
     def run(self) -> None:
         surface = selected_surface()
+        faces = [] if surface is not None else selected_faces()
         results_panel.close_results()
-        FreeCADGui.Control.showDialog(JobPanel(surface))
+        FreeCADGui.Control.showDialog(JobPanel(surface, faces))
 
 
 # -- post-processing -------------------------------------------------------------------------

@@ -231,6 +231,116 @@ class _Bands:
         return ((np.count_nonzero(hits, axis=1) % 2) == 1).reshape(shape)
 
 
+def _vertical(s) -> bool:
+    """Whether the surface is ruled by vertical lines: along one parameter direction every
+    row of poles shares its xy (and its weight), so each (u or v) iso-line is a vertical
+    segment: a wall, a vertical cylinder, any extrusion along Z."""
+    P = s.poles
+    W = s.weights if s.weights is not None else np.ones(P.shape[:2])
+    size = float(np.ptp(P.reshape(-1, 3), axis=0).max()) or 1.0
+    for axis in (0, 1):
+        dev = np.abs(P[..., :2] - np.take(P[..., :2], [0], axis=axis)).max()
+        wdev = np.abs(W - np.take(W, [0], axis=axis)).max()
+        if dev <= 1e-12 * size and wdev <= 1e-12 * float(W.max()) and P.shape[axis] > 1:
+            return True
+    return False
+
+
+class _Walls:
+    """Vertical check faces by their borders.
+
+    On a face ruled by vertical lines, f = p_z + sqrt(R^2 - |p_xy - q|^2) grows with p_z along
+    each ruling (xy fixed), so its maximum over the material lies where a ruling leaves it: on
+    the trim loops.  Each loop segment maps to a 3-D chord of the border (exact for planar
+    walls, within the trim tolerance on curved ones, as everywhere else trims are met), and
+    along a chord f(t) is concave (f is concave in p, p affine in t): its maximum over the
+    reachable part of [0, 1] is the stationary point of f' = 0 in closed form, clipped.  So a
+    wall costs a few array operations per segment instead of a branch and bound whose best
+    contacts tie with the neighbouring face's along their shared edge."""
+
+    def __init__(self, faces: Sequence[Face], index: Sequence[int]):
+        segs, owner, uv = [], [], []
+        self.boxes = []
+        for f, k in zip(faces, index):
+            e = f._edges
+            a = f.surface.evaluate(e[:, 0], e[:, 1])
+            b = f.surface.evaluate(e[:, 2], e[:, 3])
+            segs.append(np.stack([a, b], axis=1))
+            owner.append(np.full(len(e), k))
+            uv.append(e)
+            pts = np.concatenate([a, b])
+            self.boxes.append((pts.min(axis=0), pts.max(axis=0)))
+        self.seg = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
+        self.owner = np.concatenate(owner) if owner else np.zeros(0, int)
+        self.uv = np.concatenate(uv) if uv else np.zeros((0, 4))
+        self.lo = self.seg[:, :, :2].min(axis=1)
+        self.hi = self.seg[:, :, :2].max(axis=1)
+
+    def drop(self, q: FloatArray, R: float):
+        """(best centre height, face, u, v) over the walls' borders for queries q (m, 2)."""
+        m = len(q)
+        best = np.full(m, -np.inf)
+        face = np.full(m, -1)
+        bu = np.zeros(m)
+        bv = np.zeros(m)
+        if len(self.seg) == 0:
+            return best, face, bu, bv
+        dx = np.maximum(np.maximum(self.lo[None, :, 0] - q[:, :1], q[:, :1] - self.hi[None, :, 0]), 0)
+        dy = np.maximum(np.maximum(self.lo[None, :, 1] - q[:, 1:], q[:, 1:] - self.hi[None, :, 1]), 0)
+        qi, si = np.nonzero(dx * dx + dy * dy <= R * R)
+        if len(qi) == 0:
+            return best, face, bu, bv
+        a = self.seg[si, 0]
+        d = self.seg[si, 1] - a
+        e = a[:, :2] - q[qi]
+        L = (d[:, :2] ** 2).sum(axis=1)
+        ed = (e * d[:, :2]).sum(axis=1)
+        ee = (e * e).sum(axis=1)
+        R2 = R * R
+        # reachable t: L t^2 + 2 ed t + ee - R^2 <= 0
+        flat = L <= 1e-300
+        Ls = np.where(flat, 1.0, L)
+        disc = ed * ed - L * (ee - R2)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        t1 = np.where(flat, 0.0, (-ed - root) / Ls)
+        t2 = np.where(flat, 1.0, (-ed + root) / Ls)
+        ok = np.where(flat, ee <= R2, disc >= 0)
+        lo_t = np.maximum(t1, 0.0)
+        hi_t = np.minimum(t2, 1.0)
+        ok &= lo_t <= hi_t
+        # stationary point of f(t): tau = t + ed / L, L tau^2 (L + dz^2) = dz^2 (R^2 - e_perp^2)
+        dz = d[:, 2]
+        perp = np.maximum(ee - ed * ed / Ls, 0.0)
+        tau = np.sign(dz) * np.abs(dz) * np.sqrt(np.maximum(R2 - perp, 0.0)
+                                                 / (Ls * (Ls + dz * dz)))
+        t = np.where(flat, np.where(dz >= 0, hi_t, lo_t), tau - ed / Ls)
+        t = np.clip(t, lo_t, hi_t)
+
+        def f_at(tt):
+            p = a + tt[:, None] * d
+            r2 = ((p[:, :2] - q[qi]) ** 2).sum(axis=1)
+            return np.where(ok & (r2 <= R2 * TOUCH), p[:, 2] + np.sqrt(np.maximum(R2 - r2, 0)),
+                            -np.inf)
+
+        # the clipped stationary point is the maximum of the concave f; the ends of the
+        # reachable interval are checked too, against rounding
+        cands = [t, lo_t, hi_t]
+        vals = np.stack([f_at(c) for c in cands])
+        k = np.argmax(vals, axis=0)
+        fv = vals[k, np.arange(len(qi))]
+        tb = np.choose(k, cands)
+        order = np.argsort(fv, kind="stable")  # later (larger) assignments win
+        qi, si, fv, tb = qi[order], si[order], fv[order], tb[order]
+        good = np.isfinite(fv)
+        qi, si, fv, tb = qi[good], si[good], fv[good], tb[good]
+        best[qi] = fv
+        face[qi] = self.owner[si]
+        uvs = self.uv[si]
+        bu[qi] = uvs[:, 0] + tb * (uvs[:, 2] - uvs[:, 0])
+        bv[qi] = uvs[:, 1] + tb * (uvs[:, 3] - uvs[:, 1])
+        return best, face, bu, bv
+
+
 class _SegmentGrid:
     """Trim segments filed by the cells of a G x G grid over the domain that their boxes
     meet: the segments near a point are found among its cell's few."""
@@ -444,9 +554,13 @@ class FaceSet:
         if not faces:
             raise BSplineCAMError("the face set is empty: select at least one face")
         self.faces = faces
-        self.data = [_FaceData(f, k) for k, f in enumerate(faces)]
-        lo = np.min([d.lo.min(axis=0) for d in self.data], axis=0)
-        hi = np.max([d.hi.max(axis=0) for d in self.data], axis=0)
+        # Unselected vertical faces (walls) enter by their borders only (see _Walls)
+        walls = [k for k, f in enumerate(faces) if not f.selected and _vertical(f.surface)]
+        self.walls = _Walls([faces[k] for k in walls], walls)
+        self.data = [_FaceData(f, k) for k, f in enumerate(faces) if k not in set(walls)]
+        boxes = [(d.lo.min(axis=0), d.hi.max(axis=0)) for d in self.data] + self.walls.boxes
+        lo = np.min([b[0] for b in boxes], axis=0)
+        hi = np.max([b[1] for b in boxes], axis=0)
         self.size = float(np.linalg.norm(hi - lo))
         self.stats = {"pairs": 0, "levels": 0, "uncertified": 0}
 
@@ -486,17 +600,19 @@ class FaceSet:
         data = [d for d in self.data if d.selected or not selected_only]
         for start in range(0, m, QUERY_CHUNK):
             sl = slice(start, min(m, start + QUERY_CHUNK))
-            r = self._chunk(q[sl], R, data)
+            r = self._chunk(q[sl], R, data, not selected_only)
             out.centre[sl], out.face[sl], out.u[sl], out.v[sl], out.gap[sl] = r
         return out
 
-    def _chunk(self, q: FloatArray, R: float, data: list) -> tuple:
+    def _chunk(self, q: FloatArray, R: float, data: list, walls: bool = True) -> tuple:
         m = len(q)
         best = np.full(m, -np.inf)
         face = np.full(m, -1)
         bu = np.zeros(m)
         bv = np.zeros(m)
         gap = np.zeros(m)
+        if walls:
+            best, face, bu, bv = self.walls.drop(q, R)
         R2 = R * R
         groups = []
         for d in data:
@@ -995,7 +1111,7 @@ class FaceSet:
         """(lo, hi) 3-vectors (mm): a box enclosing the faces (inside their trims), each side
         found by branch and bound on the Bezier boxes to within 1e-6 of the set's size."""
         data = [d for d in self.data if d.selected or not selected_only]
-        if not data:
+        if not data and (selected_only or not self.walls.boxes):
             raise BSplineCAMError("no selected face: the selection is empty")
         tol = 1e-6 * max(self.size, 1e-9)
         lo = np.empty(3)
@@ -1006,6 +1122,9 @@ class FaceSet:
                 for d in data:
                     best = max(best, self._extreme(d, c, sign, tol, best))
                 out[c] = sign * best
+        if not selected_only:
+            for wlo, whi in self.walls.boxes:  # a wall's extremes lie on its border
+                lo, hi = np.minimum(lo, wlo), np.maximum(hi, whi)
         return lo, hi
 
     def _extreme(self, d: _FaceData, c: int, sign: float, tol: float, best: float) -> float:

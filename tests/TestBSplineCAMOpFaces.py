@@ -1,0 +1,435 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The finishing op on faces of any object (issue 11, item 5), run by freecadcmd.
+
+Parts are made here with Part (small, so the certified drop-cutter takes seconds): a 30 x 20 x
+10 mm box whose long top edge at y = 0 is rounded by a 4 mm fillet (a cylinder, converted to a
+rational NURBS), and a 30 x 20 mm block whose top is a B-spline face.  Every program is posted
+by FreeCAD's linuxcnc post, checked by LinuxCNC's ``rs274`` and simulated from its text on a
+Z-map; the reference is the exact part: the fillet box's closed form, and
+``FaceSet.height`` (a point probe, not the generator's drop-cutter) over ALL faces of the part.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+from unittest import mock
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from BSplineCAM.app import cam, compat, finishing_op, pipeline  # noqa: E402
+from BSplineCAM.app import faces as app_faces  # noqa: E402
+from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulate import Grid, Tool, simulate_program  # noqa: E402
+from BSplineCAM.core.toolpath.common import ToolpathCancelled  # noqa: E402
+from BSplineCAM.core.toolpath.faceset import FaceSet  # noqa: E402
+from BSplineCAM.orchestration import rs274  # noqa: E402
+
+FreeCAD = compat.ensure_freecad()
+import Part  # noqa: E402
+
+V = FreeCAD.Vector
+TOOL = 6.0
+SCALLOP = 0.05
+TOLERANCE = 0.01
+FILLET = 4.0
+#: Largest accepted gouge (mm): 1 um.
+GOUGE = 1e-3
+#: Z-map cell (mm) and the chords of arcs in the simulation (mm, far below the gouge bound).
+CELL = 0.1
+CHORD = 1e-5
+#: Lowest y (mm) of the fillet a ball centred at y >= 0 touches: 4 - 4 * 4 / (4 + 3).
+REACHED = FILLET - FILLET * FILLET / (FILLET + TOOL / 2)
+#: Posted coordinates carry 4 decimals.
+ROUNDING = 1e-4
+
+
+def fillet_box() -> Part.Shape:
+    """30 x 20 x 10 mm box, its top edge along x at y = 0 rounded by a 4 mm fillet."""
+    box = Part.makeBox(30, 20, 10)
+    edge = next(e for e in box.Edges if e.BoundBox.ZMin > 10 - 1e-9 and e.BoundBox.YMax < 1e-9)
+    return box.makeFillet(FILLET, [edge])
+
+
+def fillet_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The fillet box's top (closed form): 10 for y >= 4, the fillet's arc below, NaN off it."""
+    y = np.asarray(y, dtype=float)
+    r = np.clip(FILLET - y, 0.0, FILLET)
+    z = np.where(y >= FILLET, 10.0, 10.0 - FILLET + np.sqrt(FILLET ** 2 - r ** 2))
+    inside = (x >= 0) & (x <= 30) & (y >= 0) & (y <= 20)
+    return np.where(inside, z, np.nan)
+
+
+def bspline_block() -> Part.Shape:
+    """30 x 20 mm block, z from -5 to about 10, its top a degree (3, 2) B-spline face."""
+    nu, nv = 5, 4
+    x, y = np.meshgrid(np.linspace(-2, 32, nu), np.linspace(-2, 22, nv), indexing="ij")
+    z = 10 + 1.5 * np.sin(x / 7) * np.cos(y / 6)
+    poles = [[V(float(x[i, j]), float(y[i, j]), float(z[i, j])) for j in range(nv)]
+             for i in range(nu)]
+    surface = Part.BSplineSurface()
+    surface.buildFromPolesMultsKnots(poles, [4, 1, 4], [3, 1, 3], [0, 0.5, 1], [0, 0.5, 1],
+                                     False, False, 3, 2)
+    prism = Part.Face(surface).extrude(V(0, 0, -30))
+    return prism.common(Part.makeBox(30, 20, 30, V(0, 0, -5))).Solids[0]
+
+
+def face_number(shape: Part.Shape, test) -> int:
+    """1-based number of the first face of ``shape`` for which ``test(face)`` holds."""
+    return next(i for i, f in enumerate(shape.Faces, 1) if test(f))
+
+
+def centre_normal(face: Part.Face):
+    u0, u1, v0, v1 = face.ParameterRange
+    return face.normalAt(0.5 * (u0 + u1), 0.5 * (v0 + v1))
+
+
+def all_faces(shape: Part.Shape) -> FaceSet:
+    """Every face of the part (walls and bottom included), none selected: the reference."""
+    faces = app_faces.faces_from_shape(shape, "up")
+    return FaceSet(faces)
+
+
+class PartJob(unittest.TestCase):
+    """A document with a Part object, a job on it and the op; each class posts its program."""
+
+    shape_maker = staticmethod(fillet_box)
+    base: list | None = None  # face names for Base; None: the default ("up")
+
+    @classmethod
+    def setUpClass(cls):
+        cls.doc = FreeCAD.newDocument(cls.__name__)
+        cls.part = cls.doc.addObject("Part::Feature", "Part")
+        cls.part.Shape = cls.shape_maker()
+        cls.doc.recompute()
+        params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=SCALLOP,
+                                              tolerance=TOLERANCE)
+        cls.job, cls.op = pipeline.build_faces_job(cls.part, params, faces=cls.base)
+        cls.doc.recompute()
+        cls.model = cls.job.Model.Group[0]
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.path = Path(cls.tmp.name) / "faces.ngc"
+        report = json.loads(cls.op.Report or "{}")
+        cls.text = cam.post_process(cls.job, "linuxcnc", cls.path) if "error" not in report else ""
+
+    @classmethod
+    def tearDownClass(cls):
+        FreeCAD.closeDocument(cls.doc.Name)
+        cls.tmp.cleanup()
+
+    def report(self) -> dict:
+        return json.loads(self.op.Report or "{}")
+
+    def assert_rs274(self):
+        if not rs274.available():
+            if os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
+                self.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
+            self.skipTest("rs274 (linuxcnc-uspace) not installed")
+        check = rs274.check(self.path, {1: TOOL})
+        self.assertTrue(check.ok, check.message)
+        self.assertGreater(check.feeds + check.arcs, 2)
+
+    def simulate(self, margin: float = 4.0):
+        """The posted program's text cut on a Z-map over the part (plus ``margin`` mm)."""
+        program = read_gcode(self.text)
+        box = self.part.Shape.BoundBox
+        grid = Grid.covering(box.XMin - margin, box.XMax + margin, box.YMin - margin,
+                             box.YMax + margin, CELL)
+        top = self.job.Stock.Shape.BoundBox.ZMax
+        return program, simulate_program(program, Tool(TOOL), grid, top, CHORD)
+
+    def gouge(self, sim) -> float:
+        """Largest depth (mm) of the simulated cut below the part's top (FaceSet.height of
+        every face), over the cells above the part."""
+        x, y = np.meshgrid(*sim.grid.centres())
+        xy = np.column_stack([np.ravel(x), np.ravel(y)])
+        z = all_faces(self.part.Shape).height(xy)[0].reshape(sim.height.shape)
+        above = np.isfinite(z)
+        self.assertGreater(above.sum(), 0.3 * above.size)
+        return float(np.max(z[above] - sim.height[above]))
+
+
+class TestFilletFace(PartJob):
+    """Base = the fillet alone: the top plane beside it is a check surface."""
+
+    base = ["FILLET"]  # replaced by the fillet's face name in setUpClass
+
+    @classmethod
+    def setUpClass(cls):
+        shape = fillet_box()
+        cls.fillet = face_number(shape, lambda f: isinstance(f.Surface, Part.Cylinder))
+        cls.top = face_number(shape, lambda f: isinstance(f.Surface, Part.Plane)
+                              and centre_normal(f).z > 0.5)
+        cls.bottom = face_number(shape, lambda f: centre_normal(f).z < -0.5)
+        cls.base = [f"Face{cls.fillet}"]
+        super().setUpClass()
+
+    def test_report_names_the_fillet_and_heights_follow_it(self):
+        report = self.report()
+        self.assertNotIn("error", report)
+        self.assertEqual(report["faces"], [f"{self.model.Label}.Face{self.fillet}"])
+        self.assertEqual(report["strategy"], "raster")
+        self.assertGreater(report["passes"], 2)
+        # the fillet runs from z = 6 (y = 0) to z = 10 (y = 4): exact, not OCCT's pole box
+        self.assertAlmostEqual(self.op.OpFinalDepth.Value, 10.0 - FILLET, delta=1e-4)
+        self.assertGreaterEqual(self.op.OpStartDepth.Value, 10.0 - 1e-4)
+        self.assertGreater(self.op.SafeHeight.Value, self.job.Stock.Shape.BoundBox.ZMax - 1e-9)
+        self.assertGreater(self.op.ClearanceHeight.Value, self.op.SafeHeight.Value)
+
+    def test_program_passes_rs274(self):
+        self.assert_rs274()
+
+    def test_never_below_the_part_and_only_on_the_fillet(self):
+        program, sim = self.simulate()
+        self.assertLessEqual(self.gouge(sim), GOUGE)
+        # the closed form agrees with FaceSet.height (two references, one answer)
+        x, y = np.meshgrid(*sim.grid.centres())
+        exact = fillet_height(np.ravel(x), np.ravel(y)).reshape(sim.height.shape)
+        on = np.isfinite(exact)
+        self.assertLessEqual(float(np.max(exact[on] - sim.height[on])), GOUGE)
+        # cutting moves: the ball's contact lies on the fillet, i.e. its centre has y <= 4
+        # (beyond, it would rest on the top plane) and y >= 0 (the fillet's lower edge)
+        feeds = np.flatnonzero(program.kind != MoveKind.RAPID)
+        low = feeds[np.minimum(program.start[feeds, 2], program.end[feeds, 2]) < 10.0 + 1e-6]
+        self.assertGreater(len(low), 3)
+        ends = np.concatenate([program.start[low], program.end[low]])
+        self.assertLessEqual(float(ends[:, 1].max()), FILLET + ROUNDING)
+        self.assertGreaterEqual(float(ends[:, 1].min()), -ROUNDING)
+        # the top plane is not cut (the stock above it is the check surface's business)
+        far = (y > FILLET + TOOL / 2 + CELL) & on
+        self.assertGreaterEqual(float(sim.height[far].min()), 10.0 - GOUGE)
+        # the fillet is machined where a ball centred over it (0 <= y <= 4) touches it: from
+        # y = 4 - 4 * 4 / 7 (the contact of a centre at y = 0) up, within scallop + tolerance
+        mid = on & (y > REACHED + 0.3) & (y < FILLET - 0.3) & (x > 1.0) & (x < 29.0)
+        excess = sim.height[mid] - exact[mid]
+        self.assertLessEqual(float(excess.max()), SCALLOP + TOLERANCE + 1e-3)
+
+    @unittest.expectedFailure
+    def test_steep_part_of_the_fillet_is_machined(self):
+        """Below y = REACHED the fillet is steeper than 35 degrees: the ball touches it only
+        from centres at y < 0, outside the selected faces' box, where the face raster
+        (core.toolpath.faces_raster) places no pass yet.  Remove the decorator once it does."""
+        _program, sim = self.simulate()
+        x, y = np.meshgrid(*sim.grid.centres())
+        exact = fillet_height(x, y)
+        low = np.isfinite(exact) & (y > 0.3) & (y < REACHED) & (x > 1.0) & (x < 29.0)
+        excess = sim.height[low] - exact[low]
+        self.assertLessEqual(float(excess.max()), SCALLOP + TOLERANCE + 1e-3)
+
+    def test_original_object_in_base_means_the_job_model(self):
+        """Base may name the part itself (the job machines its clone): the same faces."""
+        faces = finishing_op.job_faces(self.op_with_base([(self.part, [f"Face{self.fillet}"])]),
+                                       self.job)
+        selected = [f.name for f in faces if f.selected]
+        self.assertEqual(selected, [f"{self.model.Label}.Face{self.fillet}"])
+        # the walls and bottom no ball reaches first are left out; the top plane stays
+        names = {f.name for f in faces}
+        self.assertIn(f"{self.model.Label}.Face{self.top}", names)
+        self.assertNotIn(f"{self.model.Label}.Face{self.bottom}", names)
+
+    def op_with_base(self, base):
+        return mock.Mock(Base=base, Label="op")
+
+    def assert_bad_base(self, base, *words):
+        """Base ``base``: the error in the report names ``words``; the previous Path stays;
+        with Base restored, the document recomputes to the same program."""
+        before = [c.toGCode() for c in self.op.Path.Commands]
+        good = self.op.Base
+        self.op.Base = base
+        try:
+            self.doc.recompute()
+            error = json.loads(self.op.Report or "{}").get("error", "")
+            for word in words:
+                self.assertIn(word, error)
+            self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
+        finally:
+            self.op.Base = good
+            self.doc.recompute()
+        self.assertNotIn("error", self.report())
+        self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
+        self.assertTrue(self.job.isValid())
+        self.assertTrue(all(o.isValid() for o in self.doc.Objects), "an object is left in error")
+
+    def test_bad_base_not_a_face(self):
+        self.assert_bad_base([(self.model, ["Edge1"])], "Edge1", "not a face", self.op.Label)
+
+    def test_bad_base_face_seen_from_below(self):
+        self.assert_bad_base([(self.model, [f"Face{self.bottom}"])], f"Face{self.bottom}",
+                             "not reachable from above")
+
+    def test_bad_base_empty_selection(self):
+        """The object picked without a face (stored as ("",)): CAM's onChanged clears such an
+        entry at once (its sanitizeBase), so the op is asked directly here."""
+        with self.assertRaises(ValueError) as caught:
+            finishing_op.job_faces(self.op_with_base([(self.model, ("",))]), self.job)
+        self.assertIn("selection is empty", str(caught.exception))
+        self.assertIn(self.model.Label, str(caught.exception))
+
+    def test_other_strategies_are_named(self):
+        before = [c.toGCode() for c in self.op.Path.Commands]
+        self.op.Strategy = "waterline"
+        try:
+            self.doc.recompute()
+            self.assertIn("not available on faces", self.report().get("error", ""))
+            self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
+        finally:
+            self.op.Strategy = "raster"
+            self.doc.recompute()
+        self.assertNotIn("error", self.report())
+
+    def test_cancel_keeps_the_previous_path(self):
+        before = [c.toGCode() for c in self.op.Path.Commands]
+        seen = []
+
+        def cancel(fraction):
+            seen.append(fraction)
+            if fraction > 0.3:
+                raise ToolpathCancelled("cancelled by the test")
+
+        with mock.patch.object(finishing_op, "progress_reporter", lambda obj: cancel):
+            self.op.touch()
+            self.doc.recompute()
+        self.assertTrue(seen and max(seen) > 0.3)
+        self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
+
+
+class TestNoFaceFromAbove(unittest.TestCase):
+    """A model with no face a 3-axis tool reaches (a lone face looking down): the default
+    "up" selection is empty, the report says so and nothing else changes."""
+
+    def test_error_in_the_report(self):
+        doc = FreeCAD.newDocument("TestNoFaceFromAbove")
+        try:
+            part = doc.addObject("Part::Feature", "Ceiling")
+            face = Part.makePlane(30, 20, V(0, 0, 5), V(0, 0, -1))
+            part.Shape = face
+            doc.recompute()
+            params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=SCALLOP)
+            job, op = pipeline.build_faces_job(part, params)
+            doc.recompute()
+            error = json.loads(op.Report or "{}").get("error", "")
+            self.assertIn("no face", error)
+            self.assertIn("reachable from above", error)
+            self.assertEqual(len(op.Path.Commands), 0)
+            self.assertTrue(job.isValid())
+            self.assertTrue(part.isValid())
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+
+
+class TestDefaultUpFaces(PartJob):
+    """Base empty on a model that is no BSplineCAM surface: every upward face."""
+
+    shape_maker = staticmethod(bspline_block)
+    base = None
+
+    def test_up_selection_is_the_top(self):
+        report = self.report()
+        self.assertNotIn("error", report)
+        shape = self.model.Shape
+        # OCCT's own normals: the faces facing up (here the B-spline top alone)
+        up = [i for i, f in enumerate(shape.Faces, 1) if centre_normal(f).z > 1e-6]
+        self.assertEqual(report["faces"], [f"{self.model.Label}.Face{i}" for i in up])
+        self.assertEqual(len(up), 1)
+        self.assertIsInstance(shape.Faces[up[0] - 1].Surface, Part.BSplineSurface)
+        self.assertEqual(list(self.op.Base), [])
+
+    def test_program_passes_rs274_and_never_gouges(self):
+        self.assert_rs274()
+        _program, sim = self.simulate()
+        self.assertLessEqual(self.gouge(sim), GOUGE)
+
+    def test_heights_from_the_exact_top(self):
+        top = self.model.Shape.Faces[0]
+        if not isinstance(top.Surface, Part.BSplineSurface):
+            top = next(f for f in self.model.Shape.Faces if isinstance(f.Surface, Part.BSplineSurface))
+        u0, u1, v0, v1 = top.ParameterRange
+        zs = [top.valueAt(u, v).z for u in np.linspace(u0, u1, 121)
+              for v in np.linspace(v0, v1, 121) if top.isPartOfDomain(u, v)]
+        self.assertAlmostEqual(self.op.OpFinalDepth.Value, min(zs), delta=2e-3)
+        self.assertLessEqual(self.op.OpFinalDepth.Value, min(zs) + 1e-9)
+        self.assertGreaterEqual(self.op.OpStartDepth.Value, max(zs) - 1e-9)
+
+
+@unittest.skipUnless(FreeCAD.GuiUp, "needs the GUI (tools/run_gui_test.sh TestBSplineCAMOpFaces)")
+class TestFacesFromTheView(unittest.TestCase):
+    """The job command with faces picked in the 3D view; the panel's face list."""
+
+    @classmethod
+    def setUpClass(cls):
+        import FreeCADGui
+        from PySide import QtGui
+
+        FreeCADGui.activateWorkbench("BSplineCAMWorkbench")
+        for _ in range(5):
+            QtGui.QApplication.processEvents()
+
+    def setUp(self):
+        import FreeCADGui
+
+        self.gui = FreeCADGui
+        self.doc = FreeCAD.newDocument("TestFacesFromTheView")
+        self.part = self.doc.addObject("Part::Feature", "Part")
+        self.part.Shape = fillet_box()
+        self.doc.recompute()
+        self.fillet = face_number(self.part.Shape, lambda f: isinstance(f.Surface, Part.Cylinder))
+        self.top = face_number(self.part.Shape, lambda f: isinstance(f.Surface, Part.Plane)
+                               and centre_normal(f).z > 0.5)
+
+    def tearDown(self):
+        if self.gui.Control.activeDialog():
+            self.gui.Control.closeDialog()
+        self.gui.Selection.clearSelection()
+        FreeCAD.closeDocument(self.doc.Name)
+
+    def test_job_on_selected_faces(self):
+        from BSplineCAM.gui import cam_commands
+
+        self.gui.Selection.clearSelection()
+        self.assertFalse(self.gui.Command.get("BSplineCAM_Job").isActive())
+        self.gui.Selection.addSelection(self.part, f"Face{self.fillet}")
+        self.assertTrue(self.gui.Command.get("BSplineCAM_Job").isActive())
+        cam_commands.JobPanel.last = None
+        self.gui.runCommand("BSplineCAM_Job")
+        panel = cam_commands.JobPanel.last
+        self.assertIsNotNone(panel)
+        self.assertEqual(panel.face_list.count(), 1)
+        # the list takes more faces from the view and lets them go again
+        self.gui.Selection.clearSelection()
+        self.gui.Selection.addSelection(self.part, f"Face{self.top}")
+        panel.add_selected_faces()
+        self.assertEqual(panel.face_list.count(), 2)
+        panel.face_list.item(1).setSelected(True)
+        panel.remove_faces()
+        self.assertEqual([panel.face_list.item(i).text() for i in range(panel.face_list.count())],
+                         [f"{self.part.Label}.Face{self.fillet}"])
+        panel.tool.setValue(TOOL)
+        panel.scallop.setValue(SCALLOP)
+        panel.tolerance.setValue(TOLERANCE)
+        undo = self.doc.UndoCount
+        with mock.patch.object(cam_commands, "show_info"), \
+                mock.patch.object(cam_commands, "report_error") as error:
+            accepted = panel.accept()
+        if not accepted:
+            self.fail(f"the job panel refused: {panel.message.text()} {error.call_args_list}")
+        self.assertFalse(self.gui.Control.activeDialog())
+        self.assertEqual(self.doc.UndoCount, undo + 1)  # one transaction
+        op = panel.op
+        self.assertEqual([(o.Name, tuple(s)) for o, s in op.Base],
+                         [(self.part.Name, (f"Face{self.fillet}",))])
+        report = json.loads(op.Report)
+        model = panel.job.Model.Group[0]
+        self.assertEqual(report["faces"], [f"{model.Label}.Face{self.fillet}"])
+        self.assertGreater(len(op.Path.Commands), 5)
+
+
+if __name__ == "__main__":
+    unittest.main()
