@@ -542,9 +542,15 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
             raise ParameterError(f"safe_height ({safe_height:g} mm) must not exceed "
                                  f"clearance_height ({clear:g} mm)")
     moves: list[Move] = []
-    links = toolpath.links or [None] * max(len(toolpath.passes) - 1, 0)
+    from .links import join_links
+
+    # a stay-down link may have lifted its end vertices: the pass ends and starts there
+    passes = [p.copy() for p in toolpath.passes]
+    links = [None if lk is None else np.array(lk, dtype=float) for lk in
+             (toolpath.links or [None] * max(len(passes) - 1, 0))]
+    join_links(passes, links[: max(len(passes) - 1, 0)])
     linked = False
-    for k, p in enumerate(toolpath.passes):
+    for k, p in enumerate(passes):
         x0, y0, z0 = (float(v) for v in p[0])
         if not linked:
             moves.append(Move("rapid", x0, y0, clear))

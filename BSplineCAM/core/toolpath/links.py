@@ -51,3 +51,21 @@ def link_length(links: list) -> FloatArray:
     """Cutting length (mm) of each link (0 where the tool retracts)."""
     return np.array([0.0 if lk is None else float(np.linalg.norm(np.diff(lk, axis=0), axis=1).sum())
                      for lk in links])
+
+
+def join_links(passes: list, links: list) -> None:
+    """Give a pass's end and the stay-down link leaving it one height, and the same for the
+    link's end and the next pass's start: the higher of the two.
+
+    :func:`stay_down_links` may lift a link's end vertices to keep its chords above the exact
+    CL height, and :func:`.common.to_moves` cuts a link from the pass's last point: it calls
+    this on copies, so the move from there is the lifted chord.  Raising a vertex of a
+    one-sided chord keeps it one-sided, so the passes stay so.
+    """
+    for k, link in enumerate(links):
+        if link is None:
+            continue
+        z0 = max(float(passes[k][-1, 2]), float(link[0, 2]))
+        z1 = max(float(passes[k + 1][0, 2]), float(link[-1, 2]))
+        passes[k][-1, 2] = link[0, 2] = z0
+        passes[k + 1][0, 2] = link[-1, 2] = z1

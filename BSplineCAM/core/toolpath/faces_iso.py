@@ -1,0 +1,316 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Iso-parametric finishing of trimmed faces: passes along the u (or v) curves of each
+selected face of a :class:`FaceSet`, only inside the face's trim (issue 11, item 3).
+
+Per selected face, as :mod:`.isoparametric` does for one control net:
+
+* the iso-curves across are spaced by the scallop height from the curvature and slope of the
+  face (:func:`.isoparametric._allowed_step`, curvature-adjusted stepover held vertically,
+  checked on both neighbouring curves), over the points of each curve inside the trim;
+* along a curve the contact point p runs from the trim's parameter box start to its end; the
+  ball centre is p + R n (n the upward unit normal, Farouki 1986) and the tip that centre
+  minus R; the tip is then raised to at least the certified :meth:`FaceSet.drop_ball` height
+  at its XY over EVERY face of the set, so other faces and check surfaces are never gouged;
+* a curve is cut only where (u, v) lies inside the trim (:meth:`_FaceData.inside`, the even-odd
+  test of :func:`faces.inside`); the trim crossings are found by bisection in the parameter to
+  ``TRIM_BISECTIONS`` halvings, and a stretch lifted more than tolerance / 2 by a face that is
+  not selected (the ball rides a check surface) is left out as well;
+* points are refined at chord midpoints until the CL curve departs at most tolerance / 2 from
+  the chords, thinned by Douglas-Peucker to tolerance / 2 in 3-D, and every chord is made
+  one-sided against the exact drop-cutter (:func:`.chords.lift_chords`).
+
+Passes alternate in sense (zig-zag) face by face; stay-down links join neighbours
+(:func:`.links.stay_down_links`) as in :mod:`.faces_raster`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..typing import FloatArray
+from .chords import lift_chords, sample_chords
+from .common import (
+    IsoDirection,
+    Jet,
+    Monitor,
+    ProgressFn,
+    ToolParameters,
+    Toolpath,
+    ToolpathStats,
+    simplify,
+)
+from .faces_raster import STAY_DOWN_LINK, FaceQuery
+from .faceset import FaceSet
+from .isoparametric import _allowed_step
+
+#: Halvings of a parameter interval that crosses the trim (the crossing is then known to
+#: 2^-40 of the interval).
+TRIM_BISECTIONS = 40
+#: Rounds of midpoint refinement along the passes.
+REFINE_ROUNDS = 6
+#: Probe points along a curve for the stepover across it.
+PROBES = 65
+
+
+class _FaceJets:
+    """``jet(u, w)`` of one face (the interface :func:`.isoparametric._allowed_step` reads),
+    with the normal oriented up (``sign``)."""
+
+    def __init__(self, surface, sign: float):
+        self.surface = surface
+        self.sign = sign
+
+    def jet(self, u: FloatArray, w: FloatArray) -> Jet:
+        (u0, u1), (v0, v1) = self.surface.domain
+        u = np.clip(np.asarray(u, dtype=float).ravel(), u0, u1)
+        w = np.clip(np.asarray(w, dtype=float).ravel(), v0, v1)
+        d = self.surface.derivatives(u, w)
+        return Jet(u, w, d.point, d.su, d.sw, d.suu, d.suw, d.sww, self.sign)
+
+
+def _check_direction(direction) -> IsoDirection:
+    """'u' (u varies along a pass) or 'v' ('w' accepted, the nets' name for it)."""
+    if isinstance(direction, IsoDirection):
+        return direction
+    text = str(direction).strip().lower()
+    if text in ("v", "w"):
+        return IsoDirection.W
+    if text == "u":
+        return IsoDirection.U
+    raise ParameterError(f"unknown direction {direction!r}: expected 'u' or 'v' (the face "
+                         "parameter that varies along a pass)")
+
+
+def _uv(along: FloatArray, fixed: FloatArray, iso: IsoDirection) -> tuple[FloatArray, FloatArray]:
+    return (along, fixed) if iso is IsoDirection.U else (fixed, along)
+
+
+def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection,
+                a0: float, a1: float, f0: float, f1: float) -> list[float]:
+    """Fixed-parameter values of the passes from f0 to f1, each step the least allowed on
+    this curve and the next one (probes inside the trim; all probes where none is)."""
+    probe = np.linspace(a0, a1, PROBES)
+
+    def step(c: float) -> float:
+        u, v = _uv(probe, np.full(PROBES, c), iso)
+        ins = inside(u, v)
+        along = probe[ins] if ins.sum() >= 2 else probe
+        return _allowed_step(jets, tool, along, c, iso)
+
+    fixed = [f0]
+    while fixed[-1] < f1:
+        c = fixed[-1]
+        d = step(c)
+        for _ in range(6):
+            nxt = min(c + d, f1)
+            d2 = step(nxt)
+            if d2 >= 0.999 * (nxt - c):
+                break
+            d = d2
+        fixed.append(min(c + max(d, 1e-9 * (f1 - f0)), f1))
+    return fixed
+
+
+def _tips(jets: _FaceJets, query: FaceQuery, along: FloatArray, fixed: FloatArray,
+          iso: IsoDirection) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    """Tip points (m, 3): the offset point p + R n - R z raised to the drop-cutter height;
+    the raise (mm) and whether the drop-cutter contact lies on a selected face."""
+    u, v = _uv(along, fixed, iso)
+    jet = jets.jet(u, v)
+    R = query.radius
+    cl = jet.p + R * jet.normal
+    cl[:, 2] -= R
+    drop, _f, _u, _v, on_sel = query.heights(cl[:, :2])
+    lift = np.where(np.isfinite(drop), np.maximum(drop - cl[:, 2], 0.0), 0.0)
+    cl[:, 2] += lift
+    return cl, lift, on_sel
+
+
+def _trim_crossings(inside, line: np.ndarray, t: FloatArray, f: FloatArray, ins: np.ndarray,
+                    iso: IsoDirection):
+    """The inside end of every interval of a line whose ends differ in trim status, by
+    bisection: (line, t, fixed) of those points."""
+    k = np.flatnonzero((line[:-1] == line[1:]) & (ins[:-1] != ins[1:]))
+    if len(k) == 0:
+        return k, t[k], f[k]
+    a, b = t[k].copy(), t[k + 1].copy()  # a inside, b outside
+    swap = ~ins[k]
+    a[swap], b[swap] = b[swap], a[swap]
+    fk = f[k]
+    for _ in range(TRIM_BISECTIONS):
+        m = 0.5 * (a + b)
+        mi = inside(*_uv(m, fk, iso))
+        a = np.where(mi, m, a)
+        b = np.where(mi, b, m)
+    return line[k], a, fk
+
+
+def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolParameters,
+                 iso: IsoDirection, monitor: Monitor, lo: float, hi: float):
+    """Passes (list of (n, 3) tip arrays, zig-zag order), iso values and statistics of one
+    selected face."""
+    s = face.surface
+    inside = faceset.data[k].inside
+    R = tool.radius
+    u0, u1, v0, v1 = face.bounds()
+    (du0, du1), (dv0, dv1) = s.domain
+    u0, u1, v0, v1 = max(u0, du0), min(u1, du1), max(v0, dv0), min(v1, dv1)
+    a0, a1, f0, f1 = (u0, u1, v0, v1) if iso is IsoDirection.U else (v0, v1, u0, u1)
+    # upward normal: the sign that makes the face's normals point up on average
+    gu, gv = np.meshgrid(np.linspace(u0, u1, 9), np.linspace(v0, v1, 9), indexing="ij")
+    d = s.derivatives(gu.ravel(), gv.ravel())
+    sign = 1.0 if float(np.cross(d.su, d.sw)[:, 2].sum()) >= 0 else -1.0
+    jets = _FaceJets(s, sign)
+    fixed = _iso_values(jets, inside, tool, iso, a0, a1, f0, f1)
+    monitor(lo + 0.3 * (hi - lo))
+    # points along each curve about sqrt(8 R tol) apart in 3-D
+    ta = np.linspace(a0, a1, 33)
+    tf = np.linspace(f0, f1, 9)
+    pa, pf = _uv(np.tile(ta, 9), np.repeat(tf, 33), iso)
+    pts = s.evaluate(pa, pf).reshape(9, 33, 3)
+    length = float(np.linalg.norm(np.diff(pts, axis=1), axis=-1).sum(axis=1).max())
+    step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
+    n = max(8, math.ceil(length / step) + 1)
+    along = np.linspace(a0, a1, n)
+    line = np.repeat(np.arange(len(fixed)), n)
+    t = np.tile(along, len(fixed))
+    f = np.asarray(fixed)[line]
+    ins = inside(*_uv(t, f, iso))
+    # trim crossings: the last point inside, by bisection
+    cl_line, cl_t, cl_f = _trim_crossings(inside, line, t, f, ins, iso)
+    line = np.concatenate([line, cl_line])
+    t = np.concatenate([t, cl_t])
+    f = np.concatenate([f, cl_f])
+    ins = np.concatenate([ins, np.ones(len(cl_t), bool)])
+    order = np.lexsort((t, line))
+    line, t, f, ins = line[order], t[order], f[order], ins[order]
+    line, t, f = line[ins], t[ins], f[ins]
+    single = np.r_[True, (line[1:] != line[:-1]) | (t[1:] != t[:-1])]  # a crossing on a sample
+    line, t, f = line[single], t[single], f[single]
+    cl, lift, sel = _tips(jets, query, t, f, iso)
+    # a run ends where the trim (an outside stretch) or a check surface interrupts it
+    half = 0.5 * tool.tolerance
+    gap_ok = np.ones(len(t), bool)  # interval (i, i+1) lies inside the trim
+    fresh = np.ones(len(t), bool)  # intervals not yet checked start or end at these
+    monitor(lo + 0.5 * (hi - lo))
+    for _ in range(REFINE_ROUNDS):
+        same = (line[:-1] == line[1:]) & (np.diff(t) > 1e-12 * (a1 - a0)) & gap_ok[:-1]
+        same &= fresh[:-1] | fresh[1:]
+        idx = np.flatnonzero(same)
+        if len(idx) == 0:
+            break
+        tm = 0.5 * (t[idx] + t[idx + 1])
+        fm = f[idx]
+        mins = inside(*_uv(tm, fm, iso))
+        cm = np.full((len(idx), 3), np.nan)
+        lm = np.zeros(len(idx))
+        sm = np.zeros(len(idx), bool)
+        if mins.any():
+            cm[mins], lm[mins], sm[mins] = _tips(jets, query, tm[mins], fm[mins], iso)
+        dev = np.linalg.norm(cm - 0.5 * (cl[idx] + cl[idx + 1]), axis=1)
+        bad = ~mins | (dev > half)
+        if not bad.any():
+            break
+        # an interval whose midpoint left the trim (a narrow hole) is cut there
+        cut_at = idx[~mins]
+        gap_ok[cut_at] = False
+        add = bad & mins
+        line = np.concatenate([line, line[idx][add]])
+        t = np.concatenate([t, tm[add]])
+        f = np.concatenate([f, fm[add]])
+        cl = np.concatenate([cl, cm[add]])
+        lift = np.concatenate([lift, lm[add]])
+        sel = np.concatenate([sel, sm[add]])
+        # a new point inherits its interval's status on both sides
+        gap_ok = np.concatenate([gap_ok, gap_ok[idx][add]])
+        fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(add.sum()), bool)])
+        order = np.lexsort((t, line))
+        line, t, f, cl, lift, sel, gap_ok, fresh = (
+            a[order] for a in (line, t, f, cl, lift, sel, gap_ok, fresh))
+    cut = sel | (lift <= half)
+    brk = np.flatnonzero((line[1:] != line[:-1]) | ~gap_ok[:-1] | (cut[1:] != cut[:-1]))
+    bounds = np.concatenate([[0], brk + 1, [len(t)]])
+    runs = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b - a >= 2 and cut[a]]
+    monitor(lo + 0.7 * (hi - lo))
+    if not runs:
+        return [], fixed, {}
+    starts = np.cumsum([0] + [b - a for a, b in runs])
+    idx = np.concatenate([np.arange(a, b) for a, b in runs])
+    pts = cl[idx]
+    keep = simplify(pts, starts, half, "distance")
+    raw = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+    samples = sample_chords(query.heights_and_slopes, raw, [p[:, 2] for p in raw], step)
+    stats = lift_chords(query.heights_and_slopes, samples, half)
+    vxy, vz, vline = samples.vertices()
+    cuts = np.flatnonzero(np.diff(vline)) + 1
+    passes = []
+    run_line = [int(line[a]) for a, _b in runs]
+    for rl, pxy, pz in zip(run_line, np.split(vxy, cuts), np.split(vz, cuts)):
+        passes.append((rl, np.column_stack([pxy, pz])))
+    ordered = []
+    for ln in sorted({rl for rl, _ in passes}):
+        group = [p for rl, p in passes if rl == ln]
+        if ln % 2:
+            group = [p[::-1] for p in group[::-1]]
+        ordered.extend(group)
+    stats["lifted_points"] = int((lift > tool.tolerance).sum())
+    return ordered, fixed, stats
+
+
+def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
+                       tolerance: float, direction: str = "u",
+                       progress: ProgressFn = None) -> Toolpath:
+    """Iso-parametric toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
+
+    tool_diameter, scallop (cusp height) and tolerance (one-sided chordal) in mm; ``direction``
+    names the face parameter that varies along a pass ('u' or 'v').  Each selected face is
+    machined by its own iso-curves inside its trim; heights are never below the certified
+    drop-cutter over every face of the set (check surfaces included).
+    """
+    started = time.perf_counter()
+    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
+    iso = _check_direction(direction)
+    if not isinstance(faceset, FaceSet):
+        raise ParameterError(f"faceset must be a FaceSet, got {type(faceset).__name__}")
+    faceset.bounds(selected_only=True)  # refuses an empty selection
+    monitor = Monitor(progress, None, "isoparametric")
+    monitor(0.0)
+    query = FaceQuery(faceset, tool.radius)
+    chosen = [k for k, fc in enumerate(faceset.faces) if fc.selected]
+    passes: list = []
+    per_face: dict = {}
+    for j, k in enumerate(chosen):
+        lo, hi = 0.9 * j / len(chosen), 0.9 * (j + 1) / len(chosen)
+        face = faceset.faces[k]
+        ordered, fixed, stats = _face_passes(face, k, faceset, query, tool, iso, monitor, lo, hi)
+        passes.extend(ordered)
+        steps = np.diff(fixed)
+        per_face[face.name] = {
+            "iso_values": [float(x) for x in fixed], "passes": len(ordered),
+            "parameter_step_min": float(steps.min()) if len(steps) else float("nan"),
+            "parameter_step_max": float(steps.max()) if len(steps) else float("nan"),
+            "chord_lift": stats}
+    lifted = sum(v["chord_lift"].get("lifted_points", 0) for v in per_face.values())
+    notes = [f"{lifted} cutter locations lifted to avoid gouging"] if lifted else []
+    parameters = {"strategy": "isoparametric", "tool_diameter": 2.0 * tool.radius,
+                  "scallop": tool.scallop, "tolerance": tool.tolerance,
+                  "direction": "zigzag", "iso_direction": "u" if iso is IsoDirection.U else "v",
+                  "faces": [faceset.faces[k].name for k in chosen]}
+    extra = {"faces": per_face, "dropcutter": dict(faceset.stats)}
+    toolpath = Toolpath("isoparametric", passes, parameters, [], ToolpathStats(notes=notes),
+                        extra=extra)
+    toolpath.finish(started, None)
+    from .links import stay_down_links
+
+    toolpath.links = stay_down_links(query, toolpath.passes, STAY_DOWN_LINK * tool.radius,
+                                     tool.tolerance)
+    toolpath.finish(started, None)
+    monitor(1.0)
+    return toolpath
+
+
+__all__ = ["generate_faces_iso"]

@@ -1,0 +1,384 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Waterline finishing of trimmed faces: constant-Z contours of the ball over a whole
+:class:`FaceSet` (issue 11, item 3).
+
+As :mod:`.waterline` does for one control net: at tip height z the ball touches the model
+without cutting exactly where the certified drop-cutter height c(x, y) - R over ALL faces
+(:meth:`FaceSet.drop_ball`, check surfaces included) equals z, so each waterline is a level set
+of that field.
+
+* Levels, top down, are spaced by the scallop on the steep parts of the selected faces
+  (slope at least ``min_slope``): dz = s (1 - R kappa) sin(alpha) with s the curvature-adjusted
+  stepover for a vertical cusp h n_z (:func:`.common.curved_stepover`), the smallest of the
+  band each step spans, sampled over each selected face inside its trim
+  (:func:`faces.sample_points`).
+* The field is sampled on a grid of R / 4 over the selected faces' extent grown by R (a ball
+  beside a wall still touches it); marching squares (Lorensen & Cline 1987,
+  :func:`.waterline._crossings`) gives each level's contours, every crossing is polished on
+  its grid edge by regula falsi (Illinois) on the exact drop height to ``tolerance`` / 1000,
+  level points are inserted until the contour follows the level to tolerance / 4
+  (:func:`.waterline.densify`), Douglas-Peucker thins it to tolerance / 2 in XY and every chord
+  is checked against the exact drop-cutter, vertices pushed outwards where the ball would dip
+  below the level (:func:`.waterline.push_out`): the tool stays on the free side, never below
+  the drop height.
+* A contour is kept only where the ball's contact lies on a selected face AND is a surface
+  contact, the centre on the face's normal through it (|(c - p) / R - n| <= ``SURFACE_TILT``):
+  a ball hanging on a trim edge (a hole's rim, a face's outer edge) touches only the edge and
+  finishes nothing of the face.  Where a contour leaves the selected faces between two grid
+  crossings, its end is carried on along the level (midpoints projected onto the level set by
+  Newton steps on the exact height) by bisection to 1/128 of the grid edge.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..faces import sample_points
+from ..typing import FloatArray
+from .common import (
+    Jet,
+    Monitor,
+    ProgressFn,
+    ToolParameters,
+    Toolpath,
+    ToolpathStats,
+    check_finite,
+    curved_stepover,
+    normal_curvature,
+    simplify,
+)
+from .faces_raster import FaceQuery
+from .faceset import FaceSet
+from .waterline import _chain, _crossings, densify, push_out
+
+#: Largest |(c - p) / R - n| of a surface contact (c the ball centre, p the contact, n the
+#: upward unit normal there); more is an edge contact (a trim edge, a face's border).
+SURFACE_TILT = 1e-3
+#: Iterations of regula falsi on a grid edge.
+FALSI_STEPS = 16
+
+
+class _FiniteQuery:
+    """:class:`FaceQuery` that answers NaN for non-finite query points instead of refusing
+    them (:func:`.waterline.densify`'s Newton steps turn a point whose gradient is undefined,
+    a contact on the ball's rim, into NaN and leave it out afterwards)."""
+
+    def __init__(self, query: FaceQuery):
+        self.query = query
+        self.radius = query.radius
+
+    def heights_and_slopes(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+        q = np.asarray(xy, dtype=float).reshape(-1, 2)
+        ok = np.isfinite(q).all(axis=1)
+        z = np.full(len(q), np.nan)
+        g = np.full((len(q), 2), np.nan)
+        if ok.any():
+            z[ok], g[ok] = self.query.heights_and_slopes(q[ok])
+        return z, g
+
+
+def _upward_signs(faceset: FaceSet) -> np.ndarray:
+    """Per face +1 or -1: the sign that turns Su x Sv up on average over its trim box."""
+    signs = []
+    for f in faceset.faces:
+        u0, u1, v0, v1 = f.bounds()
+        gu, gv = np.meshgrid(np.linspace(u0, u1, 9), np.linspace(v0, v1, 9), indexing="ij")
+        d = f.surface.derivatives(gu.ravel(), gv.ravel())
+        signs.append(1.0 if float(np.cross(d.su, d.sw)[:, 2].sum()) >= 0 else -1.0)
+    return np.asarray(signs)
+
+
+def _steep_samples(faceset: FaceSet, tool: ToolParameters, signs: np.ndarray,
+                   min_slope: float) -> tuple[FloatArray, FloatArray, float, float]:
+    """Tip heights of ball contacts at samples of the steep parts of the selected faces and
+    the step-down each allows, sorted by height; the range of contact tip heights."""
+    zs, dzs, lo, hi = [], [], math.inf, -math.inf
+    for f, sign in zip(faceset.faces, signs):
+        if not f.selected:
+            continue
+        uv = sample_points(f, count=60, boundary=400)
+        d = f.surface.derivatives(uv[:, 0], uv[:, 1])
+        jet = Jet(uv[:, 0], uv[:, 1], d.point, d.su, d.sw, d.suu, d.suw, d.sww, sign)
+        n = jet.normal
+        sin_a = np.sqrt(np.clip(1.0 - n[:, 2] ** 2, 0.0, 1.0))
+        steep = (sin_a >= math.sin(min_slope)) & (n[:, 2] > 0)
+        # steepest descent in the tangent plane: across the waterlines
+        down = np.column_stack([n[:, 0] * n[:, 2], n[:, 1] * n[:, 2], n[:, 2] ** 2 - 1.0])
+        kappa = normal_curvature(jet, down)
+        contact = curved_stepover(tool.radius, tool.scallop * np.clip(n[:, 2], 0.05, 1.0), kappa)
+        dz = contact * np.clip(1.0 - tool.radius * kappa, 0.05, None) * sin_a
+        z_off = jet.p[:, 2] + tool.radius * (n[:, 2] - 1.0)
+        lo, hi = min(lo, float(z_off.min())), max(hi, float(z_off.max()))
+        zs.append(z_off[steep])
+        dzs.append(dz[steep])
+    z, dz = np.concatenate(zs), np.concatenate(dzs)
+    order = np.argsort(z)
+    return z[order], dz[order], lo, hi
+
+
+def level_heights(zs: FloatArray, dzs: FloatArray, tool: ToolParameters, min_slope: float,
+                  z_top: float, z_bottom: float) -> list[float]:
+    """Tip heights of the waterlines, top down (mm): each step the least step-down allowed
+    by the steep samples in the band it spans (as :func:`.waterline.level_heights`)."""
+    floor = tool.flat_stepover * math.sin(min_slope)
+    gap = 1e-3 * tool.radius
+    levels = []
+    z = z_top
+    while True:
+        step = tool.flat_stepover
+        for _ in range(6):
+            lo, hi = np.searchsorted(zs, [z - step - gap, z + gap])
+            need = max(float(dzs[lo:hi].min()), 0.02 * floor) if hi > lo else step
+            if need >= 0.999 * step:
+                break
+            step = need
+        z -= step
+        if z <= z_bottom:
+            break
+        levels.append(z)
+    return levels
+
+
+def _contacts(faceset: FaceSet, query: FaceQuery, signs: np.ndarray,
+              xy: FloatArray) -> tuple[FloatArray, np.ndarray]:
+    """Tip heights at xy and whether the ball's contact there is a surface contact on a
+    selected face."""
+    tip, face, u, v, on_sel = query.heights(xy)
+    R = query.radius
+    good = on_sel & np.isfinite(tip)
+    for k, f in enumerate(faceset.faces):
+        idx = np.flatnonzero(good & (face == k))
+        if len(idx) == 0:
+            continue
+        d = f.surface.derivatives(u[idx], v[idx])
+        n = signs[k] * np.cross(d.su, d.sw)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        c = np.column_stack([xy[idx], tip[idx] + R])
+        tilt = np.linalg.norm((c - d.point) / R - n, axis=1)
+        good[idx] = tilt <= SURFACE_TILT
+    return tip, good
+
+
+def _project(query: FaceQuery, q: FloatArray, level: FloatArray, steps: int = 2) -> FloatArray:
+    """Points moved towards the level set by Newton steps along the exact height gradient."""
+    q = q.copy()
+    for _ in range(steps):
+        z, g = query.heights_and_slopes(q)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = ((level - z) / np.einsum("ij,ij->i", g, g))[:, None] * g
+        q = q + np.where(np.isfinite(step), step, 0.0)
+    return q
+
+
+def _refine_ends(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, kept: FloatArray,
+                 dropped: FloatArray, level: FloatArray, rounds: int = 7) -> FloatArray:
+    """Bisection along the level set between a kept contour point and its dropped neighbour:
+    the last point found on the level (to 1e-7 mm) whose contact is a selected surface
+    contact."""
+    a, b = kept.copy(), dropped.copy()
+    for _ in range(rounds):
+        m = _project(query, 0.5 * (a + b), level)
+        tip, good = _contacts(faceset, query, signs, m)
+        good &= np.abs(tip - level) <= 1e-7
+        a = np.where(good[:, None], m, a)
+        b = np.where(good[:, None], b, m)
+    return a
+
+
+def _runs(keep: np.ndarray, closed: bool) -> list[np.ndarray]:
+    """Index arrays of the runs of True in ``keep`` (a closed loop's first and last entries
+    are the same point: a run may wrap round)."""
+    n = len(keep)
+    if closed:
+        body = keep[:-1]
+        if body.all():
+            return [np.arange(n)]
+        shift = int(np.flatnonzero(~body)[0])
+        order = np.roll(np.arange(n - 1), -shift)
+        runs = []
+        for a, b in _true_runs(body[order]):
+            runs.append(order[a:b])
+        return runs
+    return [np.arange(a, b) for a, b in _true_runs(keep)]
+
+
+def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    v = np.concatenate([[False], mask, [False]])
+    e = np.flatnonzero(v[1:] != v[:-1])
+    return [(a, b) for a, b in zip(e[0::2], e[1::2]) if b - a >= 2]
+
+
+def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: float,
+                             tolerance: float, progress: ProgressFn = None,
+                             min_slope: float = 30.0) -> Toolpath:
+    """Waterline toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
+
+    tool_diameter, scallop (cusp height) and tolerance (chordal) in mm; ``min_slope`` in
+    degrees: walls shallower than this are spaced by the flat stepover only (pair the
+    waterline with a raster pass there).  Contours are closed or open polylines at constant Z,
+    top level first, never below the certified drop-cutter height over every face.
+    """
+    started = time.perf_counter()
+    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
+    slope_deg = check_finite(min_slope, "min_slope", "degrees")
+    if not 0.0 < slope_deg < 90.0:
+        raise ParameterError(f"min_slope must lie in (0, 90) degrees, got {slope_deg:g}")
+    if not isinstance(faceset, FaceSet):
+        raise ParameterError(f"faceset must be a FaceSet, got {type(faceset).__name__}")
+    monitor = Monitor(progress, None, "waterline")
+    monitor(0.0)
+    R = tool.radius
+    slope = math.radians(slope_deg)
+    query = FaceQuery(faceset, R)
+    signs = _upward_signs(faceset)
+    lo, hi = faceset.bounds(selected_only=True)
+    g = R / 4.0
+    xs = np.linspace(lo[0] - R, hi[0] + R, max(3, math.ceil((hi[0] - lo[0] + 2 * R) / g) + 1))
+    ys = np.linspace(lo[1] - R, hi[1] + R, max(3, math.ceil((hi[1] - lo[1] + 2 * R) / g) + 1))
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    Z = query.heights(np.column_stack([X.ravel(), Y.ravel()]))[0].reshape(X.shape)
+    monitor(0.3)
+    zs, dzs, z_low, z_high = _steep_samples(faceset, tool, signs, slope)
+    levels = level_heights(zs, dzs, tool, slope, z_high, z_low)
+    nx, ny = Z.shape
+    corners = np.empty((2 * nx * ny, 2, 2), dtype=np.intp)  # edge key -> two grid corners
+    ii, jj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    fi, fj = ii.ravel(), jj.ravel()
+    corners[: nx * ny, 0] = np.column_stack([fi, fj])
+    corners[: nx * ny, 1] = np.column_stack([np.minimum(fi + 1, nx - 1), fj])
+    corners[nx * ny:, 0] = np.column_stack([fi, fj])
+    corners[nx * ny:, 1] = np.column_stack([fi, np.minimum(fj + 1, ny - 1)])
+    polylines, heights = [], []
+    for level in levels:
+        segments, _, _ = _crossings(Z, level)
+        for chain in _chain(segments):
+            polylines.append(np.asarray(chain))
+            heights.append(level)
+    notes = [f"walls below {slope_deg:g} degrees are not finished by waterline; pair with a "
+             "raster pass"]
+    parameters = {"strategy": "waterline", "tool_diameter": 2.0 * R, "scallop": tool.scallop,
+                  "tolerance": tool.tolerance, "min_slope": slope_deg,
+                  "faces": [f.name for f in faceset.faces if f.selected]}
+    steps = -np.diff(levels)
+    stats = ToolpathStats(stepover_min_mm=float(steps.min()) if len(steps) else math.nan,
+                          stepover_max_mm=float(steps.max()) if len(steps) else math.nan,
+                          notes=notes)
+    extra: dict = {"levels": levels}
+    passes: list = []
+    if polylines:
+        passes, more = _contours(faceset, query, signs, tool, Z, xs, ys, corners, polylines,
+                                 heights, monitor)
+        extra.update(more)
+    if not passes:
+        notes.append("no waterline touches a selected face")
+    extra["dropcutter"] = dict(faceset.stats)
+    toolpath = Toolpath("waterline", passes, parameters, [], stats, extra=extra)
+    toolpath.finish(started, None)
+    monitor(1.0)
+    return toolpath
+
+
+def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolParameters,
+              Z: FloatArray, xs: FloatArray, ys: FloatArray, corners: np.ndarray,
+              polylines: list, heights: list, monitor: Monitor) -> tuple[list, dict]:
+    """Level points on the grid edges of the chained contours, polished, split to the
+    selected surface contacts, densified, thinned and pushed out (see the module docstring)."""
+    keys = np.concatenate(polylines)
+    zl = np.concatenate([np.full(len(p), h) for p, h in zip(polylines, heights)])
+    c0, c1 = corners[keys, 0], corners[keys, 1]
+    p0 = np.column_stack([xs[c0[:, 0]], ys[c0[:, 1]]])
+    p1 = np.column_stack([xs[c1[:, 0]], ys[c1[:, 1]]])
+    f0 = np.nan_to_num(Z[c0[:, 0], c0[:, 1]], nan=-1e9) - zl
+    f1 = np.nan_to_num(Z[c1[:, 0], c1[:, 1]], nan=-1e9) - zl
+    # Regula falsi (Illinois) on each edge against the exact drop height; points whose value
+    # is within tolerance / 1000 of the level stop early
+    t0, t1 = np.zeros(len(keys)), np.ones(len(keys))
+    done = np.zeros(len(keys), bool)
+    last = np.full(len(keys), -1, dtype=np.int8)  # which end the previous step replaced
+    eps = 1e-3 * tool.tolerance
+    for _ in range(FALSI_STEPS):
+        act = np.flatnonzero(~done)
+        if len(act) == 0:
+            break
+        a0, a1, b0, b1 = t0[act], t1[act], f0[act], f1[act]
+        t = np.clip((a0 * b1 - a1 * b0) / np.where(b1 != b0, b1 - b0, 1.0), 0.0, 1.0)
+        # bisection next to a corner where no face lies under the ball (no value to follow)
+        t = np.where((b0 < -1e8) | (b1 < -1e8), 0.5 * (a0 + a1), t)
+        q = p0[act] + t[:, None] * (p1[act] - p0[act])
+        ft = np.nan_to_num(query.heights(q)[0], nan=-1e9) - zl[act]
+        same = np.sign(ft) == np.sign(b0)
+        # Illinois: the kept end's value is halved when the same end was kept last time
+        again = same.astype(np.int8) == last[act]
+        last[act] = same
+        t0[act], f0[act] = np.where(same, t, a0), np.where(same, ft, np.where(again, 0.5, 1) * b0)
+        t1[act], f1[act] = np.where(same, a1, t), np.where(same, np.where(again, 0.5, 1) * b1, ft)
+        done[act] = np.abs(ft) <= eps
+        # a converged point sits on the side that holds it
+        hit = np.abs(ft) <= eps
+        t0[act[hit]], f0[act[hit]] = t[hit], ft[hit]
+        t1[act[hit]], f1[act[hit]] = t[hit], ft[hit]
+    t = np.where(np.abs(f0) < np.abs(f1), t0, t1)
+    xy = p0 + t[:, None] * (p1 - p0)
+    _tip, good = _contacts(faceset, query, signs, xy)
+    monitor(0.5)
+    # split each contour to its runs on selected surface contacts; each run end next to a
+    # dropped point is carried on along the level to where the contact leaves the face
+    starts = np.cumsum([0] + [len(p) for p in polylines])
+    runs, ends = [], []  # ends: (run, at_start, kept index, dropped index)
+    for a, b, poly in zip(starts[:-1], starts[1:], polylines):
+        closed = len(poly) > 2 and poly[0] == poly[-1]
+        m = b - a
+        for run in _runs(good[a:b], closed):
+            r = len(runs)
+            runs.append(a + run)
+            if len(run) == m:
+                continue
+            before = run[0] - 1 if run[0] > 0 else (m - 2 if closed else -1)
+            after = run[-1] + 1 if run[-1] < m - 1 else (1 if closed else -1)
+            if before >= 0:
+                ends.append((r, True, a + run[0], a + before))
+            if after >= 0:
+                ends.append((r, False, a + run[-1], a + after))
+    if not runs:
+        return [], {}
+    extended = {}
+    if ends:
+        e = np.array([(k, d) for _r, _s, k, d in ends])
+        tips = _refine_ends(faceset, query, signs, xy[e[:, 0]], xy[e[:, 1]], zl[e[:, 0]])
+        for (r, at_start, _k, _d), q in zip(ends, tips):
+            extended[(r, at_start)] = q
+    pieces = []
+    for r, run in enumerate(runs):
+        p = np.column_stack([xy[run], zl[run]])
+        head, tail = extended.get((r, True)), extended.get((r, False))
+        level = zl[run[0]]
+        if head is not None:
+            p = np.vstack([[head[0], head[1], level], p])
+        if tail is not None:
+            p = np.vstack([p, [tail[0], tail[1], level]])
+        pieces.append(p)
+    pts = np.concatenate(pieces)
+    starts = np.cumsum([0] + [len(p) for p in pieces])
+    pts, starts = densify(_FiniteQuery(query), pts, starts, 0.25 * tool.tolerance)
+    monitor(0.7)
+    keep = simplify(pts, starts, 0.5 * tool.tolerance, "planar")
+    passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+    step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
+    passes, push_stats = push_out(_FiniteQuery(query), passes, step)
+    monitor(0.9)
+    # vertices pushed off the selected faces' surface contacts end their run
+    out = []
+    allv = np.concatenate(passes)
+    _tip, good = _contacts(faceset, query, signs, allv[:, :2])
+    starts = np.cumsum([0] + [len(p) for p in passes])
+    for a, b, p in zip(starts[:-1], starts[1:], passes):
+        closed = len(p) > 2 and bool(np.all(p[0] == p[-1]))
+        out.extend(p[run] for run in _runs(good[a:b], closed))
+    return out, {"chord_push": push_stats}
+
+
+__all__ = ["SURFACE_TILT", "generate_faces_waterline", "level_heights"]

@@ -1,0 +1,281 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Iso-parametric and waterline finishing of trimmed and several faces
+(core/toolpath/faces_iso.py, faces_waterline.py), measured by simulating the G-code text
+against the exact faces (FaceSet.height of every face) and against closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from TestBSplineCAMFaceSet import circle, cylinder_quarter, gcode, holed_plane, plane, rectangle
+
+from BSplineCAM.core import Surface
+from BSplineCAM.core.errors import BSplineCAMError, ParameterError
+from BSplineCAM.core.faces import Face
+from BSplineCAM.core.gcode import read_gcode
+from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.simulate import Grid, Tool, simulate_program
+from BSplineCAM.core.toolpath.faces_iso import generate_faces_iso
+from BSplineCAM.core.toolpath.faces_waterline import generate_faces_waterline
+from BSplineCAM.core.toolpath.faceset import FaceSet
+
+D, H, TOL = 6.0, 0.05, 0.01
+R = D / 2
+#: Largest gouge allowed anywhere on the model (mm).
+GOUGE = 1e-3
+#: Segments of the trim polygons of the holes (fewer than the helpers' default: every query
+#: near a hole tests the segments crossing its patch).
+HOLE = 120
+
+
+def dome_faces(amplitude: float = 8.0):
+    """A selected bicubic dome (slopes up to about 41 degrees) with a hole at its top, next to
+    a check plane standing higher than the dome's foot: 32 x 24 mm."""
+    n = 9
+    x = np.linspace(0.0, 24.0, n)
+    pts = np.zeros((n, n, 3))
+    pts[..., 0], pts[..., 1] = np.meshgrid(x, x, indexing="ij")
+    pts[..., 2] = amplitude * np.exp(-((pts[..., 0] - 12) ** 2 + (pts[..., 1] - 12) ** 2) / 40.0)
+    dome = NurbsSurface.from_surface(Surface(pts, knots="clamped"))
+    sel = Face(dome, rectangle(dome), holes=(circle(0.5, 0.5, 0.12, HOLE),), index=1)
+    check = plane(24.0, 32.0, 0.0, 24.0, 1.0)
+    return [sel, Face(check, rectangle(check), index=2, selected=False)]
+
+
+def stock_top(tp) -> float:
+    """A stock block just under the clearance plane, so that rapids never touch it."""
+    return tp.clearance_height - 0.5
+
+
+def simulated(fs: FaceSet, tp, box, cell: float = 0.1):
+    """Z-map of the program text, and the design (NaN off the faces), face index and cell
+    centres on it."""
+    program = read_gcode(gcode(tp))
+    grid = Grid.covering(*box, cell)
+    sim = simulate_program(program, Tool(D), grid, top=stock_top(tp))
+    xs, ys = grid.centres()
+    X, Y = np.meshgrid(xs, ys)
+    z, fidx, _u, _v, found = fs.height(np.column_stack([X.ravel(), Y.ravel()]), False)
+    return sim.height, z.reshape(X.shape), fidx.reshape(X.shape), found.reshape(X.shape), X, Y
+
+
+def assert_no_gouge(sim, design, found):
+    gouge = np.where(found, design - sim, -np.inf)
+    assert gouge.max() <= GOUGE, gouge.max()
+
+
+def assert_above_drop(fs: FaceSet, tp):
+    """Every cutter location at or above the certified drop-cutter height over all faces."""
+    pts = np.concatenate(tp.passes + [lk for lk in tp.links if lk is not None])
+    drop = fs.drop_ball(pts[:, :2], R)[0]
+    ok = np.isfinite(drop)
+    assert np.all(pts[ok, 2] >= drop[ok] - 1e-7)
+
+
+def contacts_selected(fs: FaceSet, tp) -> float:
+    verts = np.concatenate(tp.passes)
+    return float(fs.drop_ball(verts[:, :2], R)[4].mean())
+
+
+# -- iso-parametric -----------------------------------------------------------------------------
+@pytest.mark.parametrize("direction", ["u", "v"])
+def test_iso_on_dome_with_hole_and_check_face(direction):
+    fs = FaceSet(dome_faces())
+    tp = generate_faces_iso(fs, D, H, TOL, direction=direction)
+    assert tp.passes and tp.parameters["faces"] == ["Face1"]
+    assert contacts_selected(fs, tp) > 0.99
+    assert_above_drop(fs, tp)
+    sim, design, fidx, found, X, Y = simulated(fs, tp, (-1.0, 33.0, -1.0, 25.0))
+    assert_no_gouge(sim, design, found)
+    # the check plane is never cut below its surface (it may be touched from above)
+    on_check = found & (fidx == 1)
+    assert np.all(sim[on_check] >= design[on_check] - GOUGE)
+    # scallop on the dome away from its borders, the hole and the check face (one radius)
+    far = ((X > R) & (X < 24 - R) & (Y > R) & (Y < 24 - R)
+           & (np.hypot(X - 12, Y - 12) > 0.12 * 24 + R) & found & (fidx == 0))
+    assert far.sum() > 10000
+    scallop = (sim - design)[far]
+    assert scallop.max() <= H + TOL, scallop.max()
+    # no pass over the hole (narrower than the ball: links may bridge it above the rim)
+    verts = np.concatenate(tp.passes)
+    u, v = fs.drop_ball(verts[:, :2], R)[2:4]
+    assert np.hypot(u - 0.5, v - 0.5).min() >= 0.12 * math.cos(math.pi / HOLE) - 1e-9
+
+
+def test_iso_holed_plane_passes_stop_at_the_hole():
+    face = holed_plane(HOLE)
+    fs = FaceSet([face])
+    tp = generate_faces_iso(fs, D, H, TOL)
+    verts = np.concatenate(tp.passes)
+    # on a plane the tip lies right above the contact: at z = 1.5, never over the hole
+    # (radius 8 mm about (20, 20); the trim polygon's inscribed circle is a little smaller)
+    np.testing.assert_allclose(verts[:, 2], 1.5, atol=1e-9)
+    r = np.hypot(verts[:, 0] - 20.0, verts[:, 1] - 20.0)
+    assert r.min() >= 8.0 * math.cos(math.pi / HOLE) - 1e-9
+    # passes reach the rim (the trim crossing is found by bisection)
+    assert r.min() <= 8.0 + 1e-6
+    # the flat stepover 2 sqrt(2Rh - h^2) (vertical cusps on a plane are the scallop)
+    ys = np.unique(np.round(verts[:, 1], 9))
+    assert np.diff(ys).max() <= 2 * math.sqrt(2 * R * H - H * H) + 1e-9
+    sim, design, _f, found, X, Y = simulated(fs, tp, (-1.0, 41.0, -1.0, 41.0), 0.2)
+    assert_no_gouge(sim, design, found)
+    far = (found & (X > R) & (X < 40 - R) & (Y > R) & (Y < 40 - R)
+           & (np.hypot(X - 20, Y - 20) > 8 + R))
+    assert (sim - design)[far].max() <= H + TOL
+    hole = np.hypot(X - 20, Y - 20) < 8 - R
+    assert np.all(sim[hole] >= stock_top(tp) - 1e-6)
+
+
+def test_iso_cylinder_closed_form():
+    """Passes along the arc (u) of a quarter cylinder of radius rho: the tip follows
+    sqrt((rho + R)^2 - x^2) - R exactly above the face, and every pass lies at constant y."""
+    rho, length = 10.0, 20.0
+    ns = cylinder_quarter(rho, length)
+    fs = FaceSet([Face(ns, rectangle(ns))])
+    seen: list = []
+    tp = generate_faces_iso(fs, D, H, TOL, direction="u", progress=seen.append)
+    assert seen[0] == 0.0 and seen[-1] == 1.0 and seen == sorted(seen)
+    pts = np.concatenate(tp.passes)
+    for p in tp.passes:
+        assert np.ptp(p[:, 1]) <= 1e-9
+    exact = np.sqrt((rho + R) ** 2 - pts[:, 0] ** 2) - R
+    # one-sided: never below the exact CL curve, at most the chordal tolerance above it
+    assert np.all(pts[:, 2] >= exact - 1e-7)
+    assert np.all(pts[:, 2] <= exact + TOL)
+    # the passes span the face: ball centres from 45 to 135 degrees
+    reach = (rho + R) * math.sqrt(0.5)
+    assert pts[:, 0].max() >= reach - 1e-6 and pts[:, 0].min() <= -reach + 1e-6
+    sim, design, _f, found, X, Y = simulated(fs, tp, (-8.0, 8.0, -1.0, 21.0))
+    assert_no_gouge(sim, design, found)
+    far = found & (np.abs(Y - length / 2) < length / 2 - R) & (np.abs(X) < rho * math.sqrt(0.5) - R)
+    assert (sim - design)[far].max() <= H + TOL
+
+
+def test_iso_bad_input():
+    fs = FaceSet(dome_faces())
+    with pytest.raises(ParameterError, match="direction"):
+        generate_faces_iso(fs, D, H, TOL, direction="x")
+    with pytest.raises(ParameterError, match="tool_diameter"):
+        generate_faces_iso(fs, -1.0, H, TOL)
+    faces = [Face(f.surface, f.outer, f.holes, index=f.index, selected=False)
+             for f in dome_faces()]
+    with pytest.raises(BSplineCAMError, match="selection is empty"):
+        generate_faces_iso(FaceSet(faces), D, H, TOL)
+
+
+# -- waterline ----------------------------------------------------------------------------------
+def test_waterline_cylinder_contours_are_straight_at_known_offsets():
+    """At tip height z the ball touches a cylinder of radius rho (axis y at z = 0) where
+    x = +-sqrt((rho + R)^2 - (z + R)^2): two straight contours the length of the face."""
+    rho, length = 10.0, 20.0
+    ns = cylinder_quarter(rho, length)
+    fs = FaceSet([Face(ns, rectangle(ns))])
+    tp = generate_faces_waterline(fs, D, H, TOL)
+    levels = tp.extra["levels"]
+    assert len(levels) >= 4 and len(tp.passes) == 2 * len(levels)
+    for p in tp.passes:
+        z = p[0, 2]
+        assert np.ptp(p[:, 2]) == 0.0
+        x = math.sqrt((rho + R) ** 2 - (z + R) ** 2)
+        np.testing.assert_allclose(np.abs(p[:, 0]), x, atol=1e-5)
+        # the contact stays on the face: ends within a hair of y = 0 and y = length
+        assert p[:, 1].min() <= 0.01 and p[:, 1].max() >= length - 0.01
+        assert p[:, 1].min() >= -R * 1e-3 - 1e-9 and p[:, 1].max() <= length + R * 1e-3 + 1e-9
+    # levels are scallop-spaced on the steep part: the contacts of neighbouring levels lie
+    # at most the convex stepover apart along the arc (closed form, vertical cusp h n_z)
+    angles = [math.acos((z + R) / (rho + R)) for z in levels]
+    for a, b in zip(angles[:-1], angles[1:]):
+        mid = 0.5 * (a + b)
+        if mid < math.radians(30.0):
+            continue
+        h = H * math.cos(mid)
+        c = ((rho + R) ** 2 + (rho + h) ** 2 - R * R) / (2 * (rho + R) * (rho + h))
+        assert rho * (b - a) <= 2 * rho * math.acos(c) + 1e-9
+    sim, design, _f, found, X, Y = simulated(fs, tp, (-8.0, 8.0, -1.0, 21.0))
+    assert_no_gouge(sim, design, found)
+    # scallop on the steep flanks (contact slope 35 degrees and more, above the lowest level's
+    # contact), away from the ends
+    low = math.acos((levels[-1] + R) / (rho + R))
+    ang = np.arcsin(np.clip(np.abs(X) / rho, 0, 1))
+    far = found & (np.abs(Y - length / 2) < length / 2 - R) & (ang >= math.radians(35.0)) & (ang <= low)
+    assert far.sum() > 1000
+    assert (sim - design)[far].max() <= H + TOL
+
+
+def test_waterline_cylinder_with_hole_follows_the_material():
+    """A hole in the cylinder's steep flank: every contour vertex still lies on the
+    closed-form line x = +-sqrt((rho + R)^2 - (z + R)^2) (a ball hanging on the hole's rim
+    would stand off it) with its contact on the material, and the contours that cross the hole
+    stop at its rim, on both sides of it."""
+    rho, length, cu, cv, r = 10.0, 30.0, 0.2, 0.5, 0.1
+    ns = cylinder_quarter(rho, length)
+    fs = FaceSet([Face(ns, rectangle(ns), holes=(circle(cu, cv, r, HOLE),))])
+    tp = generate_faces_waterline(fs, D, H, TOL)
+    assert tp.passes
+    pts = np.concatenate(tp.passes)
+    x = np.sqrt((rho + R) ** 2 - (pts[:, 2] + R) ** 2)
+    np.testing.assert_allclose(np.abs(pts[:, 0]), x, atol=1e-5)
+    _t, _f, u, v, _s = fs.drop_ball(pts[:, :2], R)
+    assert np.all(np.hypot(u - cu, v - cv) >= r * math.cos(math.pi / HOLE) - 1e-9)
+    # the contours whose contact line u = const crosses the hole end at its rim, where the
+    # circle in (u, v) puts it: y = length (cv +- sqrt(r^2 - (u - cu)^2))
+    uc = np.array([fs.drop_ball(p[:1, :2], R)[2][0] for p in tp.passes])
+    crossing = [(p, uu) for p, uu in zip(tp.passes, uc) if abs(uu - cu) < 0.9 * r]
+    assert len(crossing) >= 4
+    for p, uu in crossing:
+        half = length * math.sqrt(r * r - (uu - cu) ** 2)
+        if p[:, 1].max() < length * cv:
+            assert p[:, 1].min() < 1e-3 and abs(p[:, 1].max() - (length * cv - half)) < 0.02
+        else:
+            assert p[:, 1].max() > length - 1e-3
+            assert abs(p[:, 1].min() - (length * cv + half)) < 0.02
+
+
+def test_waterline_dome_with_hole_and_check_face():
+    fs = FaceSet(dome_faces())
+    tp = generate_faces_waterline(fs, D, H, TOL)
+    assert tp.passes
+    for p in tp.passes:
+        assert np.ptp(p[:, 2]) == 0.0
+    # contacts on the selected dome only, never a ball hanging on the hole's rim
+    assert contacts_selected(fs, tp) == 1.0
+    assert_above_drop(fs, tp)
+    verts = np.concatenate(tp.passes)
+    assert np.hypot(verts[:, 0] - 12, verts[:, 1] - 12).min() > 0.12 * 24 - 1e-6
+    sim, design, fidx, found, X, Y = simulated(fs, tp, (-4.0, 36.0, -4.0, 28.0))
+    assert_no_gouge(sim, design, found)
+    # scallop where the dome is steep (35 degrees and more) between the first level and the
+    # last one spaced on steep ground (a ball touching at slope a stands R (1 - cos a) lower),
+    # away from the borders, the hole and the check face
+    levels = tp.extra["levels"]
+    dz = np.gradient(np.where(found, design, np.nan), 0.1)
+    slope = np.arctan(np.hypot(dz[0], dz[1]))
+    tip = design - R * (1.0 - np.cos(slope))
+    far = (found & (fidx == 0) & (X > R) & (X < 24 - R) & (Y > R) & (Y < 24 - R)
+           & (np.hypot(X - 12, Y - 12) > 0.12 * 24 + R) & (slope >= math.radians(35.0))
+           & (tip <= levels[0]) & (tip >= levels[-2]))
+    assert far.sum() > 1000
+    assert (sim - design)[far].max() <= H + TOL
+
+
+def test_waterline_bad_input():
+    fs = FaceSet(dome_faces())
+    with pytest.raises(ParameterError, match="min_slope"):
+        generate_faces_waterline(fs, D, H, TOL, min_slope=95.0)
+    with pytest.raises(ParameterError, match="scallop"):
+        generate_faces_waterline(fs, D, 0.0, TOL)
+    with pytest.raises(ParameterError, match="progress"):
+        generate_faces_waterline(fs, D, H, TOL, progress=3)
+    with pytest.raises(ParameterError, match="faceset"):
+        generate_faces_waterline(dome_faces(), D, H, TOL)
+
+
+def test_waterline_plane_has_no_contour():
+    """A plane has no steep part and the ball hanging on the rim of a hole touches only the
+    edge: no waterline, and a note says so."""
+    fs = FaceSet([holed_plane(HOLE)])
+    tp = generate_faces_waterline(fs, D, H, TOL)
+    assert tp.passes == []
+    assert any("no waterline" in n for n in tp.stats.notes)
