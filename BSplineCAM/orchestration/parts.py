@@ -356,7 +356,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
 
         with captured_console():
             commands = post_toolpath(args.net, toolpath, 2.0 * tool.radius, cutting, args.post,
-                                     program, stage / f"{name}-job.FCStd")
+                                     program, stage / f"{name}-job.FCStd",
+                                     arcs=getattr(args, "arcs", "off") == "on")
         check_interrupted()
         text = program.read_text()
         stats = toolpath.stats
@@ -369,7 +370,7 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                 getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
             "clearance_height_mm": toolpath.clearance_height, "post": args.post,
             "program": program.name,
-            "parameters": {"strategy": "raster", "angle_deg": angle,
+            "parameters": {"strategy": toolpath.strategy, "angle_deg": angle,
                            "tool_diameter_mm": 2.0 * tool.radius, "scallop_mm": tool.scallop,
                            "tolerance_mm": tool.tolerance}}
         report["cutting_length_mm"], report["machining_time_s"] = (
@@ -387,17 +388,19 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
 
 
 def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: Any,
-                  post: str, program: Path, document: Path | None = None) -> int:
+                  post: str, program: Path, document: Path | None = None,
+                  arcs: bool = False) -> int:
     """In FreeCAD: a document with the part (Part::Feature), a job around it with a ball-end
     tool controller, the toolpath as a path operation of that controller; posted by ``post``
-    to ``program`` (and saved to ``document``).  Returns the number of path commands."""
+    to ``program`` (and saved to ``document``), with one-sided arcs if ``arcs``.  Returns the
+    number of path commands."""
     import FreeCAD
     import Path as FreeCADPath
 
     from ..app import cam
     from ..app import faces as app_faces
     from ..app.finishing_op import moves_to_commands
-    from ..core.toolpath.common import to_moves
+    from ..core.toolpath import program_moves
 
     shape = app_faces.read_part(path)
     doc = FreeCAD.newDocument("BSplineCAMPart")
@@ -415,7 +418,8 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
         op.ToolController = tc
         op.Active = True
         clearance = toolpath.clearance_height
-        moves = to_moves(toolpath, clearance)  # rapids stop 1 mm above each pass start
+        # rapids stop 1 mm above each pass start; passes in a coordinate plane as G2/G3 arcs
+        moves = program_moves(toolpath, clearance, arcs=arcs)
         commands = moves_to_commands(moves, tc.HorizFeed.Value, tc.VertFeed.Value, clearance)
         op.Path = FreeCADPath.Path(commands)
         job.Operations.addObject(op)
