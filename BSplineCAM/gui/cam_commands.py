@@ -186,7 +186,7 @@ def create_job(surface, params, cutting) -> tuple:
         for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
                             ("Tolerance", params.tolerance), ("Angle", params.angle),
                             ("Direction", params.direction),
-                            ("IsoDirection", params.iso_direction)):
+                            ("IsoDirection", params.iso_direction), ("Arcs", params.arcs)):
             FreeCADGui.doCommand(f"op.{prop} = {value!r}")
         made = [o for o in doc.Objects if o.Name not in before]
         job = next(o for o in made if is_job(o))
@@ -221,7 +221,7 @@ def create_faces_job(faces, params, cutting) -> tuple:
         for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
                             ("Tolerance", params.tolerance), ("Angle", params.angle),
                             ("Direction", params.direction),
-                            ("IsoDirection", params.iso_direction)):
+                            ("IsoDirection", params.iso_direction), ("Arcs", params.arcs)):
             FreeCADGui.doCommand(f"op.{prop} = {value!r}")
         made = [o for o in doc.Objects if o.Name not in before]
         job = next(o for o in made if is_job(o))
@@ -392,7 +392,10 @@ class JobPanel:
             tool_diameter=self.tool.value(), scallop=self.scallop.value(),
             tolerance=self.tolerance.value(), strategy=self.strategy.currentText(),
             angle=self.angle.value(), direction=self.direction.currentText(),
-            iso_direction=self.iso_direction.currentText())
+            iso_direction=self.iso_direction.currentText(),
+            # FreeCAD's path view cannot draw the R-form G18/G19 arcs the posts need: a job
+            # made here shows whole passes; the op's Arcs property turns arcs on
+            arcs=False)
         cutting = Cutting(horizontal_feed=self.horizontal_feed.value(),
                           vertical_feed=self.vertical_feed.value(),
                           spindle_speed=self.spindle.value())
