@@ -163,6 +163,33 @@ def app_toolbit_factory() -> Iterator[None]:
         toolbit.Factory = saved
 
 
+def _cutting_source(cutting) -> str:
+    """The console line's cam.Cutting(...) for ``cutting``."""
+    return (f"cam.Cutting(horizontal_feed={cutting.horizontal_feed!r}, "
+            f"vertical_feed={cutting.vertical_feed!r}, "
+            f"spindle_speed={cutting.spindle_speed!r}, rapid={cutting.rapid!r})")
+
+
+def _finish_op(params, doc, before: set) -> tuple:
+    """Set the new op's parameters from ``params`` (on the console), find the job and op made
+    since ``before``, recompute and check; returns (job, op)."""
+    for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
+                        ("Tolerance", params.tolerance), ("Angle", params.angle),
+                        ("Direction", params.direction),
+                        ("IsoDirection", params.iso_direction), ("Arcs", params.arcs)):
+        FreeCADGui.doCommand(f"op.{prop} = {value!r}")
+    made = [o for o in doc.Objects if o.Name not in before]
+    job = next(o for o in made if is_job(o))
+    op = next(o for o in made if is_finishing_op(o))
+    attach_job_view_providers(job, op)
+    try:
+        FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
+    finally:
+        progress_bar.finish()
+    check_op(op)
+    return job, op
+
+
 def create_job(surface, params, cutting) -> tuple:
     """One transaction: solid model, job, ball-end controller, finishing op, computed.
 
@@ -172,9 +199,7 @@ def create_job(surface, params, cutting) -> tuple:
     before = {o.Name for o in doc.Objects}
     with wait_cursor(), app_toolbit_factory(), compat.toolbits_keep_transaction(), \
             transaction("BSplineCAM job", doc):
-        cut = (f"cam.Cutting(horizontal_feed={cutting.horizontal_feed!r}, "
-               f"vertical_feed={cutting.vertical_feed!r}, "
-               f"spindle_speed={cutting.spindle_speed!r}, rapid={cutting.rapid!r})")
+        cut = _cutting_source(cutting)
         FreeCADGui.doCommand("from BSplineCAM.app import cam, finishing_op")
         FreeCADGui.doCommand(f"surface = {obj_ref(surface)}")
         if not surface.MakeSolid:
@@ -183,20 +208,7 @@ def create_job(surface, params, cutting) -> tuple:
         FreeCADGui.doCommand(f"job = cam.make_job(surface, {params.tool_diameter!r}, {cut})")
         FreeCADGui.doCommand("op = finishing_op.Create('SurfaceFinish', parentJob=job)")
         FreeCADGui.doCommand("op.Surface = surface")
-        for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
-                            ("Tolerance", params.tolerance), ("Angle", params.angle),
-                            ("Direction", params.direction),
-                            ("IsoDirection", params.iso_direction), ("Arcs", params.arcs)):
-            FreeCADGui.doCommand(f"op.{prop} = {value!r}")
-        made = [o for o in doc.Objects if o.Name not in before]
-        job = next(o for o in made if is_job(o))
-        op = next(o for o in made if is_finishing_op(o))
-        attach_job_view_providers(job, op)
-        try:
-            FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
-        finally:
-            progress_bar.finish()
-        check_op(op)
+        job, op = _finish_op(params, doc, before)
     FreeCADGui.doCommand(f"{gui_ref(surface)}.Visibility = False")  # the job's clone shows it
     return job, op
 
@@ -209,29 +221,14 @@ def create_faces_job(faces, params, cutting) -> tuple:
     before = {o.Name for o in doc.Objects}
     with wait_cursor(), app_toolbit_factory(), compat.toolbits_keep_transaction(), \
             transaction("BSplineCAM job", doc):
-        cut = (f"cam.Cutting(horizontal_feed={cutting.horizontal_feed!r}, "
-               f"vertical_feed={cutting.vertical_feed!r}, "
-               f"spindle_speed={cutting.spindle_speed!r}, rapid={cutting.rapid!r})")
+        cut = _cutting_source(cutting)
         FreeCADGui.doCommand("from BSplineCAM.app import cam, finishing_op")
         FreeCADGui.doCommand(f"model = {obj_ref(model)}")
         FreeCADGui.doCommand(f"job = cam.make_job(model, {params.tool_diameter!r}, {cut})")
         FreeCADGui.doCommand("op = finishing_op.Create('SurfaceFinish', parentJob=job)")
         base = ", ".join(f"({obj_ref(obj)}, {list(names)!r})" for obj, names in faces)
         FreeCADGui.doCommand(f"op.Base = [{base}]")
-        for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
-                            ("Tolerance", params.tolerance), ("Angle", params.angle),
-                            ("Direction", params.direction),
-                            ("IsoDirection", params.iso_direction), ("Arcs", params.arcs)):
-            FreeCADGui.doCommand(f"op.{prop} = {value!r}")
-        made = [o for o in doc.Objects if o.Name not in before]
-        job = next(o for o in made if is_job(o))
-        op = next(o for o in made if is_finishing_op(o))
-        attach_job_view_providers(job, op)
-        try:
-            FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
-        finally:
-            progress_bar.finish()
-        check_op(op)
+        job, op = _finish_op(params, doc, before)
     if model.ViewObject is not None and model.ViewObject.Visibility:
         FreeCADGui.doCommand(f"{gui_ref(model)}.Visibility = False")  # the job's clone shows it
     return job, op

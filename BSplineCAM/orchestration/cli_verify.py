@@ -121,8 +121,7 @@ def check_options(args: argparse.Namespace) -> Tool:
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
-    from . import report
-    from .cli import check_interrupted, check_output, emit, json_text, staged_output
+    from .cli import check_interrupted, check_output
 
     started = time.perf_counter()
     tool = check_options(args)
@@ -144,19 +143,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     metrics = {"net": str(Path(args.net)), "program": str(Path(args.program)), **result.metrics,
                **machine_time_metrics(args, program),
                "elapsed_s": round(time.perf_counter() - started, 3)}
-    with staged_output(Path(args.out)) as stage:
-        report.plot_deviation(result, stage / "deviation.png")
-        report.plot_simulated(result, stage / "simulated.png")
-        (stage / "verify.json").write_text(json_text(metrics), encoding="utf-8")
-    for warning in metrics.get("warnings", []):
-        print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
-    summary = {k: metrics[k] for k in ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
-                                       "edge_scallop_max_mm", "coverage", "rapid_collisions",
-                                       "cutting_length_mm", "machining_time_s",
-                                       "machining_time_with_acceleration_s")}
-    emit({"out": str(Path(args.out).resolve()), **summary,
-          "warnings": metrics.get("warnings", [])})
-    return 0
+    return write_results(args, result, metrics)
 
 
 def cmd_verify_part(args: argparse.Namespace, tool: Tool) -> int:
@@ -164,8 +151,8 @@ def cmd_verify_part(args: argparse.Namespace, tool: Tool) -> int:
     exact faces (``core.verify.verify_faces``): gouge over the whole model, scallop and
     coverage on the selected faces away from their borders; the same outputs as for a net,
     plus the selected and check faces."""
-    from . import parts, report
-    from .cli import check_interrupted, emit, json_text, staged_output
+    from . import parts
+    from .cli import check_interrupted
 
     started = time.perf_counter()
     if args.knots is not None:
@@ -179,17 +166,28 @@ def cmd_verify_part(args: argparse.Namespace, tool: Tool) -> int:
     metrics = {"part": str(Path(args.net)), "program": str(Path(args.program)),
                **result.metrics, **machine_time_metrics(args, program),
                "elapsed_s": round(time.perf_counter() - started, 3)}
+    return write_results(args, result, metrics, ("faces", "check_faces"))
+
+
+#: The figures of verify.json the command prints on stdout.
+SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "edge_scallop_max_mm",
+           "coverage", "rapid_collisions", "cutting_length_mm", "machining_time_s",
+           "machining_time_with_acceleration_s")
+
+
+def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple = ()) -> int:
+    """--out/verify.json, deviation.png and simulated.png (all or nothing), the warnings on
+    stderr and the summary (``SUMMARY`` + ``extra``) on stdout; exit status 0."""
+    from . import report
+    from .cli import emit, json_text, staged_output
+
     with staged_output(Path(args.out)) as stage:
         report.plot_deviation(result, stage / "deviation.png")
         report.plot_simulated(result, stage / "simulated.png")
         (stage / "verify.json").write_text(json_text(metrics), encoding="utf-8")
     for warning in metrics.get("warnings", []):
         print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
-    summary = {k: metrics[k] for k in ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
-                                       "edge_scallop_max_mm", "coverage", "rapid_collisions",
-                                       "cutting_length_mm", "machining_time_s",
-                                       "machining_time_with_acceleration_s", "faces",
-                                       "check_faces")}
+    summary = {k: metrics[k] for k in SUMMARY + tuple(extra)}
     emit({"out": str(Path(args.out).resolve()), **summary,
           "warnings": metrics.get("warnings", [])})
     return 0
