@@ -68,6 +68,8 @@ def estimated_cutter_locations(surface: Any, tool: ToolParameters,
     ex = float(np.ptp(grid[..., 0]))
     ey = float(np.ptp(grid[..., 1]))
     strategy = None if strategy is None else parse_enum(Strategy, strategy, "strategy")
+    if strategy is Strategy.STEEP_SHALLOW:  # a raster and a waterline of the whole surface
+        strategy = None
     if strategy in (None, Strategy.RASTER):
         estimate = max(estimate, 2.0 * (math.hypot(ex, ey) / flat + 1.0))
     if strategy in (None, Strategy.ISOPARAMETRIC):
@@ -123,12 +125,15 @@ def generate(
     progress: ProgressFn = None,
     cancel: CancelFn = None,
     min_slope: float = 30.0,
+    threshold: float = 45.0,
 ) -> Toolpath:
     """Ball-end finishing toolpath of ``surface`` (a core Surface).
 
     tool_diameter, scallop (cusp height h), tolerance (chordal, in [1e-5, 1]) and
-    clearance_height are in mm; angle (raster pass direction from +X) and min_slope
-    (waterline: walls below this slope are left to a raster pass) in degrees.
+    clearance_height are in mm; angle (raster pass direction from +X), min_slope
+    (waterline: walls below this slope are left to a raster pass) and threshold
+    (steep_shallow: the slope above which waterline takes over from raster,
+    :func:`rest.generate_steep_shallow`) in degrees.
     ``progress(fraction)`` is called as work proceeds; ``cancel()`` returning True aborts with
     :class:`ToolpathCancelled`.  Regions whose concave radius is below the tool radius are
     listed in ``Toolpath.unreachable`` and left uncut, never gouged.
@@ -143,6 +148,12 @@ def generate(
         raise ParameterError(f"min_slope must lie in (0, 90) degrees, got {min_slope:g}")
     if clearance_height is not None:
         check_finite(clearance_height, "clearance_height", "mm")
+    if strategy is Strategy.STEEP_SHALLOW:
+        from .rest import generate_steep_shallow
+
+        return generate_steep_shallow(surface, 2.0 * tool.radius, tool.scallop, tool.tolerance,
+                                      threshold, angle, clearance_height=clearance_height,
+                                      progress=progress, cancel=cancel)
     monitor = Monitor(progress, cancel, strategy.value)
     monitor(0.0)
     dc = DropCutter(surface, tool.radius)

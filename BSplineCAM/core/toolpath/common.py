@@ -29,11 +29,13 @@ CancelFn = Optional[Callable[[], bool]]
 
 
 class Strategy(str, Enum):
-    """Finishing strategies of issue 4."""
+    """Finishing strategies of issue 4, and steep-and-shallow (issue 12): waterline on the
+    walls steeper than a slope threshold, raster on the rest."""
 
     RASTER = "raster"
     WATERLINE = "waterline"
     ISOPARAMETRIC = "isoparametric"
+    STEEP_SHALLOW = "steep_shallow"
 
 
 class Direction(str, Enum):
