@@ -81,7 +81,9 @@ class Program:
     """Moves of a program in machine order; all lengths mm, feeds mm/min (NaN for rapids).
 
     ``centre`` holds arc centres (NaN rows for straight moves); ``plane`` the plane code of
-    each arc (17, 18 or 19); ``line`` the 1-based source line of each move.
+    each arc (17, 18 or 19); ``line`` the 1-based source line of each move.  ``tool`` is the
+    number of the tool loaded by the last tool change (M6) before each move, 0 before the
+    first; ``tool_changes`` lists each change as (source line, tool number).
     """
 
     kind: IntArray
@@ -97,6 +99,12 @@ class Program:
     warnings: tuple[str, ...] = field(default=(), compare=False)
     #: The file (or name) the program was read from, for error messages.
     source: str = field(default="program", compare=False)
+    tool: IntArray | None = field(default=None, compare=False)
+    tool_changes: tuple[tuple[int, int], ...] = field(default=(), compare=False)
+
+    def __post_init__(self) -> None:
+        if self.tool is None:
+            object.__setattr__(self, "tool", np.zeros(len(self.kind), dtype=np.intp))
 
     def __len__(self) -> int:
         return int(len(self.kind))
@@ -356,6 +364,8 @@ class _State:
         self.moves_seen = False
         self.tools: list[int] = []
         self.selected_tool: int | None = None
+        #: (index of the first move after the change, source line, tool) per M6
+        self.changes: list[tuple[int, int, int]] = []
         self.moves: list[tuple] = []
         self.warnings: list[str] = []
 
@@ -442,8 +452,10 @@ class _State:
             if tool < 0 or tool != int(tool):
                 raise self.error(f"tool number T{tool:g} is not a whole number >= 0")
             self.selected_tool = int(tool)
-        if 6 in m_codes and self.selected_tool is not None and self.selected_tool > 0:
-            self.tools.append(self.selected_tool)
+        if 6 in m_codes and self.selected_tool is not None:
+            if self.selected_tool > 0:
+                self.tools.append(self.selected_tool)
+            self.changes.append((len(self.moves), self.lineno, self.selected_tool))
         if motion is not None:
             self.motion = motion
         if "P" in values and self.motion in (2, 3) and 4.0 not in g_codes and values["P"] != 1:
@@ -621,6 +633,9 @@ class _State:
         return centre
 
     def program(self) -> Program:
+        tool = np.zeros(len(self.moves), dtype=np.intp)
+        for first, _, number in self.changes:
+            tool[first:] = number
         if self.moves:
             kind, start, end, centre, plane, feed, line = zip(*self.moves)
         else:
@@ -651,6 +666,8 @@ class _State:
             tools=tuple(self.tools),
             warnings=tuple(self.warnings),
             source=self.source,
+            tool=tool,
+            tool_changes=tuple((line, number) for _, line, number in self.changes),
         )
 
 
@@ -658,7 +675,7 @@ class _State:
 # LinuxCNC canonical output, the independent reference
 
 _CANON = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SET_FEED_RATE|SELECT_PLANE|"
-                    r"USE_LENGTH_UNITS)\(([^)]*)\)")
+                    r"USE_LENGTH_UNITS|SELECT_TOOL|CHANGE_TOOL)\(([^)]*)\)")
 
 
 def read_canonical(text: str) -> Program:
@@ -666,8 +683,12 @@ def read_canonical(text: str) -> Program:
 
     Used to check :func:`read_gcode` against LinuxCNC's own interpreter.  The first traverse
     starts from rs274's assumed origin, so like :func:`read_gcode` it only sets the position.
+    ``CHANGE_TOOL`` loads the tool of the last ``SELECT_TOOL`` (its own argument, the pocket,
+    if none was selected); the numbers are those of ``Program.tool``.
     """
     moves = []
+    changes: list[tuple[int, int, int]] = []
+    selected: int | None = None
     position: FloatArray | None = None
     plane = 17
     scale = 1.0
@@ -682,6 +703,13 @@ def read_canonical(text: str) -> Program:
             continue
         if name == "SELECT_PLANE":
             plane = {"CANON_PLANE_XY": 17, "CANON_PLANE_XZ": 18, "CANON_PLANE_YZ": 19}[args.strip()]
+            continue
+        if name in ("SELECT_TOOL", "CHANGE_TOOL"):
+            number = int(float(args.split(",")[0]))
+            if name == "SELECT_TOOL":
+                selected = number
+            else:
+                changes.append((len(moves), lineno, number if selected is None else selected))
             continue
         numbers = [float(v) for v in args.replace(",", " ").split()]
         if name == "SET_FEED_RATE":
@@ -709,6 +737,8 @@ def read_canonical(text: str) -> Program:
         position = end
     state = _State("canonical")
     state.moves = moves
+    state.changes = changes
+    state.tools = [number for _, _, number in changes if number > 0]
     return state.program()
 
 

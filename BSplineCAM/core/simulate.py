@@ -487,6 +487,13 @@ def _bullnose_tau(qp2: FloatArray, rho: FloatArray, m: FloatArray, tool: Tool) -
     left side grows with tau, so bisection is safe.
     """
     a, rc = tool.radius - tool.corner_radius, tool.corner_radius
+    slopes = m.reshape(len(m), -1)[:, 0]
+    rows = np.flatnonzero(slopes > 0)
+    if len(rows) < len(slopes):  # level moves: tau = 0 exactly, no bisection
+        out = rho * rho.dtype.type(0)  # NaN stays NaN
+        if len(rows):
+            out[rows] = _bullnose_tau(qp2[rows], rho[rows], m[rows], tool)
+        return out
     lo = np.zeros_like(rho)
     hi = rho.copy()
     for _ in range(_BISECTION_STEPS):

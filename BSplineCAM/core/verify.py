@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 from typing import TypeVar
 
@@ -35,9 +35,11 @@ from .faces import Face
 from .faces_height import FacesHeight
 from .footprint import footprint_bounds, surface_height
 from .gcode import MoveKind, Program, linearise, simulation_chord_tolerance
+from .job_simulation import JobSimulation, check_stock, simulate_job
 from .simulate import Grid, Simulation, Tool, simulate
 from .surface import Surface
 from .toolpath.common import check_tool_fits
+from .tooltable import check_program_tools
 from .typing import FloatArray
 
 T = TypeVar("T")
@@ -73,6 +75,8 @@ class Verification:
     inside: np.ndarray
     inner: np.ndarray
     metrics: dict
+    #: The whole-program simulation of :func:`verify_job` (None for one tool).
+    job: JobSimulation | None = field(default=None, compare=False)
 
     @property
     def deviation(self) -> FloatArray:
@@ -91,17 +95,30 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     ``progress(fraction)``, if given, is called at least every 50 ms while the simulation runs
     (so a GUI stays responsive) and may raise to abandon it (see :func:`run_reporting`).
     """
+    def run(grid: Grid, top: float) -> tuple[Simulation, int, None]:
+        return (*_simulate(program, tool, grid, top, chord_tolerance, progress), None)
+
+    return _verify_surface(surface, program, tool, cell, stock_top, stock_margin, rapid_rate,
+                           coverage_tolerance, progress, run)
+
+
+def _verify_surface(surface: Surface, program: Program, tool: Tool, cell: float,
+                    stock_top: str | StockTop, stock_margin: float, rapid_rate: float,
+                    coverage_tolerance: float, progress: Callable[[float], None] | None,
+                    run: Callable, stock_xy: tuple | None = None) -> Verification:
+    """:func:`verify` with the simulation ``run(grid, top) -> (Simulation, segments, job)``
+    and the grid grown to cover ``stock_xy`` = (x0, x1, y0, y1) mm if given."""
     _check_arguments(cell, rapid_rate, coverage_tolerance, stock_margin, program)
     stock_top = StockTop.parse(stock_top)
     x0, x1, y0, y1 = footprint_bounds(surface)
     check_tool_fits(surface, tool.diameter, "tool diameter")
-    grid = Grid.covering(x0, x1, y0, y1, cell)
+    grid = _covering((x0, x1, y0, y1), stock_xy, cell)
     xs, ys = grid.centres()
     design, _, _, inside = surface_height(surface, xs[None, :], ys[:, None])
     if not np.any(inside):
         raise ParameterError("no cell centre lies on the surface's footprint: cell too large")
     top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
-    sim, segments = _simulate(program, tool, grid, top, chord_tolerance, progress)
+    sim, segments, job = run(grid, top)
     inner = inside & ~_dilate(~inside, tool.diameter / cell)
     if not np.any(inner):
         raise ParameterError(
@@ -111,9 +128,10 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     metrics = _metrics(program, sim, design, inside, inner, inner, inside & ~inner, inside, tool,
                        rapid_rate, coverage_tolerance)
     _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
+    _describe_job(metrics, job, inside)
     if progress is not None:
         progress(1.0)
-    return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics)
+    return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics, job)
 
 
 def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: float = 0.1,
@@ -139,6 +157,18 @@ def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: floa
 
     ``verification.inside`` is the model's mask, ``inner`` the measured part of the selection.
     """
+    def run(grid: Grid, top: float) -> tuple[Simulation, int, None]:
+        return (*_simulate(program, tool, grid, top, chord_tolerance, progress), None)
+
+    return _verify_faces(faces, program, tool, cell, stock_top, stock_margin, rapid_rate,
+                         coverage_tolerance, progress, run)
+
+
+def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: float,
+                  stock_top: str | StockTop, stock_margin: float, rapid_rate: float,
+                  coverage_tolerance: float, progress: Callable[[float], None] | None,
+                  run: Callable, stock_xy: tuple | None = None) -> Verification:
+    """:func:`verify_faces` with the simulation ``run`` (see :func:`_verify_surface`)."""
     _check_arguments(cell, rapid_rate, coverage_tolerance, stock_margin, program)
     stock_top = StockTop.parse(stock_top)
     faces = list(faces)
@@ -146,7 +176,7 @@ def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: floa
         raise ParameterError("no face is selected: select the faces the program machines")
     heights = FacesHeight(faces, cell)
     x0, x1, y0, y1 = heights.bounds()
-    grid = Grid.covering(x0 - cell, x1 + cell, y0 - cell, y1 + cell, cell)
+    grid = _covering((x0 - cell, x1 + cell, y0 - cell, y1 + cell), stock_xy, cell)
     xs, ys = grid.centres()
     hm = heights.grid(xs, ys)
     model = hm.found
@@ -158,7 +188,7 @@ def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: floa
                              f"faces ({names}) seen from above: nothing to measure")
     design = hm.z
     top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
-    sim, segments = _simulate(program, tool, grid, top, chord_tolerance, progress)
+    sim, segments, job = run(grid, top)
     # the selection closed over gaps of a cell or two (cell centres on a seam between faces
     # that both fall outside their trim polylines), then shrunk by the tool radius
     closing = 1.5
@@ -184,9 +214,85 @@ def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: floa
     )
     metrics.pop("footprint_cells", None)
     _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
+    _describe_job(metrics, job, model)
     if progress is not None:
         progress(1.0)
-    return Verification(sim, np.where(model, design, np.nan), model, inner, metrics)
+    return Verification(sim, np.where(model, design, np.nan), model, inner, metrics, job)
+
+
+def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[int, Tool],
+               stock: tuple[float, float, float, float, float, float] | None = None,
+               cell: float = 0.1, stock_top: str | StockTop = StockTop.DESIGN,
+               stock_margin: float = DEFAULT_STOCK_MARGIN,
+               rapid_rate: float = DEFAULT_RAPID_RATE,
+               coverage_tolerance: float = DEFAULT_COVERAGE_TOLERANCE,
+               chord_tolerance: float | None = None, feed_default: float | None = None,
+               progress: Callable[[float], None] | None = None) -> Verification:
+    """Simulate a program with tool changes (:func:`.job_simulation.simulate_job`) from the
+    block ``stock`` = (x0, x1, y0, y1, z0, z1) mm and measure the result as :func:`verify`
+    (``model`` a Surface) or :func:`verify_faces` (a sequence of faces) do.
+
+    Without ``stock`` the block is that of :func:`verify`: the grid's extent, no bottom, its
+    top from ``stock_top``.  The grid covers the model and the block's XY.  The finishing tool,
+    the one of the last feed move, stands for "the tool" of the single-tool metrics (the edge
+    band's width, ``tool`` in the metrics); ``metrics["tools"]`` holds the per-tool figures
+    (:meth:`.job_simulation.JobSimulation.metrics`), keyed by tool number, and
+    ``removed_volume_mm3`` the volume cut from the block.
+    """
+    if len(program) == 0:
+        raise ParameterError("the program has no moves")
+    check_program_tools(program, tools)
+    block = None if stock is None else check_stock(stock)
+    feeds = np.flatnonzero(program.kind != MoveKind.RAPID)
+    last = int(program.tool[feeds[-1]]) if len(feeds) else min(tools, default=0)
+    if last not in tools:
+        raise ParameterError(f"{program.source}: no tool T{last} given for the last feed move")
+    finishing = tools[last]
+
+    def run(grid: Grid, top: float) -> tuple[Simulation, int, JobSimulation]:
+        box = block or (grid.x0, grid.x0 + grid.nx * grid.cell, grid.y0,
+                        grid.y0 + grid.ny * grid.cell, -math.inf, top)
+        report = None if progress is None else (lambda f: progress(0.1 + 0.85 * f))
+        if progress is not None:
+            progress(0.1)
+        job = simulate_job(program, tools, grid, box, feed_default=feed_default,
+                           progress=report, chord_tolerance=chord_tolerance)
+        return job.simulation(), len(job.segments), job
+
+    xy = None if block is None else block[:4]
+    if isinstance(model, Surface):
+        return _verify_surface(model, program, finishing, cell, stock_top, stock_margin,
+                               rapid_rate, coverage_tolerance, progress, run, xy)
+    return _verify_faces(model, program, finishing, cell, stock_top, stock_margin, rapid_rate,
+                         coverage_tolerance, progress, run, xy)
+
+
+def _covering(bounds: tuple[float, float, float, float], stock_xy: tuple | None,
+              cell: float) -> Grid:
+    """The grid over ``bounds`` (x0, x1, y0, y1) mm, grown to cover ``stock_xy`` if given."""
+    x0, x1, y0, y1 = bounds
+    if stock_xy is not None:
+        x0, x1 = min(x0, stock_xy[0]), max(x1, stock_xy[1])
+        y0, y1 = min(y0, stock_xy[2]), max(y1, stock_xy[3])
+    return Grid.covering(x0, x1, y0, y1, cell)
+
+
+def _describe_job(metrics: dict, job: JobSimulation | None, model: np.ndarray) -> None:
+    """The per-tool figures and the block of a whole-program simulation; a warning if the
+    block does not cover the model (``model`` mask) in XY."""
+    if job is None:
+        return
+    outside = int(np.sum(model & ~job.in_stock))
+    if outside:
+        metrics["warnings"].append(
+            f"the stock block leaves {outside} of the model's {int(model.sum())} cells "
+            "uncovered in XY: they have no material (gouge there means missing stock)")
+    metrics.update(
+        tools=job.metrics(), removed_volume_mm3=job.removed_volume(),
+        stock_mm=[None if not math.isfinite(v) else v for v in job.stock],
+        stock_top_mm=job.stock[5], engagement_threshold_mm=job.threshold_mm,
+        unsimulated_rapids=job.unsimulated_rapids,
+    )
 
 
 def _check_arguments(cell: float, rapid_rate: float, coverage_tolerance: float,

@@ -4,6 +4,12 @@
 
 Writes DIR/verify.json (metrics, see ``core/verify.py`` for the definitions), DIR/deviation.png
 and DIR/simulated.png, all or nothing.
+
+A program with tool changes (M6 to more than one tool) is simulated with each move's tool from
+``--tools T1=flat:10,T2=ball:6`` or ``--tool-table FILE`` (a LinuxCNC tool table), which replace
+--tool-diameter/--tool-shape; ``--stock x0,x1,y0,y1,z0,z1`` (mm) starts from that block.
+Either adds a ``tools`` section to verify.json with the per-tool figures
+(``core/job_simulation.py``).
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ from ..core.verify import (
     DEFAULT_STOCK_MARGIN,
     StockTop,
     verify,
+    verify_job,
 )
 
 
@@ -46,11 +53,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "such as 3,8,20")
     p.add_argument("--knots", choices=["uniform", "clamped"],
                    help="override the file's knot layout")
-    p.add_argument("--tool-diameter", type=float, required=True, help="cutter diameter (mm)")
+    p.add_argument("--tool-diameter", type=float, default=None,
+                   help="cutter diameter (mm); or --tools / --tool-table")
     p.add_argument("--tool-shape", choices=[s.value for s in ToolShape], default="ball",
                    help="cutter end (default ball)")
     p.add_argument("--corner-radius", type=float, default=0.0,
                    help="corner radius of a bull-nose cutter (mm)")
+    p.add_argument("--tools", default=None,
+                   help="tools by number for programs with tool changes: T1=flat:10,T2=ball:6,"
+                        "T3=bullnose:10:1 (shape:diameter[:corner radius], mm)")
+    p.add_argument("--tool-table", default=None,
+                   help="LinuxCNC tool table giving the tools by number (D in mm; the comment "
+                        "names the shape: ball, bullnose r1.5, else flat)")
+    p.add_argument("--stock", default=None,
+                   help="stock block x0,x1,y0,y1,z0,z1 (mm) to simulate from (default: the "
+                        "grid's extent, top from --stock-top)")
     p.add_argument("--cell", type=float, default=0.1, help="Z-map cell size (mm, default 0.1)")
     p.add_argument("--stock-top", choices=[s.value for s in StockTop], default="design",
                    help="stock top: design maximum + --stock-margin (default), or the program's "
@@ -103,21 +120,93 @@ def machine_time_metrics(args: argparse.Namespace, program) -> dict:
     return machining_time(program, check_machine_limits(args)).metrics()
 
 
-def check_options(args: argparse.Namespace) -> Tool:
-    """Every numeric option finite and in range, errors naming the option and its unit."""
-    d = check_range(args.tool_diameter, "--tool-diameter", "mm", MIN_TOOL_DIAMETER,
-                    MAX_TOOL_DIAMETER)
-    corner = check_range(args.corner_radius, "--corner-radius", "mm", 0.0, d / 2.0)
+def check_options(args: argparse.Namespace) -> Tool | None:
+    """Every numeric option finite and in range, errors naming the option and its unit; the
+    tool of --tool-diameter, or None when --tools or --tool-table gives the tools."""
+    given = [o for o, v in (("--tools", getattr(args, "tools", None)),
+                            ("--tool-table", getattr(args, "tool_table", None))) if v is not None]
+    if len(given) > 1:
+        raise ParameterError("--tools and --tool-table exclude each other: give one")
+    if given:
+        for option, value, default in (("--tool-diameter", args.tool_diameter, None),
+                                       ("--tool-shape", args.tool_shape, "ball"),
+                                       ("--corner-radius", args.corner_radius, 0.0)):
+            if value != default:
+                raise ParameterError(f"{given[0]} replaces {option}: give one of them")
+    elif args.tool_diameter is None:
+        raise ParameterError("--tool-diameter (mm), --tools or --tool-table is required")
     check_range(args.cell, "--cell", "mm", *CELL_RANGE)
     check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
     check_range(args.rapid_rate, "--rapid-rate", "mm/min", *RAPID_RANGE)
     check_machine_limits(args)
     check_range(args.coverage_tolerance, "--coverage-tolerance", "mm",
                 *COVERAGE_TOLERANCE_RANGE, low_open=True)
+    if getattr(args, "stock", None) is not None:
+        parse_stock(args.stock)
+    if given:
+        return None
+    d = check_range(args.tool_diameter, "--tool-diameter", "mm", MIN_TOOL_DIAMETER,
+                    MAX_TOOL_DIAMETER)
+    corner = check_range(args.corner_radius, "--corner-radius", "mm", 0.0, d / 2.0)
     try:
         return Tool(d, ToolShape.parse(args.tool_shape), corner)
     except ParameterError as exc:
         raise ParameterError(f"--tool-shape {args.tool_shape} / --corner-radius: {exc}") from None
+
+
+#: Stock values and their names, for --stock.
+_STOCK_NAMES = ("x0", "x1", "y0", "y1", "z0", "z1")
+
+
+def parse_stock(text: str) -> tuple[float, float, float, float, float, float]:
+    """--stock x0,x1,y0,y1,z0,z1 (mm), finite, each pair increasing, within the machine's
+    reach; ParameterError naming --stock otherwise."""
+    from ..core.netio import MAX_COORDINATE_MM
+
+    items = text.split(",")
+    if len(items) != 6:
+        raise ParameterError(f"--stock must be six numbers x0,x1,y0,y1,z0,z1 (mm), got {text!r}")
+    values = []
+    for v, name in zip(items, _STOCK_NAMES):
+        v = v.strip()
+        if len(v) > 40:
+            raise ParameterError(f"--stock {name}: {v[:20]!r}... is not a length (mm)")
+        values.append(check_range(v, f"--stock {name}", "mm", -MAX_COORDINATE_MM,
+                                  MAX_COORDINATE_MM))
+    for a in (0, 2, 4):
+        if not values[a] < values[a + 1]:
+            raise ParameterError(f"--stock: {_STOCK_NAMES[a]} ({values[a]:g} mm) must be below "
+                                 f"{_STOCK_NAMES[a + 1]} ({values[a + 1]:g} mm)")
+    return tuple(values)
+
+
+def job_tools(args: argparse.Namespace, tool: Tool | None, program) -> dict[int, Tool] | None:
+    """Tools by number for the program: from --tools / --tool-table, or --tool-diameter's tool
+    for every tool of a program with at most one (None then, unless --stock asks for the
+    whole-program simulation); a program changing between tools needs --tools/--tool-table."""
+    from ..core.tooltable import check_program_tools, parse_tools_option, read_tool_table
+
+    if args.tools is not None:
+        tools = parse_tools_option(args.tools)
+    elif args.tool_table is not None:
+        tools = read_tool_table(args.tool_table)
+    else:
+        used = sorted({n for _, n in program.tool_changes if n > 0})
+        if len(used) > 1:
+            raise ParameterError(
+                f"{program.source} changes tools ({', '.join(f'T{n}' for n in used)}): give "
+                "them with --tools T1=flat:10,T2=ball:6 or --tool-table FILE instead of "
+                "--tool-diameter")
+        if args.stock is None:
+            return None
+        tools = {n: tool for n in [0, *used]}
+    check_program_tools(program, tools)
+    return tools
+
+
+def _tools_fit(model, tools: dict[int, Tool]) -> None:
+    for n, t in sorted(tools.items()):
+        check_tool_fits(model, t.diameter, f"tool T{n} diameter")
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
@@ -132,13 +221,25 @@ def cmd_verify(args: argparse.Namespace) -> int:
         return cmd_verify_part(args, tool)
     parts.refuse_faces_on_net(args.faces, args.net)
     surface = Surface.from_file(args.net, args.knots)
-    check_tool_fits(surface, tool.diameter, "--tool-diameter")
+    if tool is not None:
+        check_tool_fits(surface, tool.diameter, "--tool-diameter")
     x0, x1, y0, y1 = footprint_bounds(surface)
+    stock = None if args.stock is None else parse_stock(args.stock)
+    if stock is not None:
+        x0, x1, y0, y1 = min(x0, stock[0]), max(x1, stock[1]), min(y0, stock[2]), max(y1, stock[3])
     zmap_shape(x1 - x0, y1 - y0, args.cell, "--cell")
     program = read_gcode_file(args.program)
-    result = verify(surface, program, tool, cell=args.cell, stock_top=args.stock_top,
-                    stock_margin=args.stock_margin, rapid_rate=args.rapid_rate,
-                    coverage_tolerance=args.coverage_tolerance)
+    tools = job_tools(args, tool, program)
+    if tools is None:
+        result = verify(surface, program, tool, cell=args.cell, stock_top=args.stock_top,
+                        stock_margin=args.stock_margin, rapid_rate=args.rapid_rate,
+                        coverage_tolerance=args.coverage_tolerance)
+    else:
+        _tools_fit(surface, tools)
+        result = verify_job(surface, program, tools, stock, cell=args.cell,
+                            stock_top=args.stock_top, stock_margin=args.stock_margin,
+                            rapid_rate=args.rapid_rate,
+                            coverage_tolerance=args.coverage_tolerance)
     check_interrupted()
     metrics = {"net": str(Path(args.net)), "program": str(Path(args.program)), **result.metrics,
                **machine_time_metrics(args, program),
@@ -146,7 +247,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return write_results(args, result, metrics)
 
 
-def cmd_verify_part(args: argparse.Namespace, tool: Tool) -> int:
+def cmd_verify_part(args: argparse.Namespace, tool: Tool | None) -> int:
     """``verify PART PROGRAM --faces up|all|3,8``: the program measured against the part's
     exact faces (``core.verify.verify_faces``): gouge over the whole model, scallop and
     coverage on the selected faces away from their borders; the same outputs as for a net,
@@ -169,6 +270,15 @@ def cmd_verify_part(args: argparse.Namespace, tool: Tool) -> int:
     return write_results(args, result, metrics, ("faces", "check_faces"))
 
 
+def _job_summary(metrics: dict) -> dict:
+    """The per-tool lines of the stdout summary."""
+    if "tools" not in metrics:
+        return {}
+    keys = ("removed_volume_mm3", "radial_engagement_max_mm", "axial_engagement_max_mm",
+            "material_removal_rate_max_mm3_per_min", "rapid_collisions")
+    return {"tools": {n: {k: t[k] for k in keys} for n, t in metrics["tools"].items()}}
+
+
 #: The figures of verify.json the command prints on stdout.
 SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "edge_scallop_max_mm",
            "coverage", "rapid_collisions", "cutting_length_mm", "machining_time_s",
@@ -188,18 +298,30 @@ def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple 
     for warning in metrics.get("warnings", []):
         print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
     summary = {k: metrics[k] for k in SUMMARY + tuple(extra)}
+    summary.update(_job_summary(metrics))
     emit({"out": str(Path(args.out).resolve()), **summary,
           "warnings": metrics.get("warnings", [])})
     return 0
 
 
-def verify_faces_checked(args: argparse.Namespace, faces, program, tool: Tool):
-    """``core.verify.verify_faces`` after the Z-map size check over the part's extent."""
+def verify_faces_checked(args: argparse.Namespace, faces, program, tool: Tool | None):
+    """``core.verify.verify_faces`` (``verify_job`` with --tools, --tool-table or --stock)
+    after the Z-map size check over the part's and the stock's extent."""
     from ..core.faces_height import FacesHeight
     from ..core.verify import verify_faces
 
     x0, x1, y0, y1 = FacesHeight(faces, args.cell).bounds()
-    zmap_shape(x1 - x0 + 2 * args.cell, y1 - y0 + 2 * args.cell, args.cell, "--cell")
+    x0, x1, y0, y1 = x0 - args.cell, x1 + args.cell, y0 - args.cell, y1 + args.cell
+    stock = None if getattr(args, "stock", None) is None else parse_stock(args.stock)
+    if stock is not None:
+        x0, x1, y0, y1 = min(x0, stock[0]), max(x1, stock[1]), min(y0, stock[2]), max(y1, stock[3])
+    zmap_shape(x1 - x0, y1 - y0, args.cell, "--cell")
+    tools = job_tools(args, tool, program) if hasattr(args, "tools") else None
+    if tools is not None:
+        return verify_job(faces, program, tools, stock, cell=args.cell,
+                          stock_top=args.stock_top, stock_margin=args.stock_margin,
+                          rapid_rate=args.rapid_rate,
+                          coverage_tolerance=args.coverage_tolerance)
     return verify_faces(faces, program, tool, cell=args.cell, stock_top=args.stock_top,
                         stock_margin=args.stock_margin, rapid_rate=args.rapid_rate,
                         coverage_tolerance=args.coverage_tolerance)

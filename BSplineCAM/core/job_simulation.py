@@ -1,0 +1,533 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""A whole program simulated from a stock block, with tool changes and per-tool engagement.
+
+The Z-map is that of :mod:`.simulate` (one dexel per cell, its top at the cell centre, each
+move cut to the exact lower envelope of the tool swept along it, arcs as chords), but the
+moves are cut one after the other, each with the tool the program loaded last (M6, see
+``Program.tool``), starting from the block ``stock`` = (x0, x1, y0, y1, z0, z1) mm.  Cells
+whose centre lies outside the block's XY have no material (their height is z0) and are never
+counted; the height never goes below z0 (no material there to remove).
+
+Definitions, per linearised move (a line, or one chord of an arc); "removed" at a cell means
+the height drop that move causes there, and a cell counts as *engaged* when that drop exceeds
+the depth threshold ``max(ENGAGEMENT_DEPTH_MM, cell / 10)``:
+
+* axial engagement = the largest drop (mm): how deep the tool cut into material.
+* radial engagement = the extent of the engaged cells across the direction of travel (in XY,
+  perpendicular to it: max - min of their centres' cross coordinate, plus one cell for the
+  cells' own width), clipped to the tool diameter.  A full-width slot gives the diameter, a
+  pass beside a cleared region at stepover s gives s (both within a cell).  For a move
+  without XY travel it is the larger XY extent of the engaged cells.
+* cutting length = feed moves with at least one engaged cell; air length = the other feed
+  moves (mm).
+* entry = a feed move whose program move descends by more than ENTRY_DESCENT_MM (plunge,
+  ramp, helix), and the level moves right after such a run that stay inside its XY footprint
+  (the circle around the run's XY box, through its farthest point): the closing turn of a
+  helix or the way back along a ramp, which clear the wedge the descent left
+  (:func:`entry_moves`).  Entries are counted and their largest engagement reported apart; the radial
+  maximum and the means leave them out (a roughing strategy bounds engagement outside its
+  entries only).  Means are weighted by the moves' lengths, over cutting non-entry moves.
+* material removal rate = removed volume / time (feed), over windows of consecutive cutting
+  feed moves of the same tool at least one tool radius long (a shorter run: the whole run),
+  so that short moves do not spike it; the largest over the tool's moves, mm^3/min.
+* collision = a rapid that removes more than COLLISION_TOLERANCE_MM somewhere: its source
+  line, deepest drop (mm) and the cell where it happened; rapids cut the stock like feeds.
+
+Cost: each move is cut in windows of its tool's reach (moves longer than twice the radius,
+or 32 cells, are cut in pieces so that a diagonal move does not cost its whole bounding
+box); envelopes are computed in batches as in :mod:`.simulate`, the merge per move.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ParameterError
+from .gcode import Program, Segments, linearise, simulation_chord_tolerance
+from .netio import MAX_COORDINATE_MM
+from .simulate import (
+    BATCH_CELLS,
+    COLLISION_TOLERANCE_MM,
+    Collision,
+    Grid,
+    Simulation,
+    Tool,
+    _envelope,
+    _merge,
+    _round_up,
+)
+from .tooltable import check_program_tools
+from .typing import FloatArray
+
+#: A program move that descends more than this (mm) is an entry (plunge, ramp, helix).
+ENTRY_DESCENT_MM = 1e-3
+#: Smallest height drop (mm) that engages a cell (the threshold is at least a tenth of a cell).
+ENGAGEMENT_DEPTH_MM = 0.01
+#: Pieces a move is cut in are at most this many cells long (or two tool radii if longer).
+PIECE_CELLS = 32
+
+
+def entry_moves(program: Program) -> np.ndarray:
+    """Per program move: True for the moves of an entry (see the module docstring)."""
+    feed = np.asarray(program.kind) != 0
+    start = np.asarray(program.start, dtype=float)
+    end = np.asarray(program.end, dtype=float)
+    out = feed & (end[:, 2] < start[:, 2] - ENTRY_DESCENT_MM)
+    n = len(out)
+    runs = np.flatnonzero(np.diff(np.concatenate([[0], out.view(np.int8), [0]])))
+    for a, b in zip(runs[::2].tolist(), runs[1::2].tolist()):
+        xy = np.concatenate([start[a:b, :2], end[a:b, :2]])
+        centre = 0.5 * (xy.min(axis=0) + xy.max(axis=0))
+        reach = float(np.max(np.linalg.norm(xy - centre, axis=1))) + 1e-6
+        level = end[b - 1, 2]
+        j = b
+        while (j < n and feed[j] and not out[j] and abs(end[j, 2] - level) <= ENTRY_DESCENT_MM
+               and float(np.linalg.norm(end[j, :2] - centre)) <= reach):
+            out[j] = True
+            j += 1
+    return out
+
+
+def engagement_threshold(cell: float) -> float:
+    """Height drop (mm) above which a cell counts as engaged on a grid of ``cell`` mm."""
+    return max(ENGAGEMENT_DEPTH_MM, cell / 10.0)
+
+
+@dataclass(frozen=True)
+class ToolReport:
+    """What one tool (by number) did over the program; lengths mm, volumes mm^3."""
+
+    number: int
+    tool: Tool
+    removed_volume_mm3: float
+    cutting_length_mm: float
+    air_length_mm: float
+    rapid_length_mm: float
+    radial_engagement_max_mm: float
+    radial_engagement_mean_mm: float
+    axial_engagement_max_mm: float
+    axial_engagement_mean_mm: float
+    max_radial_line: int | None
+    max_radial_move: int | None
+    material_removal_rate_max_mm3_per_min: float
+    entries: int
+    entry_radial_engagement_max_mm: float
+    entry_axial_engagement_max_mm: float
+    collisions: tuple[Collision, ...]
+
+    def to_dict(self) -> dict:
+        """JSON-ready figures."""
+        def r(v: float) -> float | None:
+            return None if v is None or not math.isfinite(v) else round(float(v), 6)
+
+        return {
+            "tool": {"shape": self.tool.shape.value, "diameter_mm": self.tool.diameter,
+                     "corner_radius_mm": self.tool.corner_radius},
+            "removed_volume_mm3": r(self.removed_volume_mm3),
+            "cutting_length_mm": r(self.cutting_length_mm),
+            "air_length_mm": r(self.air_length_mm),
+            "rapid_length_mm": r(self.rapid_length_mm),
+            "radial_engagement_max_mm": r(self.radial_engagement_max_mm),
+            "radial_engagement_mean_mm": r(self.radial_engagement_mean_mm),
+            "axial_engagement_max_mm": r(self.axial_engagement_max_mm),
+            "axial_engagement_mean_mm": r(self.axial_engagement_mean_mm),
+            "max_radial_line": self.max_radial_line,
+            "max_radial_move": self.max_radial_move,
+            "material_removal_rate_max_mm3_per_min": r(
+                self.material_removal_rate_max_mm3_per_min),
+            "entries": self.entries,
+            "entry_radial_engagement_max_mm": r(self.entry_radial_engagement_max_mm),
+            "entry_axial_engagement_max_mm": r(self.entry_axial_engagement_max_mm),
+            "rapid_collisions": [c.to_dict() for c in self.collisions],
+        }
+
+
+@dataclass(frozen=True)
+class JobSimulation:
+    """The machined block and the per-tool figures.
+
+    ``height`` (ny, nx) mm is the final Z-map (z0 where the block has no material),
+    ``in_stock`` the cells inside the block's XY, ``snapshots[n]`` the Z-map after the last
+    move of tool n.  Per linearised move (``segments``): ``tool`` number, ``volume`` removed
+    (mm^3), ``axial`` and ``radial`` engagement (mm) and ``entry``.
+    """
+
+    grid: Grid
+    stock: tuple[float, float, float, float, float, float]
+    height: FloatArray
+    in_stock: np.ndarray
+    tools: dict[int, ToolReport]
+    snapshots: dict[int, FloatArray]
+    segments: Segments
+    tool: np.ndarray
+    volume: FloatArray
+    axial: FloatArray
+    radial: FloatArray
+    entry: np.ndarray
+    collisions: tuple[Collision, ...]
+    unsimulated_rapids: int = 0
+    threshold_mm: float = field(default=ENGAGEMENT_DEPTH_MM)
+
+    def removed_volume(self) -> float:
+        """Volume cut from the block (mm^3), all tools."""
+        return float(self.volume.sum())
+
+    def simulation(self) -> Simulation:
+        """The final Z-map as a :class:`.simulate.Simulation` (top = the block's top)."""
+        return Simulation(self.grid, self.height, float(self.stock[5]), self.collisions)
+
+    def metrics(self) -> dict:
+        """JSON-ready per-tool figures, keyed by the tool number as text."""
+        return {str(n): report.to_dict() for n, report in sorted(self.tools.items())}
+
+
+def check_stock(stock, argument: str = "stock") -> tuple[float, float, float, float, float,
+                                                          float]:
+    """(x0, x1, y0, y1, z0, z1) mm with x0 < x1, y0 < y1, z0 < z1, all finite except z0 may be
+    -inf (a block without bottom); else ParameterError naming ``argument``."""
+    try:
+        values = tuple(float(v) for v in stock)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{argument} must be six numbers x0,x1,y0,y1,z0,z1 (mm), got "
+                             f"{stock!r}") from None
+    if len(values) != 6:
+        raise ParameterError(f"{argument} must be six numbers x0,x1,y0,y1,z0,z1 (mm), got "
+                             f"{len(values)}")
+    x0, x1, y0, y1, z0, z1 = values
+    finite = all(abs(v) <= MAX_COORDINATE_MM for v in (x0, x1, y0, y1, z1)) \
+        and (z0 == -math.inf or abs(z0) <= MAX_COORDINATE_MM)
+    if not finite or not (x0 < x1 and y0 < y1 and z0 < z1):
+        raise ParameterError(f"{argument} must lie within MAX_COORDINATE_MM="
+                             f"{MAX_COORDINATE_MM:g} mm with x0 < x1, y0 < y1, z0 < z1 (mm), "
+                             f"got {','.join(f'{v:g}' for v in values)}")
+    return values
+
+
+def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
+                 feed_default: float | None = None,
+                 progress: Callable[[float], None] | None = None,
+                 chord_tolerance: float | None = None,
+                 threshold: float | None = None) -> JobSimulation:
+    """Cut the block ``stock`` = (x0, x1, y0, y1, z0, z1) mm on ``grid`` with ``program``,
+    each move with the tool ``tools[program.tool[move]]`` (see the module docstring).
+
+    ``feed_default`` (mm/min) stands for feed moves without a feed in the removal rate.
+    ``progress(fraction)`` is called about every 50 ms and at the end (1.0); it may raise to
+    abandon the run.
+    A tool change to a number ``tools`` lacks raises ParameterError naming it and its line;
+    rapids before the first tool change are not simulated if there is no tool 0.
+    """
+    x0, x1, y0, y1, z0, z1 = check_stock(stock)
+    if feed_default is not None and not (math.isfinite(feed_default) and feed_default > 0):
+        raise ParameterError(f"default feed must be positive (mm/min), got {feed_default!r}")
+    check_program_tools(program, tools)
+    thr = engagement_threshold(grid.cell) if threshold is None else float(threshold)
+    if not (math.isfinite(thr) and thr > 0):
+        raise ParameterError(f"engagement threshold must be positive (mm), got {threshold!r}")
+    tol = simulation_chord_tolerance(grid.cell) if chord_tolerance is None else chord_tolerance
+    seg = linearise(program, tol)
+    n = len(seg)
+    xs, ys = grid.centres()
+    in_stock = ((xs[None, :] >= x0) & (xs[None, :] <= x1)
+                & (ys[:, None] >= y0) & (ys[:, None] <= y1))
+    height = np.where(in_stock, np.float32(z1), np.float32(z0) if math.isfinite(z0)
+                      else np.float32(-np.inf)).astype(np.float32)
+    number = program.tool[seg.move] if n else np.zeros(0, np.intp)
+    rapid = np.asarray(seg.rapid, bool)
+    entry = entry_moves(program)[seg.move] & ~rapid if n else np.zeros(0, bool)
+    numbers = np.array(sorted(tools), dtype=np.intp)
+    known = np.isin(number, numbers)
+    radius = np.zeros(n)
+    for t in np.unique(number[known]).tolist():
+        radius[number == t] = tools[t].radius
+    volume = np.zeros(n)
+    axial = np.zeros(n)
+    radial = np.zeros(n)
+    hit: list[tuple[int, int, Collision]] = []  # (segment, tool, collision)
+    snapshots: dict[int, FloatArray] = {}
+    state = _Cutter(height, grid, z0, thr)
+    low = np.minimum(seg.start[:, 2], seg.end[:, 2])
+    live = known & (low < z1)
+    pieces = _pieces(seg, radius, grid, live)
+    state.piece_volume = np.zeros(len(pieces.segment))
+    last_report = time.monotonic()
+    order = np.arange(n)
+    # runs of one tool, cut in chunks of about BATCH_CELLS window cells
+    run_bounds = np.flatnonzero(np.diff(number)) + 1 if n else np.zeros(0, np.intp)
+    for run in np.split(order, run_bounds) if n else []:
+        t = int(number[run[0]])
+        if t not in tools:
+            continue
+        tool = tools[t]
+        for chunk in _chunks(run, pieces):
+            state.cut_chunk(chunk, seg, pieces, tool, rapid, live, volume, axial, radial, hit, t)
+            if progress is not None and time.monotonic() - last_report > 0.05:
+                progress(float(chunk[-1] + 1) / max(n, 1))
+                last_report = time.monotonic()
+        snapshots[t] = height.astype(float)
+    if progress is not None:
+        progress(1.0)
+    lengths = np.linalg.norm(seg.end - seg.start, axis=1)
+    feed = program.feed[seg.move].astype(float) if n else np.zeros(0)
+    if feed_default is not None:
+        feed = np.where(np.isfinite(feed) & (feed > 0), feed, feed_default)
+    reports = {}
+    for t in sorted(set(number.tolist()) & set(tools)):
+        reports[t] = _report(t, tools[t], number == t, seg, rapid, entry, lengths, feed, volume,
+                             axial, radial, thr, [c for _, tt, c in hit if tt == t],
+                             pieces, state.piece_volume)
+    collisions = _merge([c for _, _, c in hit])
+    return JobSimulation(
+        grid=grid, stock=(x0, x1, y0, y1, z0, z1), height=height.astype(float),
+        in_stock=in_stock, tools=reports, snapshots=snapshots, segments=seg, tool=number,
+        volume=volume, axial=axial, radial=radial, entry=entry, collisions=collisions,
+        unsimulated_rapids=int(np.sum(rapid & ~known)), threshold_mm=thr)
+
+
+@dataclass
+class _Pieces:
+    """Pieces of the live segments, in order: segment index, ends and window."""
+
+    segment: np.ndarray
+    start: FloatArray
+    end: FloatArray
+    ix0: np.ndarray
+    iy0: np.ndarray
+    h: np.ndarray
+    w: np.ndarray
+    first: np.ndarray  # per segment: index of its first piece (count in ``count``)
+    count: np.ndarray
+
+
+def _pieces(seg: Segments, radius: FloatArray, grid: Grid, live: np.ndarray) -> _Pieces:
+    """Each live segment cut into pieces of XY length at most max(2 R, PIECE_CELLS cells), with
+    the padded window of cells each piece's tool can reach (empty windows dropped)."""
+    n = len(seg)
+    d = np.hypot(*(seg.end[:, :2] - seg.start[:, :2]).T) if n else np.zeros(0)
+    step = np.maximum(2.0 * radius, PIECE_CELLS * grid.cell)
+    count = np.where(live, np.maximum(1, np.ceil(d / step - 1e-9)), 0).astype(np.intp)
+    owner = np.repeat(np.arange(n), count)
+    first = np.cumsum(count) - count
+    k = np.arange(len(owner)) - first[owner]
+    f0 = (k / count[owner])[:, None]
+    f1 = ((k + 1) / count[owner])[:, None]
+    delta = seg.end[owner] - seg.start[owner]
+    p0 = seg.start[owner] + f0 * delta
+    p1 = seg.start[owner] + f1 * delta
+    last = first + count - 1
+    p0[first[count > 0]] = seg.start[count > 0]
+    p1[last[count > 0]] = seg.end[count > 0]
+    r = radius[owner][:, None]
+    lo = np.minimum(p0[:, :2], p1[:, :2]) - r
+    hi = np.maximum(p0[:, :2], p1[:, :2]) + r
+    origin = np.array([grid.x0, grid.y0])
+    a = np.maximum(np.ceil((lo - origin) / grid.cell - 0.5).astype(np.int64), 0)
+    b = np.minimum(np.floor((hi - origin) / grid.cell - 0.5).astype(np.int64),
+                   np.array([grid.nx - 1, grid.ny - 1]))
+    size = b - a + 1
+    keep = np.all(size > 0, axis=1)
+    w = np.minimum(_round_up(size[:, 0]), grid.nx)
+    h = np.minimum(_round_up(size[:, 1]), grid.ny)
+    ix0 = np.minimum(a[:, 0], grid.nx - w)
+    iy0 = np.minimum(a[:, 1], grid.ny - h)
+    owner, p0, p1, ix0, iy0, h, w = (v[keep] for v in (owner, p0, p1, ix0, iy0, h, w))
+    count = np.bincount(owner, minlength=n).astype(np.intp)
+    first = np.cumsum(count) - count
+    return _Pieces(owner, p0, p1, ix0, iy0, h, w, first, count)
+
+
+def _chunks(run: np.ndarray, pieces: _Pieces):
+    """Consecutive segments of ``run`` whose pieces hold about BATCH_CELLS cells together."""
+    has = pieces.count[run] > 0
+    if not np.any(has):
+        return
+    run = run[has]
+    area = np.concatenate([[0], np.cumsum(pieces.h * pieces.w)])
+    per_segment = area[pieces.first[run] + pieces.count[run]] - area[pieces.first[run]]
+    cumulative = np.cumsum(per_segment)
+    start = 0
+    while start < len(run):
+        base = cumulative[start - 1] if start else 0.0
+        stop = int(np.searchsorted(cumulative, base + BATCH_CELLS, side="right"))
+        stop = max(stop, start + 1)
+        yield run[start:stop]
+        start = stop
+
+
+class _Cutter:
+    """The Z-map being cut, and the per-segment measurement."""
+
+    def __init__(self, height: FloatArray, grid: Grid, z0: float, threshold: float) -> None:
+        self.height = height
+        self.grid = grid
+        self.z0 = np.float32(z0) if math.isfinite(z0) else None
+        self.threshold = np.float32(threshold)
+        self.piece_volume = np.zeros(0)
+
+    def envelopes(self, index: np.ndarray, pieces: _Pieces, tool: Tool) -> dict[int, FloatArray]:
+        """Envelope (H, W) of each piece in ``index``, batched by window shape."""
+        out: dict[int, FloatArray] = {}
+        key = pieces.h[index] * (self.grid.nx + 1) + pieces.w[index]
+        order = np.argsort(key, kind="stable")
+        bounds = np.flatnonzero(np.diff(key[order])) + 1
+        for group in np.split(order, bounds):
+            sel = index[group]
+            H, W = int(pieces.h[sel[0]]), int(pieces.w[sel[0]])
+            env = _envelope(pieces.start[sel], pieces.end[sel], pieces.ix0[sel],
+                            pieces.iy0[sel], H, W, tool, self.grid)
+            for k, p in enumerate(sel.tolist()):
+                out[p] = env[k]
+        return out
+
+    def cut_chunk(self, chunk: np.ndarray, seg: Segments, pieces: _Pieces, tool: Tool,
+                  rapid: np.ndarray, live: np.ndarray, volume: FloatArray, axial: FloatArray,
+                  radial: FloatArray, hit: list, number: int) -> None:
+        index = np.concatenate([np.arange(pieces.first[s], pieces.first[s] + pieces.count[s])
+                                for s in chunk.tolist()])
+        envs = self.envelopes(index, pieces, tool)
+        for s in chunk.tolist():
+            ks = range(int(pieces.first[s]), int(pieces.first[s] + pieces.count[s]))
+            self.cut_segment(s, ks, envs, seg, pieces, tool, bool(rapid[s]), volume, axial,
+                             radial, hit, number)
+
+    def cut_segment(self, s: int, ks: range, envs: dict, seg: Segments, pieces: _Pieces,
+                    tool: Tool, is_rapid: bool, volume: FloatArray, axial: FloatArray,
+                    radial: FloatArray, hit: list, number: int) -> None:
+        grid = self.grid
+        height = self.height
+        # the drops measured against the Z-map before the segment (pieces overlap), then cut
+        drops = []
+        for k in ks:
+            y, x = int(pieces.iy0[k]), int(pieces.ix0[k])
+            H, W = int(pieces.h[k]), int(pieces.w[k])
+            view = height[y:y + H, x:x + W]
+            new = np.fmin(view, envs[k])
+            if self.z0 is not None:
+                np.maximum(new, self.z0, out=new)
+            drops.append((view, new, view - new, x, y))
+        deepest = max(float(d.max()) for _, _, d, _, _ in drops)
+        axial[s] = deepest
+        if deepest > self.threshold and not is_rapid:
+            radial[s] = self._radial(drops, seg.start[s], seg.end[s], tool)
+        if is_rapid and deepest > COLLISION_TOLERANCE_MM:
+            view, new, d, x, y = max(drops, key=lambda item: float(item[2].max()))
+            cy, cx = divmod(int(np.argmax(d)), d.shape[1])
+            hit.append((s, number, Collision(int(seg.line[s]), deepest,
+                                             grid.x0 + (x + cx + 0.5) * grid.cell,
+                                             grid.y0 + (y + cy + 0.5) * grid.cell)))
+        area = grid.cell ** 2
+        if len(drops) == 1:
+            view, new, d, _, _ = drops[0]
+            if deepest > 0:
+                self.piece_volume[ks[0]] = float(d.sum(dtype=np.float64)) * area
+                view[...] = new
+        else:
+            for k, (view, new, _, _, _) in zip(ks, drops):
+                after = np.fmin(view, new)
+                self.piece_volume[k] = float((view - after).sum(dtype=np.float64)) * area
+                view[...] = after
+        volume[s] = float(self.piece_volume[ks[0]:ks[-1] + 1].sum())
+
+    def _radial(self, drops: list, p0: FloatArray, p1: FloatArray, tool: Tool) -> float:
+        """Extent of the engaged cells across the segment's XY direction, plus a cell, at most
+        the tool diameter (mm)."""
+        grid = self.grid
+        d = p1[:2] - p0[:2]
+        L = math.hypot(d[0], d[1])
+        lo, hi = math.inf, -math.inf
+        lo2, hi2 = math.inf, -math.inf
+        for _, _, drop, x, y in drops:
+            iy, ix = np.nonzero(drop > self.threshold)
+            if not len(ix):
+                continue
+            cx = grid.x0 + (ix + x + 0.5) * grid.cell - p0[0]
+            cy = grid.y0 + (iy + y + 0.5) * grid.cell - p0[1]
+            if L > 1e-9:
+                q = (cy * d[0] - cx * d[1]) / L
+                lo, hi = min(lo, float(q.min())), max(hi, float(q.max()))
+            else:
+                lo, hi = min(lo, float(cx.min())), max(hi, float(cx.max()))
+                lo2, hi2 = min(lo2, float(cy.min())), max(hi2, float(cy.max()))
+        if hi < lo:
+            return 0.0
+        extent = hi - lo if L > 1e-9 else max(hi - lo, hi2 - lo2)
+        return min(tool.diameter, extent + grid.cell)
+
+
+def _report(number: int, tool: Tool, mine: np.ndarray, seg: Segments, rapid: np.ndarray,
+            entry: np.ndarray, lengths: FloatArray, feed: FloatArray, volume: FloatArray,
+            axial: FloatArray, radial: FloatArray, threshold: float,
+            collisions: list[Collision], pieces: _Pieces,
+            piece_volume: FloatArray) -> ToolReport:
+    feeds = mine & ~rapid
+    cutting = feeds & (axial > threshold)
+    normal = cutting & ~entry
+    entries = cutting & entry
+    weight = lengths[normal]
+    total = float(weight.sum())
+
+    def mean(v: FloatArray) -> float:
+        if not np.any(normal):
+            return 0.0
+        return float(np.sum(v[normal] * weight) / total) if total > 0 else float(v[normal].mean())
+
+    at = int(np.flatnonzero(normal)[np.argmax(radial[normal])]) if np.any(normal) else None
+    return ToolReport(
+        number=number, tool=tool,
+        removed_volume_mm3=float(volume[mine].sum()),
+        cutting_length_mm=float(lengths[cutting].sum()),
+        air_length_mm=float(lengths[feeds & ~cutting].sum()),
+        rapid_length_mm=float(lengths[mine & rapid].sum()),
+        radial_engagement_max_mm=float(radial[normal].max()) if np.any(normal) else 0.0,
+        radial_engagement_mean_mm=mean(radial),
+        axial_engagement_max_mm=float(axial[cutting].max()) if np.any(cutting) else 0.0,
+        axial_engagement_mean_mm=mean(axial),
+        max_radial_line=None if at is None else int(seg.line[at]),
+        max_radial_move=None if at is None else int(seg.move[at]),
+        material_removal_rate_max_mm3_per_min=_max_removal_rate(
+            cutting, pieces, feed, piece_volume, tool.radius),
+        entries=int(len(np.unique(seg.move[entries]))),
+        entry_radial_engagement_max_mm=float(radial[entries].max()) if np.any(entries) else 0.0,
+        entry_axial_engagement_max_mm=float(axial[entries].max()) if np.any(entries) else 0.0,
+        collisions=_merge(collisions),
+    )
+
+
+def _max_removal_rate(cutting: np.ndarray, pieces: _Pieces, feed: FloatArray,
+                      piece_volume: FloatArray, radius: float) -> float:
+    """Largest removed volume / feed time (mm^3/min) over windows of consecutive pieces of
+    cutting segments at least ``radius`` long (a shorter run: the whole run).  A piece's
+    volume is what it removed beyond the pieces before it, so long moves are resolved too."""
+    idx = np.flatnonzero(cutting[pieces.segment])
+    if not len(idx):
+        return 0.0
+    owner = pieces.segment[idx]
+    # runs: consecutive pieces of the same or consecutive segments
+    new_run = np.ones(len(idx), bool)
+    new_run[1:] = (np.diff(idx) > 1) | (np.diff(owner) > 1)
+    run_id = np.cumsum(new_run) - 1
+    run_first = np.flatnonzero(new_run)
+    length = np.linalg.norm(pieces.end[idx] - pieces.start[idx], axis=1)
+    minutes = length / feed[owner]
+    c_len = np.concatenate([[0.0], np.cumsum(length)])
+    c_vol = np.concatenate([[0.0], np.cumsum(piece_volume[idx])])
+    c_min = np.concatenate([[0.0], np.cumsum(minutes)])
+    end = np.arange(1, len(idx) + 1)
+    start = np.searchsorted(c_len, c_len[end] - radius, side="right") - 1
+    begin = run_first[run_id]
+    full = start >= begin  # a window of at least one radius inside the run
+    run_last = np.append(run_first[1:], len(idx)) - 1
+    short_run = (c_len[run_last + 1] - c_len[run_first]) < radius
+    # a run shorter than the radius: one window, the whole run
+    whole = short_run[run_id] & (end - 1 == run_last[run_id])
+    start = np.where(full, start, begin)
+    use = full | whole
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rate = (c_vol[end] - c_vol[start]) / (c_min[end] - c_min[start])
+    rate = rate[use & np.isfinite(rate)]
+    return float(rate.max()) if len(rate) else math.nan
