@@ -26,6 +26,25 @@ is cut by a straight move.  Consecutive arcs meet at shared vertices (an arc
 spline through the polyline's vertices; tangent continuity is not imposed).  Arcs are kept
 numerically sane: radius in [MIN_RADIUS, MAX_RADIUS] mm, sweep at most MAX_SWEEP_DEG, chord at
 least MIN_CHORD mm; a run whose straight chord fits one-sidedly becomes one line.
+
+Biarcs: after the single arcs, every run of three or more consecutive pieces (arcs or lines)
+over a smooth stretch of the polyline (no turn above BIARC_KINK_DEG between its chords) is
+tried as one biarc, two arcs tangent at a joint that need not be a vertex: the polyline's
+tangents at the run's ends (of the circles through each end and its neighbours, turned onto
+the end chord where they point below it) and the joint of the equal-distance construction
+(Bolton; Meek & Walton).  It is accepted under the single arc's tests (each arc on the free
+side by [0, ``tolerance``], measured on the part of the polyline it spans, and the same
+limits), so it only replaces three or more moves by two.
+
+Helices: a stretch of feeds in no coordinate plane (X, Y and Z all changing, e.g. a helical
+entry written as short feeds, or a descending spiral) is fitted by helical G17 arcs: XY on a
+circle through the run's end points, Z linear in the angle (the end Z is the run's).  The
+helix must lie within ``tolerance`` of every chord of the polyline in 3-D (bounded by its
+sagitta over the chord plus the larger end-vertex error) and the vertices must lie on it: in
+3-D within ``tolerance`` / 10 without ``side17`` (the polyline was sampled from a helix, so
+nothing is cut that it does not cut); with ``side17``, the XY projection is fitted one-sidedly
+like a contour's and each vertex's Z lies within ``tolerance`` / 10 of the helix.  A helical
+arc spans at least HELIX_MIN_POINTS vertices, so that the fit is overdetermined.
 """
 
 from __future__ import annotations
@@ -57,6 +76,11 @@ MARGIN = 1e-7
 ROUNDING = 1e-10
 #: Bisection steps on the sagitta where a chord's interior bounds it.
 BISECTIONS = 16
+#: Fewest polyline vertices under one helical arc: with the end points fixed, the circle has
+#: one free parameter and Z none, so three or more interior vertices overdetermine it.
+HELIX_MIN_POINTS = 5
+#: Largest turn (degrees) between successive chords inside a run tried as a biarc.
+BIARC_KINK_DEG = 20.0
 
 #: (first axis, second axis, normal axis) of each plane, as in :data:`BSplineCAM.core.gcode`.
 PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
@@ -102,7 +126,7 @@ class _Batch(NamedTuple):
 def _pad(runs: Sequence[FloatArray]) -> _Batch:
     count = np.array([len(r) for r in runs])
     width = int(count.max())
-    pts = np.zeros((len(runs), width, 2))
+    pts = np.zeros((len(runs), width, runs[0].shape[1]))
     for k, r in enumerate(runs):
         pts[k, :len(r)] = r
         pts[k, len(r):] = r[-1]  # padding repeats the end point
@@ -276,16 +300,221 @@ def _fit_runs(runs: Sequence[FloatArray], tolerance: float, vertical: np.ndarray
     return out
 
 
-def _fit_polylines(polylines: Sequence[FloatArray], tolerance: float,
-                   vertical: Sequence[bool]) -> list[list[tuple]]:
-    """Greedy arc splines of 2-D polylines, all advanced in lockstep so that every round is
-    one vectorised evaluation: per polyline a list of (start index, end index, _Fit or None),
-    None meaning the straight segment (end = start + 1).  From each start the run's end
-    gallops (start + 2, + 4, + 8, ...) until a run admits no arc, then bisects."""
-    P = len(polylines)
+def _fit_helices(runs: Sequence[FloatArray], tolerance: float, sided: np.ndarray
+                 ) -> list[_Fit | None]:
+    """One helical G17 arc per 3-D run (x, y, z; the XY part mirrored so that a ``sided``
+    run's free side is left of travel) from its first to its last point; None where none
+    fits.  The XY circle passes through the end points: the one-sided G17 arc of
+    :func:`_fit_runs` where ``sided``, else the median of the circles through the ends and
+    each interior vertex.  Z is linear in the angle.  With e_i the distance from vertex i to
+    the helix point at its angle and d_i the chord's angle, the helix lies within
+    r (1 - cos(d_i / 2)) + max(e_i, e_i+1) of chord i (its sagitta over its own chord, plus
+    the interpolated end errors; Z of a helix is linear along its own chord): that bound must
+    be at most ``tolerance`` (mm) and every e_i (every |dz_i| where ``sided``) at most
+    ``tolerance`` / 10, so that the vertices lie on the helix."""
+    K = len(runs)
+    batch = _pad(runs)
+    pts, mask, count = batch
+    idx = np.arange(K)
+    xy = pts[..., :2]
+    z = pts[..., 2]
+    a = xy[:, 0]
+    b = xy[idx, count - 1]
+    chord = b - a
+    length = np.hypot(chord[:, 0], chord[:, 1])
+    ok = length >= MIN_CHORD
+    t = chord / np.where(ok, length, 1.0)[:, None]
+    n = np.column_stack([-t[:, 1], t[:, 0]])
+    c = 0.5 * np.where(ok, length, 1.0)
+    mid = 0.5 * (a + b)
+    rel = xy - mid[:, None, :]
+    u = np.einsum("kld,kd->kl", rel, t)
+    v = np.einsum("kld,kd->kl", rel, n)
+    cols = np.arange(pts.shape[1])[None, :]
+    interior = (cols >= 1) & (cols < (count - 1)[:, None])
+    sag = np.where(interior, _circle_sagitta(c[:, None], u, v), np.nan)
+    s = np.nanmedian(sag, axis=1)
+    s_max = c * math.tan(math.radians(MAX_SWEEP_DEG) / 4.0)
+    s_min_radius = MAX_RADIUS - np.sqrt(np.maximum(MAX_RADIUS ** 2 - c * c, 0.0))
+    median_ok = (np.abs(s) <= s_max) & (np.abs(s) >= s_min_radius) & (s != 0)
+    s_safe = np.where(ok & median_ok, s, 1.0)
+    radius = (c * c + s_safe * s_safe) / (2.0 * np.abs(s_safe))
+    centre = mid - (np.sign(s_safe) * (radius - np.abs(s_safe)))[:, None] * n
+    ok &= median_ok | sided
+    rows = np.flatnonzero(sided & ok)
+    if len(rows):
+        fits = _fit_runs([runs[k][:, :2] for k in rows], tolerance, np.zeros(len(rows), bool))
+        for k, fit in zip(rows, fits):
+            if fit is None or fit.line:
+                ok[k] = False
+            else:
+                centre[k], radius[k] = fit.centre, fit.radius
+    ok &= (radius >= MIN_RADIUS) & (radius <= MAX_RADIUS)
+    w = xy - centre[:, None, :]
+    theta = np.arctan2(w[..., 1], w[..., 0])
+    pair = mask[:, 1:]
+    step = np.where(pair, (np.diff(theta, axis=1) + math.pi) % (2 * math.pi) - math.pi, 0.0)
+    sweep = step.sum(axis=1)
+    ok &= np.all((step * np.sign(sweep)[:, None] > 0) | ~pair, axis=1)
+    ok &= (np.abs(sweep) <= math.radians(MAX_SWEEP_DEG)) & (sweep != 0)
+    angle = np.concatenate([np.zeros((K, 1)), np.cumsum(step, axis=1)], axis=1)
+    z_a = z[:, 0]
+    z_b = z[idx, count - 1]
+    z_helix = z_a[:, None] + ((z_b - z_a) / np.where(sweep != 0, sweep, 1.0))[:, None] * angle
+    dz = np.where(mask, np.abs(z - z_helix), 0.0)
+    err = np.where(mask, np.hypot(np.hypot(w[..., 0], w[..., 1]) - radius[:, None], dz), 0.0)
+    bound = radius[:, None] * (1.0 - np.cos(0.5 * step)) + np.maximum(err[:, 1:], err[:, :-1])
+    ok &= np.all((bound <= tolerance) | ~pair, axis=1)
+    ok &= np.where(sided, dz.max(axis=1), err.max(axis=1)) <= 0.1 * tolerance
+    return [_Fit(False, centre[k], float(radius[k])) if ok[k] else None for k in range(K)]
+
+
+class _Biarc(NamedTuple):
+    """Two tangent arcs meeting at ``joint`` (2,): centres (2, 2), radii (2,) (2-D frame)."""
+
+    joint: FloatArray
+    centres: FloatArray
+    radii: FloatArray
+
+
+def _tangents(pts: FloatArray) -> FloatArray:
+    """Unit tangents at the vertices of a 2-D polyline: at an interior vertex that of the
+    circle through it and its neighbours, (|b| a + |a| b) / norm for the unit chords a, b
+    before and after it and their lengths; at the ends the neighbour's mirrored in the end
+    chord.  NaN at zero-length chords."""
+    d = np.diff(pts, axis=0)
+    length = np.hypot(d[:, 0], d[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = d / length[:, None]
+        if len(pts) < 3:
+            return np.vstack([unit[0], unit[0]])
+        inner = unit[:-1] * length[1:, None] + unit[1:] * length[:-1, None]
+        inner /= np.hypot(inner[:, 0], inner[:, 1])[:, None]
+        first = 2.0 * (unit[0] @ inner[0]) * unit[0] - inner[0]
+        last = 2.0 * (unit[-1] @ inner[-1]) * unit[-1] - inner[-1]
+    return np.vstack([first, inner, last])
+
+
+def _unit(d: FloatArray) -> FloatArray:
+    length = np.hypot(d[..., 0], d[..., 1])[..., None]
+    return d / np.where(length > 0, length, 1.0)
+
+
+def _cross(p: FloatArray, q: FloatArray) -> FloatArray:
+    return p[..., 0] * q[..., 1] - p[..., 1] * q[..., 0]
+
+
+def _biarc_geometry(a: FloatArray, b: FloatArray, d0: FloatArray, d1: FloatArray,
+                    ta: FloatArray, tb: FloatArray) -> tuple:
+    """Equal-distance biarcs from ``a`` (tangent ``ta``) to ``b`` (tangent ``tb``), all (K, 2),
+    ``d0`` and ``d1`` the first and last chords: (ok, joint (K, 2), centres (K, 2, 2), radii
+    (K, 2)), ok False where degenerate or out of the module's limits.  The end tangents are
+    first turned onto the end chords where they point below them (an arc leaving A below its
+    first chord, or reaching B from below its last one, cannot be one-sided).  With
+    v = B - A, t = ta + tb and tangent lengths d1 = d2 = d, |v - d t| = 2 d gives
+    2 (1 - ta.tb) d^2 + 2 (v.t) d - v.v = 0, d = v.v / (v.t + sqrt((v.t)^2 + 2 (1 - ta.tb) v.v));
+    the joint is the middle of A + d ta and B - d tb (Bolton 1975, "Biarc curves", CAD 7;
+    Meek & Walton 1992, "Approximating smooth planar curves by arc splines", sec. 2)."""
+    ok = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
+    ta = np.where((_cross(d0, ta) < 0.0)[:, None], _unit(d0), ta)
+    tb = np.where((_cross(d1, tb) > 0.0)[:, None], _unit(d1), tb)
+    v = b - a
+    dot = np.einsum("kd,kd->k", ta, tb)
+    vt = np.einsum("kd,kd->k", v, ta + tb)
+    vv = np.einsum("kd,kd->k", v, v)
+    den = vt + np.sqrt(np.maximum(vt * vt + 2.0 * (1.0 - dot) * vv, 0.0))
+    ok &= den > 0.0
+    d = vv / np.where(ok, den, 1.0)
+    joint = 0.5 * (a + d[:, None] * ta + b - d[:, None] * tb)
+    centres = np.empty((len(a), 2, 2))
+    radii = np.empty((len(a), 2))
+    half = math.radians(MAX_SWEEP_DEG) / 2.0
+    for k, (p, tang, sense) in enumerate(((a, ta, 1.0), (b, tb, -1.0))):
+        w = joint - p
+        ww = np.einsum("kd,kd->k", w, w)
+        normal = np.column_stack([-tang[:, 1], tang[:, 0]])
+        den = 2.0 * np.einsum("kd,kd->k", normal, w)
+        ok &= (ww >= MIN_CHORD * MIN_CHORD) & (np.abs(den) * MAX_RADIUS >= ww)
+        lam = ww / np.where(ok, den, 1.0)
+        centres[:, k] = p + lam[:, None] * normal
+        radii[:, k] = np.abs(lam)
+        along = np.einsum("kd,kd->k", tang, w)
+        # forward from A, backward from B; the tangent-chord angle is half the sweep
+        ok &= (sense * along > 0.0) & (np.arctan2(np.abs(_cross(tang, w)), np.abs(along)) <= half)
+    ok &= radii.min(axis=1) >= MIN_RADIUS
+    return ok, joint, centres, radii
+
+
+def _fit_biarcs(runs: Sequence[FloatArray], ta: FloatArray, tb: FloatArray, tolerance: float,
+                vertical: np.ndarray) -> list[_Biarc | None]:
+    """An equal-distance biarc per 2-D run (:func:`_biarc_geometry`, end tangents ``ta``,
+    ``tb`` (K, 2)), accepted under the single arc's tests: each arc on the free (left) side of
+    the part of the polyline it spans by [0, ``tolerance``] (mm), measured vertically where
+    ``vertical`` (the arc a graph over the horizontal axis, no vertical tangent inside) and
+    along the normal of the arc's own chord otherwise.  The run must be a graph over each
+    arc's frame; it is cut where its abscissa reaches the joint's, and the gap at the cut is
+    checked with the others (:func:`_gaps`)."""
+    K = len(runs)
+    pts, mask, count = _pad(runs)
+    idx = np.arange(K)
+    a = pts[:, 0]
+    b = pts[idx, count - 1]
+    ok, joint, centres, radii = _biarc_geometry(a, b, pts[:, 1] - a,
+                                                b - pts[idx, count - 2], ta, tb)
+    pair = mask[:, 1:]
+    width = pts.shape[1]
+    cols = np.arange(width + 1)[None, :]
+    good = ok.copy()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for arc, (p, q) in enumerate(((a, joint), (joint, b))):
+            t = np.where(vertical[:, None], np.array([1.0, 0.0]), _unit(q - p))
+            n = np.column_stack([-t[:, 1], t[:, 0]])
+            u = np.einsum("kld,kd->kl", pts, t)
+            uj = np.einsum("kd,kd->k", joint, t)
+            good &= np.all((np.diff(u, axis=1) > 0) | ~pair, axis=1)
+            good &= (u[:, 0] < uj) & (uj < u[idx, count - 1])
+            # vertices before the cut: u < uj (arc 0) or u <= uj (arc 1); padding has u_B > uj
+            m = np.count_nonzero(((u < uj[:, None]) if arc == 0 else (u <= uj[:, None])) & mask,
+                                 axis=1)
+            m = np.clip(m, 1, count - 1)
+            p0, p1 = pts[idx, m - 1], pts[idx, m]
+            u0, u1 = u[idx, m - 1], u[idx, m]
+            f = (uj - u0) / np.where(u1 > u0, u1 - u0, 1.0)
+            cut = p0 + f[:, None] * (p1 - p0)
+            if arc == 0:  # A, vertices before the cut, the cut (repeated as padding)
+                take = np.minimum(cols, (m - 1)[:, None])
+                sub = np.where((cols < m[:, None])[..., None],
+                               np.take_along_axis(pts, take[..., None], axis=1), cut[:, None])
+                sub_count = m + 1
+            else:  # the cut, vertices after it, B (repeated as padding)
+                take = np.clip(m[:, None] + cols - 1, 0, (count - 1)[:, None])
+                sub = np.where((cols == 0)[..., None], cut[:, None],
+                               np.take_along_axis(pts, take[..., None], axis=1))
+                sub_count = count - m + 1
+            sub_mask = cols < sub_count[:, None]
+            centre = centres[:, arc]
+            upper = np.einsum("kd,kd->k", 0.5 * (p + q) - centre, n) > 0
+            wa, wb = p[:, 1] - centre[:, 1], q[:, 1] - centre[:, 1]
+            halves = ((wa > 0) == upper) & ((wb > 0) == upper) \
+                & (np.minimum(np.abs(wa), np.abs(wb)) > 1e-12)
+            good &= ~vertical | halves
+            lo, hi = _gaps(_Batch(sub, sub_mask, sub_count), centre, radii[:, arc], upper, t, n)
+            gap = np.einsum("kd,kd->k", joint - cut, n)
+            good &= (lo >= -ROUNDING) & (hi <= tolerance) & (gap >= -ROUNDING) & (gap <= tolerance)
+    return [_Biarc(joint[k], centres[k], radii[k]) if good[k] else None for k in range(K)]
+
+
+def _greedy(sizes: Sequence[int], evaluate: Callable[[list[tuple[int, int, int]]], list],
+            first: int) -> list[list[tuple]]:
+    """Greedy runs over positions 0 .. size - 1 of several sequences, all advanced in lockstep
+    so that every round is one vectorised evaluation: per sequence a list of (start, end, fit
+    or None), None meaning one step (end = start + 1).  From each start the run's end gallops
+    (start + first, then doubling the step) until ``evaluate`` admits no fit, then bisects.
+    ``evaluate`` takes (sequence, start, end) triples and returns a fit or None for each."""
+    P = len(sizes)
     out: list[list[tuple]] = [[] for _ in range(P)]
     start = [0] * P
-    step = [2] * P
+    step = [first] * P
     best: list = [None] * P
     lo = [0] * P
     hi: list = [None] * P  # bisection bracket once a run failed
@@ -297,16 +526,16 @@ def _fit_polylines(polylines: Sequence[FloatArray], tolerance: float,
         else:
             out[p].append((start[p], best[p][0], best[p][1]))
             start[p] = best[p][0]
-        step[p], best[p], hi[p] = 2, None, None
+        step[p], best[p], hi[p] = first, None, None
 
     active = list(range(P))
     while active:
         ends = []
         runnable = []
         for p in active:
-            n = len(polylines[p])
-            while start[p] < n - 1 and start[p] + 2 > n - 1:
-                commit(p)  # one segment left: a line
+            n = sizes[p]
+            while start[p] < n - 1 and start[p] + first > n - 1:
+                commit(p)  # too few steps left for a run
             if start[p] >= n - 1:
                 continue
             end = min(start[p] + step[p], n - 1) if hi[p] is None else (lo[p] + hi[p]) // 2
@@ -314,10 +543,9 @@ def _fit_polylines(polylines: Sequence[FloatArray], tolerance: float,
             runnable.append(p)
         if not runnable:
             break
-        fits = _fit_runs([polylines[p][start[p]:e + 1] for p, e in zip(runnable, ends)],
-                         tolerance, np.array([vertical[p] for p in runnable], bool))
+        fits = evaluate([(p, start[p], e) for p, e in zip(runnable, ends)])
         for p, end, fit in zip(runnable, ends, fits):
-            n = len(polylines[p])
+            n = sizes[p]
             if hi[p] is None:  # galloping
                 if fit is not None:
                     best[p] = (end, fit)
@@ -338,8 +566,66 @@ def _fit_polylines(polylines: Sequence[FloatArray], tolerance: float,
                     hi[p] = end
                 if hi[p] - lo[p] <= 1:
                     commit(p)
-        active = [p for p in runnable if start[p] < len(polylines[p]) - 1]
+        active = [p for p in runnable if start[p] < sizes[p] - 1]
     return out
+
+
+def _fit_polylines(polylines: Sequence[FloatArray], tolerance: float, flags: Sequence[bool],
+                   fitter: Callable | None = None, first: int = 2) -> list[list[tuple]]:
+    """Greedy arc splines of polylines (:func:`_greedy` over their vertices, runs of at least
+    ``first`` segments): per polyline a list of (start index, end index, _Fit or None), None meaning
+    the straight segment.  ``fitter(runs, tolerance, flags)`` is :func:`_fit_runs` (2-D,
+    ``flags`` = vertical) or :func:`_fit_helices` (3-D, ``flags`` = sided)."""
+    fit = _fit_runs if fitter is None else fitter
+
+    def evaluate(jobs: list[tuple[int, int, int]]) -> list:
+        return fit([polylines[p][s:e + 1] for p, s, e in jobs], tolerance,
+                   np.array([flags[p] for p, _, _ in jobs], bool))
+
+    return _greedy([len(q) for q in polylines], evaluate, first)
+
+
+def _with_biarcs(polylines: Sequence[FloatArray], fitted: list[list[tuple]], tolerance: float,
+                 vertical: Sequence[bool]) -> list[list[tuple]]:
+    """The pieces of :func:`_fit_polylines` with every run of three or more consecutive pieces
+    that one biarc fits (:func:`_fit_biarcs`) replaced by it (two moves for three or more), the
+    runs chosen greedily (:func:`_greedy` over the pieces' end vertices).  A run is tried only
+    where the polyline is smooth: no turn above BIARC_KINK_DEG at its interior vertices; the
+    biarc's end tangents are the polyline's (:func:`_tangents`)."""
+    bounds = [[f[0][0]] + [piece[1] for piece in f] for f in fitted]
+    tangents = [_tangents(q) for q in polylines]
+    kinks = []
+    for q in polylines:
+        d = np.diff(q, axis=0)
+        length = np.hypot(d[:, 0], d[:, 1])
+        cos = np.einsum("ij,ij->i", d[:-1], d[1:])
+        kink = ~(cos >= math.cos(math.radians(BIARC_KINK_DEG)) * length[:-1] * length[1:])
+        kink |= (length[:-1] == 0) | (length[1:] == 0)
+        kinks.append(np.concatenate([[0, 0], np.cumsum(kink)]))  # kinks at vertices < index
+
+    def evaluate(jobs: list[tuple[int, int, int]]) -> list:
+        out: list = [None] * len(jobs)
+        rows, runs, ends = [], [], []
+        for r, (p, s, e) in enumerate(jobs):
+            i, j = bounds[p][s], bounds[p][e]
+            if kinks[p][j] - kinks[p][i + 1] > 0:
+                continue
+            rows.append(r)
+            runs.append(polylines[p][i:j + 1])
+            ends.append((tangents[p][i], tangents[p][j]))
+        if rows:
+            flags = np.array([vertical[jobs[r][0]] for r in rows], bool)
+            ta, tb = (np.array(col) for col in zip(*ends))
+            for r, fit in zip(rows, _fit_biarcs(runs, ta, tb, tolerance, flags)):
+                out[r] = fit
+        return out
+
+    merged = _greedy([len(b) for b in bounds], evaluate, 3)
+    result: list[list[tuple]] = []
+    for p, pieces in enumerate(merged):
+        result.append([fitted[p][s] if fit is None else (bounds[p][s], bounds[p][e], fit)
+                       for s, e, fit in pieces])
+    return result
 
 
 def _runs(points: FloatArray) -> list[tuple[int, int, int | None]]:
@@ -364,23 +650,42 @@ def _runs(points: FloatArray) -> list[tuple[int, int, int | None]]:
 
 
 class _Plan(NamedTuple):
-    """A 3-D run in a coordinate plane and its 2-D picture for the fitter (free side left)."""
+    """A 3-D run in a coordinate plane and its 2-D picture for the fitter (free side left);
+    for a ``helix`` candidate (a run leaving every coordinate plane) the picture is 3-D, the
+    XY part mirrored like a G17 run's and Z appended."""
 
     points: FloatArray
     plane: int
     flat: FloatArray
     vertical: bool
     sense: float
+    helix: bool = False
+    sided: bool = False
 
 
-def _plan(pts3: FloatArray, plane: int, side: float) -> _Plan:
+def _plan(pts3: FloatArray, plane: int, side: float, helix: bool = False,
+          sided: bool = False) -> _Plan:
     if plane != 17:
         # horizontal axis along the pass, Z up; travel in -x (-y) is mirrored to +x (+y)
         h = 0 if plane == 18 else 1
         sense = 1.0 if pts3[-1, h] >= pts3[0, h] else -1.0
         return _Plan(pts3, plane, np.column_stack([sense * pts3[:, h], pts3[:, 2]]), True,
                      sense)
-    return _Plan(pts3, plane, pts3[:, :2] * np.array([1.0, side]), False, side)
+    flat = pts3[:, :2] * np.array([1.0, side])
+    if helix:
+        flat = np.column_stack([flat, pts3[:, 2]])
+    return _Plan(pts3, plane, flat, False, side, helix, sided)
+
+
+def _to3(plan: _Plan, start: FloatArray, point: FloatArray) -> FloatArray:
+    """A point of the plan's 2-D picture in 3-D, the normal coordinate taken from ``start``."""
+    out = start.copy()
+    if plan.vertical:
+        out[0 if plan.plane == 18 else 1] = plan.sense * point[0]
+        out[2] = point[1]
+    else:
+        out[0], out[1] = point[0], plan.sense * point[1]
+    return out
 
 
 def _moves(plan: _Plan, fits: list[tuple]) -> list[AnyMove]:
@@ -389,24 +694,49 @@ def _moves(plan: _Plan, fits: list[tuple]) -> list[AnyMove]:
     moves: list[AnyMove] = []
     for i, j, fit in fits:
         end = pts3[j]
-        if fit is None or fit.line:
+        if isinstance(fit, _Biarc):
+            joint = _to3(plan, pts3[i], fit.joint)
+            moves.append(_arc(pts3[i], joint, _to3(plan, pts3[i], fit.centres[0]),
+                              float(fit.radii[0]), plan.plane))
+            moves.append(_arc(joint, end, _to3(plan, joint, fit.centres[1]),
+                              float(fit.radii[1]), plan.plane))
+        elif fit is None or fit.line:
             moves.append(Move("feed", float(end[0]), float(end[1]), float(end[2])))
-            continue
-        centre3 = pts3[i].copy()
-        if plan.vertical:
-            centre3[0 if plan.plane == 18 else 1] = plan.sense * fit.centre[0]
-            centre3[2] = fit.centre[1]
         else:
-            centre3[0], centre3[1] = fit.centre[0], plan.sense * fit.centre[1]
-        moves.append(_arc(pts3[i], end, centre3, fit.radius, plan.plane))
+            moves.append(_arc(pts3[i], end, _to3(plan, pts3[i], fit.centre), fit.radius,
+                              plan.plane))
     return moves
 
 
+def _fit_plans(plans: Sequence[_Plan], tolerance: float, biarcs: bool) -> list[list[tuple]]:
+    """Fitted pieces of every plan: arcs in coordinate planes (then biarcs) and helices, each
+    kind fitted in one lockstep batch."""
+    out: list[list[tuple]] = [[] for _ in plans]
+    planar = [k for k, p in enumerate(plans) if not p.helix]
+    helical = [k for k, p in enumerate(plans) if p.helix]
+    if planar:
+        flats = [plans[k].flat for k in planar]
+        vertical = [plans[k].vertical for k in planar]
+        fitted = _fit_polylines(flats, tolerance, vertical)
+        if biarcs:
+            fitted = _with_biarcs(flats, fitted, tolerance, vertical)
+        for k, f in zip(planar, fitted):
+            out[k] = f
+    if helical:
+        fitted = _fit_polylines([plans[k].flat for k in helical], tolerance,
+                                [plans[k].sided for k in helical], _fit_helices,
+                                HELIX_MIN_POINTS - 1)
+        for k, f in zip(helical, fitted):
+            out[k] = f
+    return out
+
+
 def fit_polyline(points: Sequence, tolerance: float, plane: int,
-                 side: float = 1.0) -> list[AnyMove]:
+                 side: float = 1.0, biarcs: bool = True) -> list[AnyMove]:
     """Feed moves (Move 'feed' and :class:`Arc`) from points[0] along a polyline lying in
     ``plane`` (17, 18 or 19; points (n, 3), mm), within ``tolerance`` (mm) on its free side:
-    above in G18/G19, left of travel (``side`` +1) or right (-1) in G17."""
+    above in G18/G19, left of travel (``side`` +1) or right (-1) in G17; with ``biarcs``, runs
+    of three or more pieces that one biarc fits become its two arcs."""
     tolerance = check_positive(tolerance, "tolerance", "mm")
     if plane not in PLANE_AXES:
         raise ParameterError(f"plane must be 17, 18 or 19, got {plane!r}")
@@ -414,7 +744,7 @@ def fit_polyline(points: Sequence, tolerance: float, plane: int,
     if pts3.ndim != 2 or pts3.shape[1] != 3 or len(pts3) < 2:
         raise ParameterError(f"points must be an (n >= 2, 3) array in mm, got {pts3.shape}")
     plan = _plan(pts3, plane, 1.0 if side >= 0 else -1.0)
-    return _moves(plan, _fit_polylines([plan.flat], tolerance, [plan.vertical])[0])
+    return _moves(plan, _fit_plans([plan], tolerance, biarcs)[0])
 
 
 def _arc(start: FloatArray, end: FloatArray, centre: FloatArray, radius: float,
@@ -428,19 +758,39 @@ def _arc(start: FloatArray, end: FloatArray, centre: FloatArray, radius: float,
                float(centre[1]), float(centre[2]), float(radius), plane)
 
 
-def fit_arcs(moves: Iterable[Move], tolerance: float, side17: SideFn | None = None
-             ) -> list[AnyMove]:
+def fit_arcs(moves: Iterable[Move], tolerance: float, side17: SideFn | None = None,
+             biarcs: bool = True, helices: bool = True) -> list[AnyMove]:
     """Moves with runs of feeds replaced by one-sided arcs within ``tolerance`` (mm).
 
     Feeds in a vertical coordinate plane (Y or X constant) become G18 / G19 arcs above the
     polyline; feeds at constant Z become G17 arcs on the free side that ``side17`` names (no
-    G17 arcs without it); everything else is kept.  Rapids pass through unchanged.  All runs
-    are fitted together (:func:`_fit_polylines`).
-    """
+    G17 arcs without it); with ``biarcs``, runs of three or more of those pieces that one
+    biarc fits become its two arcs.  With ``helices``, stretches of feeds in no coordinate
+    plane (segments changing X, Y and Z) become helical G17 arcs (:func:`_fit_helices`): with
+    ``side17``, the XY projection one-sided like a contour's and every vertex's Z within
+    ``tolerance`` / 10 of the helix; without it, every vertex within ``tolerance`` / 10 of the
+    helix in 3-D (the polyline was sampled from a helix, so the helix cuts nothing it does
+    not); in both cases the helix within ``tolerance`` of every chord.  Everything else is
+    kept; rapids pass through unchanged.  All runs are fitted together."""
     tolerance = check_positive(tolerance, "tolerance", "mm")
     moves = list(moves)
     pieces: list = []  # Move, or the index of a plan
     plans: list[_Plan] = []
+
+    def lines(run: FloatArray) -> None:
+        pieces.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in run[1:])
+
+    def side_of(run: FloatArray) -> float:
+        return 1.0 if side17 is None or float(side17(run)) >= 0 else -1.0
+
+    def loose(run: FloatArray) -> None:
+        """Feeds in no coordinate plane: a helix candidate or lines."""
+        if helices and len(run) >= HELIX_MIN_POINTS:
+            pieces.append(len(plans))
+            plans.append(_plan(run, 17, side_of(run), helix=True, sided=side17 is not None))
+        elif len(run) >= 2:
+            lines(run)
+
     k = 0
     position: FloatArray | None = None
     while k < len(moves):
@@ -454,17 +804,25 @@ def fit_arcs(moves: Iterable[Move], tolerance: float, side17: SideFn | None = No
         while stop < len(moves) and moves[stop].kind == "feed":
             stop += 1
         pts = np.vstack([position, [[f.x, f.y, f.z] for f in moves[k:stop]]])
+        stretch: int | None = None  # first vertex of the pending loose stretch
         for i, j, plane in _runs(pts):
-            run = pts[i:j + 1]
-            if plane is None or j - i < 2 or (plane == 17 and side17 is None):
-                pieces.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in run[1:])
+            if plane is None or j - i < 2:
+                stretch = i if stretch is None else stretch
                 continue
-            side = 1.0 if plane != 17 else (1.0 if float(side17(run)) >= 0 else -1.0)
+            if stretch is not None:
+                loose(pts[stretch:i + 1])
+                stretch = None
+            run = pts[i:j + 1]
+            if plane == 17 and side17 is None:
+                lines(run)
+                continue
             pieces.append(len(plans))
-            plans.append(_plan(run, plane, side))
+            plans.append(_plan(run, plane, side_of(run) if plane == 17 else 1.0))
+        if stretch is not None:
+            loose(pts[stretch:])
         position = pts[-1]
         k = stop
-    fitted = _fit_polylines([p.flat for p in plans], tolerance, [p.vertical for p in plans])
+    fitted = _fit_plans(plans, tolerance, biarcs)
     out: list[AnyMove] = []
     for piece in pieces:
         if isinstance(piece, int):
