@@ -159,7 +159,7 @@ class TestWorkbench(GuiTestCase):
             self.assertIn(title, toolbars)
         menus = [a.text() for a in FreeCADGui.getMainWindow().menuBar().actions()]
         self.assertIn("&BSplineCAM", menus)
-        self.assertEqual(layout.TOOLPATH_COMMANDS, ["BSplineCAM_Job", "BSplineCAM_PostProcess"])
+        self.assertEqual(layout.TOOLPATH_COMMANDS, ["BSplineCAM_Job", "BSplineCAM_Rough", "BSplineCAM_PostProcess"])
         self.assertEqual(layout.VERIFY_COMMANDS, ["BSplineCAM_Verify"])
 
     def test_is_active(self) -> None:
@@ -1239,6 +1239,71 @@ class TestReopenedDocument(CamTestCase):
             self.fail(f"the job panel refused: {panel.message.text()} {boxes}")
         self.assertEqual(len([o for o in self.doc.Objects if cam_commands.is_job(o)]), 2)
         self.assertNotIn("Error", report_text())
+
+
+class TestRoughingCommand(CamTestCase):
+    def open_rough_panel(self, job):
+        from BSplineCAM.gui import rough_panel
+
+        FreeCADGui.Selection.clearSelection()
+        self.assertFalse(is_active("BSplineCAM_Rough"))  # no job selected
+        FreeCADGui.Selection.addSelection(job)
+        self.assertTrue(is_active("BSplineCAM_Rough"))
+        rough_panel.RoughPanel.last = None
+        FreeCADGui.runCommand("BSplineCAM_Rough")
+        process_events()
+        panel = rough_panel.RoughPanel.last
+        self.assertIsNotNone(panel, "the roughing command opened no task panel")
+        self.assertTrue(FreeCADGui.Control.activeDialog())
+        return panel
+
+    def test_roughing_added_before_the_finish_in_one_transaction(self) -> None:
+        from BSplineCAM.app import compat
+        from BSplineCAM.gui import rough_panel
+
+        surface, job, op = self.make_job()
+        panel = self.open_rough_panel(job)
+        names = [o.Name for o in self.doc.Objects]
+        undo = self.doc.UndoCount
+        # the corner radius field shows for the bull-nose only
+        self.assertFalse(panel.corner.isVisible())
+        panel.shape.setCurrentIndex(rough_panel.SHAPES.index("bullnose"))
+        process_events()
+        self.assertTrue(panel.corner.isVisible())
+        panel.shape.setCurrentIndex(rough_panel.SHAPES.index("flat"))
+        # a bad field: refused with its name, nothing changed
+        panel.stepdown.setValue(0.0)
+        with message_boxes() as boxes:
+            self.assertFalse(panel.accept())
+            process_events()
+        self.assertIn("Step-down", panel.message.text())
+        self.assertEqual(len(boxes), 1, boxes)
+        self.assertEqual([o.Name for o in self.doc.Objects], names)
+        self.assertEqual(self.doc.UndoCount, undo)
+        # a coarse roughing: computed, first in the job, T1; the ball moved to T2
+        panel.stepdown.setValue(4.0)
+        panel.stepover.setValue(50.0)
+        panel.diameter.setValue(12.0)
+        with message_boxes() as boxes:
+            accepted = panel.accept()
+        if not accepted:
+            self.fail(f"the roughing panel refused: {panel.message.text()} {boxes}")
+        process_events()
+        self.assertFalse(FreeCADGui.Control.activeDialog())
+        self.assertEqual(self.doc.UndoCount, undo + 1)
+        rough = job.Operations.Group[0]
+        self.assertTrue(rough_panel.is_roughing_op(rough))
+        self.assertIs(job.Operations.Group[1], op)
+        self.assertEqual(list(op.RestFrom), [rough])
+        self.assertTrue(rough.Path.Commands)
+        self.assertNotIn("error", json.loads(rough.Report))
+        shapes = {int(tc.ToolNumber): compat.core_tool_shape(tc.Tool)[0] for tc in job.Tools.Group}
+        self.assertEqual(shapes, {1: "flat", 2: "ball"})
+        # undo takes it all back
+        self.doc.undo()
+        process_events()
+        self.assertEqual([o.Name for o in self.doc.Objects], names)
+        self.assertEqual([o.Name for o in job.Operations.Group], [op.Name])
 
 
 class TestZScreenshots(PictureChecks, GuiTestCase):

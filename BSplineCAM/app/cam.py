@@ -41,13 +41,20 @@ class Cutting:
 
 def make_ballend_controller(diameter: float, cutting: Cutting = Cutting(), number: int = 1, doc=None):
     """A ToolController holding a ball-end ToolBit of ``diameter`` mm, feeds and speed set."""
+    return make_controller("ball", diameter, cutting=cutting, number=number, doc=doc)
+
+
+def make_controller(shape: str, diameter: float, corner_radius: float = 0.0,
+                    cutting: Cutting = Cutting(), number: int = 1, doc=None):
+    """A ToolController (tool ``number``) holding a ToolBit of a core shape ('ball', 'flat',
+    'bullnose' with ``corner_radius``), sizes in mm, feeds and speed set."""
     if not diameter > 0:
         raise ValueError(f"tool diameter must be > 0 mm, got {diameter}")
     cutting.validate()
     doc = doc or FreeCAD.ActiveDocument
     _activate(doc)
-    bit = compat.make_ballend_bit(doc, diameter)
-    tc = compat.cam_module("controller").Create(f"TC: Ball end {diameter:g} mm", bit, number)
+    bit = compat.make_tool_bit(doc, shape, diameter, corner_radius)
+    tc = compat.cam_module("controller").Create(f"TC: {bit.Label}", bit, number)
     compat.make_proxy_restorable(tc)
     tc.HorizFeed = f"{cutting.horizontal_feed} mm/min"
     tc.VertFeed = f"{cutting.vertical_feed} mm/min"
@@ -56,6 +63,16 @@ def make_ballend_controller(diameter: float, cutting: Cutting = Cutting(), numbe
     tc.SpindleSpeed = float(cutting.spindle_speed)
     tc.SpindleDir = "Forward"
     tc.recompute()
+    return tc
+
+
+def add_controller(job, shape: str, diameter: float, corner_radius: float = 0.0,
+                   cutting: Cutting = Cutting(), number: int | None = None):
+    """Add a tool controller to ``job`` (number: the next free one) and return it."""
+    if number is None:
+        number = 1 + max((int(tc.ToolNumber) for tc in job.Tools.Group), default=0)
+    tc = make_controller(shape, diameter, corner_radius, cutting, number, job.Document)
+    job.Tools.addObject(tc)
     return tc
 
 

@@ -169,28 +169,81 @@ def available_posts() -> list[str]:
     return sorted(set(names))
 
 
+#: ToolBit shape file of each core tool shape (FreeCAD's Tools/Shape, the same in 0.20-1.1).
+SHAPE_FILES = {"ball": "ballend.fcstd", "flat": "endmill.fcstd", "bullnose": "bullnose.fcstd"}
+_SHAPE_LABELS = {"ball": "Ball end", "flat": "End mill", "bullnose": "Bull nose"}
+
+
 def ballend_shape_file() -> str:
     """The ball-end ToolBit shape shipped with FreeCAD 0.20/1.0 (Tools/Shape/ballend.fcstd)."""
-    path = cam_module("toolbit").findToolShape("ballend.fcstd")
+    return tool_shape_file("ball")
+
+
+def tool_shape_file(shape: str) -> str:
+    """The ToolBit shape file of a core tool shape ('ball', 'flat', 'bullnose') in 0.20/1.0."""
+    name = SHAPE_FILES[shape]
+    path = cam_module("toolbit").findToolShape(name)
     if not path:
-        raise FileNotFoundError("FreeCAD's ballend.fcstd tool shape was not found")
+        raise FileNotFoundError(f"FreeCAD's {name} tool shape was not found")
     return path
 
 
 def make_ballend_bit(doc, diameter: float):
     """A ball-end ToolBit object of ``diameter`` mm in ``doc`` (which must be the active
     document: CAM's factories create objects there), made by FreeCAD's own tool-bit API."""
+    return make_tool_bit(doc, "ball", diameter)
+
+
+def tool_label(shape: str, diameter: float, corner_radius: float = 0.0) -> str:
+    """How a tool is named in the document: "Ball end 6 mm", "Bull nose 10 mm r1"."""
+    label = f"{_SHAPE_LABELS[shape]} {diameter:g} mm"
+    return f"{label} r{corner_radius:g}" if shape == "bullnose" else label
+
+
+def make_tool_bit(doc, shape: str, diameter: float, corner_radius: float = 0.0):
+    """A ToolBit of a core tool shape ('ball', 'flat' or 'bullnose' with ``corner_radius``,
+    mm) in ``doc`` (the active document), made by FreeCAD's own tool-bit API.  The bull
+    nose's corner is ``CornerRadius`` in 1.1 and ``FlatRadius`` (the flat bottom's radius,
+    diameter/2 - corner) in 0.20 and 1.0."""
     toolbit = cam_module("toolbit")
+    label = tool_label(shape, diameter, corner_radius)
     if cam_series() == "1.1":
-        asset = toolbit.ToolBit.from_shape_id("ballend.fcstd", f"Ball end {diameter:g} mm")
+        asset = toolbit.ToolBit.from_shape_id(SHAPE_FILES[shape], label)
         bit = asset.attach_to_doc(doc)
     else:
-        bit = toolbit.Factory.Create(f"BallEnd{diameter:g}", ballend_shape_file())
-    bit.Label = f"Ball end {diameter:g} mm"
+        bit = toolbit.Factory.Create(label.replace(" ", ""), tool_shape_file(shape))
+    bit.Label = label
     bit.Diameter = diameter
+    if shape == "bullnose":
+        if hasattr(bit, "CornerRadius"):
+            bit.CornerRadius = corner_radius
+        else:
+            bit.FlatRadius = 0.5 * diameter - corner_radius
     if hasattr(bit, "Length"):
         bit.Length = max(float(bit.Length), 50.0)
+    if hasattr(bit, "CuttingEdgeHeight"):
+        bit.CuttingEdgeHeight = max(float(bit.CuttingEdgeHeight), 30.0)
     return bit
+
+
+def core_tool_shape(bit) -> tuple[str, float, float]:
+    """(core shape, diameter mm, corner radius mm) of a ToolBit: 'ball', 'flat' or
+    'bullnose'; a ValueError naming the shape for any other bit (drill, v-bit, chamfer...)."""
+    name = tool_shape_name(bit).lower()
+    diameter = float(getattr(bit.Diameter, "Value", bit.Diameter))
+    if "ball" in name:
+        return "ball", diameter, 0.5 * diameter
+    if "bull" in name:
+        if hasattr(bit, "CornerRadius"):
+            corner = float(getattr(bit.CornerRadius, "Value", bit.CornerRadius))
+        else:
+            flat = float(getattr(bit.FlatRadius, "Value", bit.FlatRadius))
+            corner = 0.5 * diameter - flat
+        return "bullnose", diameter, corner
+    if "endmill" in name or "end mill" in name or name.startswith("flat"):
+        return "flat", diameter, 0.0
+    raise ValueError(f"tool shape {tool_shape_name(bit)!r} is not a ball, flat or bull-nose "
+                     "end mill")
 
 
 def opencamlib_missing_message() -> str:

@@ -47,13 +47,20 @@ PROPERTIES = (
     ("App::PropertyLinkSubListGlobal", "Base", "Surface",
      "Faces to machine, e.g. (Part, ['Face3']); empty: the BSplineCAM surface, or else every "
      "face of the job's model a 3-axis tool reaches from above", 0, None),
-    ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z) or isoparametric", 0, STRATEGIES),
+    ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z), isoparametric, or steep_shallow (waterline on walls over 45 degrees, raster on the rest)", 0, STRATEGIES),
     ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature", 0, 0.01),
     ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass", 0, 0.002),
     ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane", 0, None),
     ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes", 0, DIRECTIONS),
     ("App::PropertyEnumeration", "IsoDirection", "Surface", "Parameter followed by iso-parametric passes", 0, ISO_DIRECTIONS),
     ("App::PropertyBool", "Arcs", "Surface", "Fit passes with G2/G3 arcs (one-sided, within the tolerance) in the plane holding them", 0, True),
+    ("App::PropertyLength", "RestLimit", "Surface",
+     "After earlier ops (roughing): rest passes first take the terraces they left down to this "
+     "much above the part, so no finishing move cuts deeper than the stock left + scallop + "
+     "this; 0: no rest passes", 0, 1.0),
+    ("App::PropertyLinkList", "RestFrom", "Surface",
+     "Ops whose cuts the rest passes start from (the job's roughing, set when it is added); "
+     "the finishing op is recomputed after them", 0, None),
     ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)", 0, None),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
 )
@@ -137,6 +144,32 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         if source is None:
             raise ValueError(f"{obj.Label}: the job has no BSplineCAM surface to machine")
         return cam.surface_in_job(source, _model_clone_of(job, source))
+
+    def rest_toolpath(self, obj, cl_height, toolpath):
+        """Rest passes over the stock the ops of ``RestFrom`` left (:mod:`.stock_left`), or
+        None: RestLimit 0, no such op with a path, or nothing above the limit."""
+        limit = float(getattr(obj, "RestLimit", 0.0).Value) if hasattr(obj, "RestLimit") else 0.0
+        if not limit > 0:
+            return None
+        from ..core.toolpath.rest import generate_rest
+        from .stock_left import stock_after_ops
+
+        job = self.job_of(obj)
+        if job is None or not getattr(obj, "RestFrom", None):
+            return None
+        progress = progress_reporter(obj)
+        stock = stock_after_ops(job, obj, obj.RestFrom, max(0.25 * limit, 0.05), progress)
+        if stock is None:
+            return None
+        points = np.concatenate(toolpath.passes)
+        extent = (float(points[:, 0].min()), float(points[:, 0].max()),
+                  float(points[:, 1].min()), float(points[:, 1].max()))
+        diameter = 2.0 * self.radius
+        rest = generate_rest(cl_height, (stock.grid, stock.height), diameter, limit,
+                             0.25 * diameter, extent, angle=float(obj.Angle.Value),
+                             tolerance=max(obj.Tolerance.Value, 0.005), progress=progress,
+                             clearance_height=obj.ClearanceHeight.Value)
+        return rest if rest.passes else None
 
     def opUpdateDepths(self, obj):  # noqa: N802 - FreeCAD API
         """Depths and the stock top from the exact surface, not OCCT's box of the model.
@@ -222,12 +255,22 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
         from ..core.toolpath import program_moves
+        from ..core.toolpath.rest import net_cl_height
 
-        moves = program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
-                              arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
+        rest = self.rest_toolpath(obj, net_cl_height(surface), toolpath)
+        moves = []
+        if rest is not None:
+            lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
+            moves = program_moves(rest, clearance, max(obj.SafeHeight.Value, lowest),
+                                  arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
+        moves += program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
+                               arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
-        obj.Report = json.dumps(report(toolpath, commands), sort_keys=True)
+        out = report(toolpath, commands)
+        if rest is not None:
+            out["rest"] = rest_report(rest)
+        obj.Report = json.dumps(out, sort_keys=True)
         for region in toolpath.unreachable:
             FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
 
@@ -258,11 +301,21 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             raise ValueError(f"{obj.Label}: the raster produced no pass on the selected faces")
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
-        moves = program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
-                              arcs=bool(getattr(obj, "Arcs", False)))
+        from ..core.toolpath.rest import faceset_cl_height
+
+        rest = self.rest_toolpath(obj, faceset_cl_height(faceset), toolpath)
+        moves = []
+        if rest is not None:
+            lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
+            moves = program_moves(rest, clearance, max(obj.SafeHeight.Value, lowest),
+                                  arcs=bool(getattr(obj, "Arcs", False)))
+        moves += program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
+                               arcs=bool(getattr(obj, "Arcs", False)))
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         out = report(toolpath, commands)
+        if rest is not None:
+            out["rest"] = rest_report(rest)
         out["faces"] = [f.name for f in faceset.faces if f.selected]
         out["check_faces"] = sum(not f.selected for f in faceset.faces)
         obj.Report = json.dumps(out, sort_keys=True)
@@ -422,6 +475,15 @@ def report(toolpath, commands=None) -> dict:
         out["arc_moves"] = sum(c.Name in ("G2", "G3") for c in commands)
         out["program_moves"] = sum(c.Name in ("G0", "G1", "G2", "G3") for c in commands)
     return out
+
+
+def rest_report(rest) -> dict:
+    """The rest passes' figures in the finishing op's report."""
+    return {"passes": rest.stats.passes, "moves": rest.stats.moves,
+            "pass_length_mm": round(rest.stats.cutting_length_mm, 6),
+            "seconds": round(rest.stats.seconds, 4),
+            "offsets_mm": [round(float(o), 6) for o in rest.extra.get("offsets_mm", [])],
+            "max_excess_mm": round(float(rest.extra.get("max_excess_mm", 0.0)), 6)}
 
 
 def progress_reporter(obj):

@@ -30,12 +30,32 @@ class FinishingParameters:
     direction: str = "zigzag"
     iso_direction: str = "u"
     arcs: bool = True  # fit passes with one-sided G2/G3 arcs (core.toolpath.arcs)
+    rest_limit: float = 1.0  # after roughing: rest passes down to this above the part (mm)
+
+
+@dataclass(frozen=True)
+class RoughingParameters:
+    """Roughing before the finish: the end mill (shape 'flat', 'bullnose' or 'ball',
+    diameter and corner radius mm), step-down (mm), stepover (percent of the diameter), stock
+    to leave (mm), the stock block's margin around the part (mm) and flat-area levels."""
+
+    shape: str = "flat"
+    diameter: float = 10.0
+    corner_radius: float = 0.0
+    stepdown: float = 2.0
+    stepover_percent: int = 40
+    radial_allowance: float = 0.3
+    axial_allowance: float = 0.3
+    stock_margin: float = 2.0
+    flat_levels: bool = True
 
 
 def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc,
-              post: str = cam.DEFAULT_POST):
+              post: str = cam.DEFAULT_POST, roughing: RoughingParameters | None = None):
     """The surface object (solid), a job with a ball-end tool controller and ``post`` as its
-    PostProcessor, and the finishing op."""
+    PostProcessor, and the finishing op; with ``roughing``, first a roughing op with its own
+    tool controller (T1, the ball becomes T2) from a stock block grown by its margin.
+    Returns (model, job, op) with op the finishing op; ``job.Operations.Group`` holds both."""
     from .finishing_op import Create
     from .surface_feature import make_surface
 
@@ -43,6 +63,8 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     doc.recompute()
     job = cam.make_job(model, params.tool_diameter, cutting, post=post)
     op = Create("SurfaceFinish", parentJob=job)
+    if roughing is not None:
+        add_roughing(job, roughing, cutting)
     op.Surface = model
     op.Strategy = params.strategy
     op.ScallopHeight = params.scallop
@@ -51,7 +73,42 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     op.Direction = params.direction
     op.IsoDirection = params.iso_direction
     op.Arcs = bool(params.arcs)
+    op.RestLimit = params.rest_limit
     return model, job, op
+
+
+def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
+    """The roughing op (first in the job) with its tool controller T1; the job's other
+    controllers move up one number (the ball-end becomes T2) and the stock block grows by
+    ``roughing.stock_margin`` on every side but the bottom.  Returns the op (not computed)."""
+    from .roughing_op import Create
+
+    # the op first: CAM's ops pick their controller when made, and a job's first op with
+    # several controllers to choose from fails headless (FreeCAD 0.20-1.1 PathUtils)
+    op = Create("SurfaceRough", parentJob=job)
+    for tc in job.Tools.Group:
+        tc.ToolNumber = int(tc.ToolNumber) + 1
+    tc = cam.add_controller(job, roughing.shape, roughing.diameter, roughing.corner_radius,
+                            cutting, number=1)
+    stock = job.Stock
+    for name in ("ExtXneg", "ExtXpos", "ExtYneg", "ExtYpos", "ExtZpos"):
+        if hasattr(stock, name):
+            setattr(stock, name, roughing.stock_margin)
+    if hasattr(stock, "ExtZneg"):
+        stock.ExtZneg = 0.0
+    group = list(job.Operations.Group)
+    if group and group[0] is not op:  # roughing goes first, before the finishing ops
+        job.Operations.Group = [op, *(o for o in group if o is not op)]
+    op.ToolController = tc
+    for other in job.Operations.Group:  # the finishing ops start from the roughed stock
+        if other is not op and hasattr(other, "RestFrom"):
+            other.RestFrom = [*other.RestFrom, op]
+    op.StepDown = roughing.stepdown
+    op.StepOver = int(roughing.stepover_percent)
+    op.RadialAllowance = roughing.radial_allowance
+    op.AxialAllowance = roughing.axial_allowance
+    op.FlatLevels = bool(roughing.flat_levels)
+    return op
 
 
 def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = cam.Cutting(),
@@ -73,7 +130,7 @@ def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = c
     for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
                         ("Tolerance", params.tolerance), ("Angle", params.angle),
                         ("Direction", params.direction), ("IsoDirection", params.iso_direction),
-                        ("Arcs", bool(params.arcs))):
+                        ("Arcs", bool(params.arcs)), ("RestLimit", params.rest_limit)):
         setattr(op, prop, value)
     return job, op
 
@@ -85,22 +142,90 @@ def machine(
     post: str = "linuxcnc",
     cutting: cam.Cutting = cam.Cutting(),
     document_path: str | os.PathLike | None = None,
+    roughing: RoughingParameters | None = None,
+    more_posts: dict | None = None,
 ) -> dict:
     """Compute, post and write the program; return the op's report plus timings.
 
+    With ``roughing``, the job roughs first (T1) and finishes with the ball (T2); the
+    roughing op's report is under ``roughing``, with its tool and stock box.
     The document is temporary and closed at the end (saved first to ``document_path`` if
-    given).  Errors in the op (bad parameters, unreachable tolerance) raise ValueError.
+    given).  ``more_posts`` ({post: path}) posts the same job by other post-processors too.
+    Errors in the op (bad parameters, unreachable tolerance) raise ValueError.
     """
+    def build(doc):
+        _, job, op = build_job(surface, params, cutting, doc, post, roughing)
+        return job, op
+
+    return _machine(build, params, gcode_path, post, cutting, document_path, roughing,
+                    more_posts)
+
+
+def machine_part(
+    part_path: str | os.PathLike,
+    params: FinishingParameters,
+    gcode_path: str | os.PathLike,
+    post: str = "linuxcnc",
+    cutting: cam.Cutting = cam.Cutting(),
+    document_path: str | os.PathLike | None = None,
+    roughing: RoughingParameters | None = None,
+    more_posts: dict | None = None,
+    faces=None,
+) -> dict:
+    """:func:`machine` for a part file (STEP, BREP, FCStd): the finishing op on its
+    ``faces`` (numbers, or None for every face reached from above), the roughing from a
+    block around the whole part."""
+    from pathlib import Path
+
+    from .faces import read_part
+
+    shape = read_part(str(part_path))
+
+    def build(doc):
+        model = doc.addObject("Part::Feature", "Part")
+        model.Shape = shape
+        model.Label = Path(part_path).stem
+        doc.recompute()
+        job, op = build_faces_job(model, params, cutting, faces, post)
+        if roughing is not None:
+            add_roughing(job, roughing, cutting)
+        return job, op
+
+    return _machine(build, params, gcode_path, post, cutting, document_path, roughing,
+                    more_posts)
+
+
+def _machine(build, params, gcode_path, post, cutting, document_path, roughing,
+             more_posts) -> dict:
+    """The common tail of :func:`machine` and :func:`machine_part`: a temporary document,
+    ``build(doc) -> (job, finishing op)``, recompute, every op checked, posts, reports."""
     compat.post_module(post)  # an unknown post-processor fails before any work
+    for other in more_posts or {}:
+        compat.post_module(other)
     doc = FreeCAD.newDocument("BSplineCAMJob")
     try:
         started = time.perf_counter()
-        _, job, op = build_job(surface, params, cutting, doc, post)
+        job, op = build(doc)
         doc.recompute()
-        report = json.loads(op.Report or "{}")
-        if "error" in report or not op.Path.Commands:
-            raise ValueError(report.get("error") or f"{op.Label}: no toolpath was produced")
+        reports = {}
+        for each in job.Operations.Group:
+            got = json.loads(getattr(each, "Report", "") or "{}")
+            if "error" in got or not each.Path.Commands:
+                raise ValueError(got.get("error") or f"{each.Label}: no toolpath was produced")
+            reports[each.Name] = got
+        report = reports[op.Name]
+        if roughing is not None:
+            rough_op = job.Operations.Group[0]
+            report["roughing"] = reports[rough_op.Name]
+            box = job.Stock.Shape.BoundBox
+            report["stock_mm"] = [box.XMin, box.XMax, box.YMin, box.YMax, box.ZMin, box.ZMax]
+            report["tools"] = {
+                str(int(tc.ToolNumber)): dict(zip(("shape", "diameter_mm", "corner_radius_mm"),
+                                                  compat.core_tool_shape(tc.Tool)))
+                for tc in job.Tools.Group}
         compute_seconds = time.perf_counter() - started
+        for other, path in (more_posts or {}).items():
+            cam.post_process(job, other, path, remember=False)
         cam.post_process(job, post, gcode_path)
         if document_path is not None:
             doc.saveAs(str(document_path))

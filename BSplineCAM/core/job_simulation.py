@@ -66,14 +66,18 @@ from .typing import FloatArray
 
 #: A program move that descends more than this (mm) is an entry (plunge, ramp, helix).
 ENTRY_DESCENT_MM = 1e-3
+#: Slack (mm) of an entry's footprint: the chords of its arcs cut inside their circle.
+ENTRY_REACH_MM = 0.02
 #: Smallest height drop (mm) that engages a cell (the threshold is at least a tenth of a cell).
 ENGAGEMENT_DEPTH_MM = 0.01
 #: Pieces a move is cut in are at most this many cells long (or two tool radii if longer).
 PIECE_CELLS = 32
 
 
-def entry_moves(program: Program) -> np.ndarray:
-    """Per program move: True for the moves of an entry (see the module docstring)."""
+def entry_moves(program: Program, segments: Segments | None = None) -> np.ndarray:
+    """Per program move: True for the moves of an entry (see the module docstring).
+    ``segments`` (the program linearised) give the footprint of arcs (helices) by their
+    chords; without them, by their end points."""
     feed = np.asarray(program.kind) != 0
     start = np.asarray(program.start, dtype=float)
     end = np.asarray(program.end, dtype=float)
@@ -82,8 +86,11 @@ def entry_moves(program: Program) -> np.ndarray:
     runs = np.flatnonzero(np.diff(np.concatenate([[0], out.view(np.int8), [0]])))
     for a, b in zip(runs[::2].tolist(), runs[1::2].tolist()):
         xy = np.concatenate([start[a:b, :2], end[a:b, :2]])
+        if segments is not None:
+            lo, hi = np.searchsorted(segments.move, [a, b])
+            xy = np.concatenate([xy, segments.start[lo:hi, :2], segments.end[lo:hi, :2]])
         centre = 0.5 * (xy.min(axis=0) + xy.max(axis=0))
-        reach = float(np.max(np.linalg.norm(xy - centre, axis=1))) + 1e-6
+        reach = float(np.max(np.linalg.norm(xy - centre, axis=1))) + ENTRY_REACH_MM
         level = end[b - 1, 2]
         j = b
         while (j < n and feed[j] and not out[j] and abs(end[j, 2] - level) <= ENTRY_DESCENT_MM
@@ -239,7 +246,7 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
                       else np.float32(-np.inf)).astype(np.float32)
     number = program.tool[seg.move] if n else np.zeros(0, np.intp)
     rapid = np.asarray(seg.rapid, bool)
-    entry = entry_moves(program)[seg.move] & ~rapid if n else np.zeros(0, bool)
+    entry = entry_moves(program, seg)[seg.move] & ~rapid if n else np.zeros(0, bool)
     numbers = np.array(sorted(tools), dtype=np.intp)
     known = np.isin(number, numbers)
     radius = np.zeros(n)

@@ -365,7 +365,8 @@ class JobPanel:
 
     #: The fields each strategy reads (the others are hidden).
     STRATEGY_FIELDS = {"raster": ("angle", "direction"), "waterline": (),
-                       "isoparametric": ("iso_direction", "direction")}
+                       "isoparametric": ("iso_direction", "direction"),
+                       "steep_shallow": ("angle",)}
 
     def show_strategy_fields(self, *_args) -> None:
         """Show the raster angle, direction and iso direction only where they apply."""

@@ -15,6 +15,7 @@ import FreeCAD
 COMMAND_MODULES: list[str] = [
     "BSplineCAM.gui.commands",
     "BSplineCAM.gui.cam_commands",
+    "BSplineCAM.gui.rough_panel",
     # >>> toolpath / verify engineers: add your command modules here, e.g.
     # "BSplineCAM.gui.toolpath_commands",
 ]
@@ -32,7 +33,7 @@ SURFACE_COMMANDS: list[str] = [
 # ============================================================================================
 # >>> TOOLPATH AND VERIFY COMMANDS GO HERE (later issues).  Add the command names in toolbar
 # >>> order; each becomes a toolbar and a submenu once the list is non-empty.
-TOOLPATH_COMMANDS: list[str] = ["BSplineCAM_Job", "BSplineCAM_PostProcess"]
+TOOLPATH_COMMANDS: list[str] = ["BSplineCAM_Job", "BSplineCAM_Rough", "BSplineCAM_PostProcess"]
 VERIFY_COMMANDS: list[str] = ["BSplineCAM_Verify"]
 # ============================================================================================
 

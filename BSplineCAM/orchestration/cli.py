@@ -385,7 +385,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: Modules of later stages; each has ``register(subparsers)`` adding its subcommand.
-STAGE_COMMANDS = [m for m in ("BSplineCAM.orchestration.cli_toolpath", "BSplineCAM.orchestration.cli_verify")
+STAGE_COMMANDS = [m for m in ("BSplineCAM.orchestration.cli_toolpath", "BSplineCAM.orchestration.cli_verify",
+                                "BSplineCAM.orchestration.cli_job")
                   if importlib.util.find_spec(m) is not None]
 
 

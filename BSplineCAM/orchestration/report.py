@@ -95,6 +95,44 @@ def plot_simulated(result: Verification, path: str | os.PathLike) -> None:
     _save(fig, path)
 
 
+def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> None:
+    """The stock after the last move of tool ``number`` (a whole-program verification):
+    hill-shaded height, coloured by the material left above the design (mm), with the
+    tool's figures in the title."""
+    from matplotlib.colors import LightSource
+
+    plt = _pyplot()
+    job = result.job
+    grid = job.grid
+    height = np.asarray(job.snapshots[number], dtype=float)
+    left = np.where(np.isfinite(result.design), height - result.design, np.nan)
+    top = float(np.nanmax(left)) if np.isfinite(left).any() else 1.0
+    cmap = plt.get_cmap("viridis")
+    light = LightSource(azdeg=315, altdeg=35)
+    colour = np.nan_to_num(np.clip(left, 0.0, max(top, 1e-3)) / max(top, 1e-3), nan=0.0)
+    rgb = cmap(colour)[..., :3]
+    shaded = light.shade_rgb(rgb, height, vert_exag=3.0, dx=grid.cell, dy=grid.cell,
+                             blend_mode="overlay")
+    fig, ax = plt.subplots(figsize=(7.5, 6.4), dpi=110)
+    ax.imshow(shaded, origin="lower", extent=_extent(result), interpolation="nearest")
+    mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, max(top, 1e-3)))
+    fig.colorbar(mappable, ax=ax).set_label("material left above the design (mm)")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    t = result.metrics["tools"][str(number)]
+    tool = t["tool"]
+    inside = np.isfinite(left)
+    low = float(np.min(left[inside])) if inside.any() else float("nan")
+    ax.set_title(f"Stock after T{number} ({tool['shape']} Ø{tool['diameter_mm']:g} mm): "
+                 f"left {low:.3f} to {top:.3f} mm above the design\n"
+                 f"removed {t['removed_volume_mm3'] / 1000:.1f} cm³, radial engagement max "
+                 f"{t['radial_engagement_max_mm']} mm, axial max {t['axial_engagement_max_mm']} mm",
+                 fontsize=9)
+    ax.set_aspect("equal")
+    fig.tight_layout()
+    _save(fig, path)
+
+
 def _save(fig, path: str | os.PathLike) -> None:
     """Save to a temporary name beside ``path`` and rename: no half-written picture."""
     plt = _pyplot()

@@ -1,0 +1,1051 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""3-axis Z-level roughing from a stock block down to the part plus a stock to leave.
+
+The part is a height function sampled on a grid.  The lowest allowed tool-tip height T(x, y) is
+the maximum over the tool's footprint of part + axial allowance - profile(|d|), the footprint
+grown by the radial allowance and by GRID_GROWTH_CELLS cells (so that no point of a contour,
+interpolated between cells and simplified, comes closer to the part than the allowance); it is
+the inverse tool offset of a Z-map (Choi & Jerard, "Sculptured Surface Machining", 1998, ch. 5).
+
+Each level z clears the allowed centres {T <= z} by distance fronts: Q_0 is air (centres whose
+tool disk lies outside the stock) or a helical entry, and Q_{k+1} = (Q_k dilated by the stepover
+s) intersected with {T <= z}.  The part of each front's boundary where it grew is a pass, so the
+width of cut stays within s; the wall pieces {T = z} a front reaches are cut right after it,
+from the new front towards the old one, and a last pass follows the level's walls.  Contours
+come from marching squares on the distance field, at sub-cell precision.
+
+Two grids of the level follow the cut: the material still uncut (a cell is cut once a pass
+comes within the tool radius, distances exact near that radius) decides which stretches cut
+and which links may stay down; an estimate of the machined surface (level + profile at the
+distance, never below the true floor) decides how low the tool may rapid and descend.  A pass
+that cannot be reached by a clear link or a straight descent is entered by a ramp along the
+pass itself at RAMP_ANGLE_DEG from the surface down to the level.
+
+Known limit: a pass running head-on into a sloped wall ends with its front half over the
+terrace above the slope; there the width of cut reaches about R + s/2.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..distance import squared_distance
+from ..errors import ParameterError
+from ..simulate import Grid, Tool
+from ..typing import FloatArray
+from .common import (
+    CancelFn,
+    Monitor,
+    Move,
+    ProgressFn,
+    check_finite,
+    check_positive,
+    check_range,
+    label_regions,
+    simplify,
+)
+
+HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
+
+#: Ramp angle of the helical entries (degrees).
+RAMP_ANGLE_DEG = 3.0
+#: Chord error of the helices (mm).
+HELIX_CHORD_MM = 0.01
+#: Largest number of grid cells; a finer cell is coarsened with a note.
+MAX_CELLS = 4_000_000
+#: Slope below which an area counts as flat (degrees) for the extra levels.
+FLAT_SLOPE_DEG = 1.0
+#: Flat areas smaller than this many tool areas get no level of their own.
+FLAT_TOOL_AREAS = 2.0
+_EPS = 1e-6
+#: Footprint growth against the grid (cells): a contour point lies on a cell edge, up to one
+#: cell from the allowed centre it was interpolated from, and simplification moves it by a
+#: quarter cell more; T at a centre then bounds the true T within 1.5 cells of it.
+GRID_GROWTH_CELLS = 1.5
+
+
+@dataclass(frozen=True)
+class Stock:
+    """A block of stock (mm)."""
+
+    x_min: float
+    x_max: float
+    y_min: float
+    y_max: float
+    z_min: float
+    z_max: float
+
+    def __post_init__(self) -> None:
+        for name in ("x_min", "x_max", "y_min", "y_max", "z_min", "z_max"):
+            object.__setattr__(self, name, check_finite(getattr(self, name), f"stock {name}",
+                                                        "mm"))
+        for axis in "xyz":
+            lo, hi = getattr(self, f"{axis}_min"), getattr(self, f"{axis}_max")
+            if not hi > lo:
+                raise ParameterError(
+                    f"stock {axis}_max ({hi:g} mm) must lie above {axis}_min ({lo:g} mm)")
+
+    @classmethod
+    def around(cls, bounds: tuple[float, float, float, float, float, float], margin: float,
+               top_margin: float | None = None) -> Stock:
+        """The part box (x0, x1, y0, y1, z0, z1) grown by ``margin`` sideways and
+        ``top_margin`` (default ``margin``) above; the bottom is the part's bottom (mm)."""
+        margin = check_range(margin, "margin", "mm", 0.0, math.inf)
+        top = margin if top_margin is None else check_range(top_margin, "top_margin", "mm",
+                                                            0.0, math.inf)
+        x0, x1, y0, y1, z0, z1 = (float(v) for v in bounds)
+        return cls(x0 - margin, x1 + margin, y0 - margin, y1 + margin, z0, z1 + top)
+
+
+@dataclass
+class TipHeight:
+    """Lowest allowed tool-tip Z (mm) per cell of ``grid`` (rows along y); ``z`` is (ny, nx)."""
+
+    grid: Grid
+    z: FloatArray
+
+
+@dataclass
+class Roughing:
+    """Roughing moves (tool-tip positions, machine order) and what was done."""
+
+    moves: list
+    levels: list
+    clearance_height: float
+    stats: dict
+    tip_height: TipHeight
+    parameters: dict = field(default_factory=dict)
+
+
+# -- validation ---------------------------------------------------------------------------------
+def _validate(height, stock, tool, stepdown, stepover, radial, axial, cell, clearance):
+    if not callable(height):
+        raise ParameterError(f"height must be a function (xs, ys) -> heights in mm, got "
+                             f"{height!r}")
+    if not isinstance(stock, Stock):
+        raise ParameterError(f"stock must be a Stock block (mm), got {stock!r}")
+    if not isinstance(tool, Tool):
+        raise ParameterError(f"tool must be a simulate.Tool, got {tool!r}")
+    stepdown = check_positive(stepdown, "stepdown", "mm")
+    stepover = check_positive(stepover, "stepover", "mm")
+    if stepover > tool.diameter:
+        raise ParameterError(
+            f"stepover must not exceed the tool diameter ({tool.diameter:g} mm), "
+            f"got {stepover:g} mm")
+    size = min(stock.x_max - stock.x_min, stock.y_max - stock.y_min)
+    radial = check_range(radial, "radial_allowance", "mm", 0.0, size)
+    axial = check_range(axial, "axial_allowance", "mm", 0.0, stock.z_max - stock.z_min)
+    if cell is not None:
+        cell = check_positive(cell, "cell", "mm")
+    if clearance is not None:
+        clearance = check_finite(clearance, "clearance_height", "mm")
+        if not clearance > stock.z_max:
+            raise ParameterError(
+                f"clearance_height must lie above the stock top ({stock.z_max:g} mm), "
+                f"got {clearance:g} mm")
+    return stepdown, stepover, radial, axial, cell, clearance
+
+
+# -- the tip-height map -------------------------------------------------------------------------
+def _sparse_table(P: FloatArray, widest: int) -> list:
+    """Row-wise running maxima over 1, 2, 4, ... columns (Bentley's sparse table)."""
+    table = [P]
+    span = 1
+    while 2 * span <= widest:
+        prev = table[-1]
+        table.append(np.maximum(prev[:, :-span], prev[:, span:]))
+        span *= 2
+    return table
+
+
+def _window_max(table: list, r0: int, r1: int, c0: int, c1: int, nx: int) -> FloatArray:
+    """max over columns x + c0 .. x + c1 (padded indices) of rows r0:r1, for x in 0..nx-1."""
+    n = c1 - c0 + 1
+    p = n.bit_length() - 1
+    t = table[p]
+    a = t[r0:r1, c0:c0 + nx]
+    b0 = c1 - (1 << p) + 1
+    return np.maximum(a, t[r0:r1, b0:b0 + nx])
+
+
+def tip_height(part: FloatArray, cell: float, tool: Tool, radial: float, axial: float,
+               floor: float, ztol: float) -> FloatArray:
+    """Lowest tool-tip Z per cell: max over the grown footprint of part + axial - profile.
+
+    ``part`` is (ny, nx) with NaN where no part lies.  The footprint radius is
+    R + radial + cell/sqrt(2); the profile is the tool's shifted out by radial + cell/sqrt(2).
+    Per row of offsets the columns are grouped into runs where the profile varies by at most
+    ``ztol`` (mm) and each run costs two look-ups in a sparse table of row maxima (van Herk /
+    Gil-Werman style max filter); the run's lowest profile value is used, so the result is
+    high by at most ``ztol``, never low.  Clamped below by ``floor``.
+    """
+    ny, nx = part.shape
+    grow = radial + GRID_GROWTH_CELLS * cell
+    Rg = tool.radius + grow
+    k = int(math.floor(Rg / cell + 1e-9))
+    H = np.where(np.isfinite(part), part + axial, -np.inf)
+    P = np.pad(H, k, constant_values=-np.inf)
+    table = _sparse_table(P, 2 * k + 1)
+
+    def fe(d: float, dy: int) -> float:
+        r = cell * math.hypot(d, dy)
+        return float(tool.profile(min(max(r - grow, 0.0), tool.radius)))
+
+    out = np.full((ny, nx), -np.inf)
+    lim = (Rg / cell) ** 2 + 1e-9
+    for dy in range(-k, k + 1):
+        w = int(math.floor(math.sqrt(max(lim - dy * dy, 0.0))))
+        r0 = dy + k
+        d0 = 0
+        while d0 <= w:
+            f0 = fe(d0, dy)
+            d1 = d0
+            while d1 + 1 <= w and fe(d1 + 1, dy) - f0 <= ztol:
+                d1 += 1
+            if d0 == 0:
+                m = _window_max(table, r0, r0 + ny, k - d1, k + d1, nx)
+            else:
+                m = np.maximum(_window_max(table, r0, r0 + ny, k - d1, k - d0, nx),
+                               _window_max(table, r0, r0 + ny, k + d0, k + d1, nx))
+            np.maximum(out, m - f0, out=out)
+            d0 = d1 + 1
+    return np.maximum(out, floor)
+
+
+def disk_max(values: FloatArray, radius: float) -> FloatArray:
+    """max of ``values`` over a disk of ``radius`` cells around each cell (-inf beyond)."""
+    k = int(math.floor(radius + 1e-9))
+    ny, nx = values.shape
+    table = _sparse_table(np.pad(values, k, constant_values=-np.inf), 2 * k + 1)
+    out = np.full(values.shape, -np.inf)
+    for dy in range(-k, k + 1):
+        w = int(math.floor(math.sqrt(max(radius * radius + 1e-9 - dy * dy, 0.0))))
+        np.maximum(out, _window_max(table, dy + k, dy + k + ny, k - w, k + w, nx), out=out)
+    return out
+
+
+# -- grid helpers -------------------------------------------------------------------------------
+def _bilinear(field_: FloatArray, fx: FloatArray, fy: FloatArray) -> FloatArray:
+    """Bilinear value at fractional cell indices (column fx, row fy), clamped to the grid."""
+    ny, nx = field_.shape
+    fx = np.clip(fx, 0.0, nx - 1.0)
+    fy = np.clip(fy, 0.0, ny - 1.0)
+    j = np.minimum(np.floor(fx).astype(int), max(nx - 2, 0))
+    i = np.minimum(np.floor(fy).astype(int), max(ny - 2, 0))
+    u, v = fx - j, fy - i
+    j1, i1 = np.minimum(j + 1, nx - 1), np.minimum(i + 1, ny - 1)
+    return ((1 - u) * (1 - v) * field_[i, j] + u * (1 - v) * field_[i, j1]
+            + (1 - u) * v * field_[i1, j] + u * v * field_[i1, j1])
+
+
+def capped_distance(mask: np.ndarray, cap: float) -> FloatArray:
+    """Euclidean distance (cells) from each cell centre to the nearest set cell, exact up to
+    ``cap`` and ceil(cap) + 1 beyond: min over |dy| <= cap of dy^2 + g(y + dy)^2, g the
+    distance along the row (the separable form of Felzenszwalb & Huttenlocher, 2012)."""
+    k = int(math.ceil(cap))
+    big = k + 1
+    ny, nx = mask.shape
+    cols = np.arange(nx)
+    left = np.where(mask, cols, -10 * (nx + big))
+    np.maximum.accumulate(left, axis=1, out=left)
+    right = np.where(mask, cols, 10 * (nx + big))
+    right = np.minimum.accumulate(right[:, ::-1], axis=1)[:, ::-1]
+    g = np.minimum(np.minimum(cols - left, right - cols), big)
+    f = g * g
+    best = f.copy()
+    for dy in range(1, min(k, ny - 1) + 1):
+        c = dy * dy
+        np.minimum(best[dy:], f[:-dy] + c, out=best[dy:])
+        np.minimum(best[:-dy], f[dy:] + c, out=best[:-dy])
+    return np.sqrt(np.minimum(best, big * big).astype(float))
+
+
+def _polyline_distance(pts: FloatArray, path: FloatArray) -> FloatArray:
+    """Distance (mm) from each point (k, 2) to the polyline ``path`` (n, 2)."""
+    if len(path) == 1:
+        return np.hypot(*(pts - path[0]).T)
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    L2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    out = np.full(len(pts), np.inf)
+    step = max(1, 2_000_000 // max(len(a), 1))
+    for k in range(0, len(pts), step):
+        p = pts[k:k + step, None, :]
+        t = np.clip(np.einsum("kij,ij->ki", p - a[None], ab) / L2, 0.0, 1.0)
+        d = np.hypot(*np.moveaxis(p - (a[None] + t[..., None] * ab[None]), -1, 0))
+        out[k:k + step] = d.min(axis=1)
+    return out
+
+
+def _corner_min(field_: FloatArray, fx: FloatArray, fy: FloatArray) -> FloatArray:
+    """Smallest value among the (up to) four cell centres around fractional indices."""
+    ny, nx = field_.shape
+    j = np.clip(np.floor(fx).astype(int), 0, nx - 1)
+    i = np.clip(np.floor(fy).astype(int), 0, ny - 1)
+    j1, i1 = np.minimum(j + 1, nx - 1), np.minimum(i + 1, ny - 1)
+    return np.minimum(np.minimum(field_[i, j], field_[i, j1]),
+                      np.minimum(field_[i1, j], field_[i1, j1]))
+
+
+def _densify(pts: FloatArray, step: float) -> FloatArray:
+    """Points along a polyline (k, 2) no farther apart than ``step``."""
+    if len(pts) < 2:
+        return pts.copy()
+    out = [pts[:1]]
+    for a, b in zip(pts[:-1], pts[1:]):
+        n = max(1, int(math.ceil(float(np.hypot(*(b - a))) / step)))
+        t = (np.arange(1, n + 1) / n)[:, None]
+        out.append(a + t * (b - a))
+    return np.concatenate(out)
+
+
+def marching_squares(F: FloatArray) -> list:
+    """Polylines (k, 2) in fractional cell indices (column, row) of the level set F = 0.
+
+    Inside is F <= 0; each polyline is oriented with the inside on its right (climb milling
+    with a clockwise spindle leaves the material on the left).  Saddles are resolved by the
+    cell's mean.  Closed loops repeat their first point at the end.
+    """
+    ny, nx = F.shape
+    if ny < 2 or nx < 2:
+        return []
+    ins = F <= 0.0
+    a, b = F[:-1, :-1], F[:-1, 1:]
+    d, c = F[1:, :-1], F[1:, 1:]
+    ia, ib, id_, ic = ins[:-1, :-1], ins[:-1, 1:], ins[1:, :-1], ins[1:, 1:]
+    code = ia.astype(np.int8) + 2 * ib + 4 * ic + 8 * id_
+    cells = np.flatnonzero((code != 0) & (code != 15))
+    if not len(cells):
+        return []
+    ci, cj = np.divmod(cells, nx - 1)
+    nh = ny * (nx - 1)
+
+    def hid(i, j):
+        return i * (nx - 1) + j
+
+    def vid(i, j):
+        return nh + i * nx + j
+
+    def cross_h(i, j):  # between (i, j) and (i, j+1)
+        f0, f1 = F[i, j], F[i, j + 1]
+        return np.stack([j + f0 / (f0 - f1), i + 0.0 * f0], axis=-1)
+
+    def cross_v(i, j):  # between (i, j) and (i+1, j)
+        f0, f1 = F[i, j], F[i + 1, j]
+        return np.stack([j + 0.0 * f0, i + f0 / (f0 - f1)], axis=-1)
+
+    e_id = np.stack([hid(ci, cj), vid(ci, cj + 1), hid(ci + 1, cj), vid(ci, cj)], axis=1)
+    crossed = np.stack([ia.ravel()[cells] != ib.ravel()[cells],
+                        ib.ravel()[cells] != ic.ravel()[cells],
+                        id_.ravel()[cells] != ic.ravel()[cells],
+                        ia.ravel()[cells] != id_.ravel()[cells]], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pts = np.stack([cross_h(ci, cj), cross_v(ci, cj + 1), cross_h(ci + 1, cj),
+                        cross_v(ci, cj)], axis=1)
+    saddle = crossed.sum(axis=1) == 4
+    seg_cell, seg_e0, seg_e1 = [], [], []
+    two = np.flatnonzero(~saddle)
+    order = np.argsort(~crossed[two], axis=1, kind="stable")[:, :2]
+    seg_cell.append(two)
+    seg_e0.append(order[:, 0])
+    seg_e1.append(order[:, 1])
+    sad = np.flatnonzero(saddle)
+    if len(sad):
+        fl = cells[sad]
+        mean = (a.ravel()[fl] + b.ravel()[fl] + c.ravel()[fl] + d.ravel()[fl]) / 4.0
+        centre_as_a = (mean <= 0.0) == ia.ravel()[fl]
+        # centre joins a and c: cut off b (edges 0, 1) and d (2, 3); else a (3, 0) and c (1, 2)
+        e0a = np.where(centre_as_a, 0, 3)
+        e1a = np.where(centre_as_a, 1, 0)
+        e0b = np.where(centre_as_a, 2, 1)
+        e1b = np.where(centre_as_a, 3, 2)
+        seg_cell += [sad, sad]
+        seg_e0 += [e0a, e0b]
+        seg_e1 += [e1a, e1b]
+    sc = np.concatenate(seg_cell)
+    s0 = np.concatenate(seg_e0)
+    s1 = np.concatenate(seg_e1)
+    p0 = pts[sc, s0]
+    p1 = pts[sc, s1]
+    k0 = e_id[sc, s0]
+    k1 = e_id[sc, s1]
+    # orientation: inside (F decreasing) on the right of p0 -> p1
+    mid = 0.5 * (p0 + p1)
+    i0, j0 = ci[sc], cj[sc]
+    u, v = mid[:, 0] - j0, mid[:, 1] - i0
+    fa, fb = a.ravel()[cells[sc]], b.ravel()[cells[sc]]
+    fc, fd = c.ravel()[cells[sc]], d.ravel()[cells[sc]]
+    gx = (1 - v) * (fb - fa) + v * (fc - fd)
+    gy = (1 - u) * (fd - fa) + u * (fc - fb)
+    t = p1 - p0
+    good = (t[:, 1] * gx - t[:, 0] * gy) < 0
+    # chain the segments through shared edge crossings (undirected, then orient by majority)
+    ends: dict = {}
+    for s, (e0, e1) in enumerate(zip(k0.tolist(), k1.tolist())):
+        ends.setdefault(e0, []).append(s)
+        ends.setdefault(e1, []).append(s)
+    used = np.zeros(len(sc), bool)
+    k0l, k1l = k0.tolist(), k1.tolist()
+    lines = []
+
+    def walk(s: int, key: int) -> tuple[list, list]:
+        """Follow from segment s leaving through crossing ``key``; keys and segments."""
+        keys, segs = [], []
+        while True:
+            nxt = [q for q in ends.get(key, []) if not used[q]]
+            if not nxt:
+                return keys, segs
+            q = nxt[0]
+            used[q] = True
+            segs.append(q)
+            key = k1l[q] if k0l[q] == key else k0l[q]
+            keys.append(key)
+
+    point_of = {}
+    for s in range(len(sc)):
+        point_of.setdefault(k0l[s], p0[s])
+        point_of.setdefault(k1l[s], p1[s])
+    for s in range(len(sc)):
+        if used[s]:
+            continue
+        used[s] = True
+        fwd_keys, fwd_segs = walk(s, k1l[s])
+        closed = bool(fwd_keys) and fwd_keys[-1] == k0l[s]
+        if closed:
+            keys = [k0l[s], k1l[s], *fwd_keys]
+            segs = [s, *fwd_segs]
+        else:
+            back_keys, back_segs = walk(s, k0l[s])
+            keys = [*back_keys[::-1], k0l[s], k1l[s], *fwd_keys]
+            segs = [*back_segs[::-1], s, *fwd_segs]
+        poly = np.array([point_of[kk] for kk in keys])
+        # majority vote of the segments' orientation tests along the chain's direction
+        vote = 0
+        for idx, q in enumerate(segs):
+            forward = k0l[q] == keys[idx]
+            vote += 1 if forward == bool(good[q]) else -1
+        if vote < 0:
+            poly = poly[::-1]
+        lines.append(poly)
+    return lines
+
+
+# -- the generator ------------------------------------------------------------------------------
+class _Writer:
+    """Moves with the tool's position, counts and the uncut-material grid of the level."""
+
+    def __init__(self, clearance: float):
+        self.moves: list[Move] = []
+        self.clear = clearance
+        self.pos = None  # (x, y, z) or None before the first move
+        self.retracts = 0
+
+    def add(self, kind: str, x: float, y: float, z: float) -> None:
+        p = (float(x), float(y), float(z))
+        if self.pos is not None and np.allclose(p, self.pos, atol=1e-9, rtol=0):
+            return
+        self.moves.append(Move(kind, *p))
+        self.pos = p
+
+    def retract(self) -> None:
+        if self.pos is not None and self.pos[2] < self.clear:
+            self.add("rapid", self.pos[0], self.pos[1], self.clear)
+            self.retracts += 1
+
+
+def generate_roughing(height: HeightFn, stock: Stock, tool: Tool, stepdown: float,
+                      stepover: float, radial_allowance: float = 0.0,
+                      axial_allowance: float = 0.0, cell: float | None = None,
+                      clearance_height: float | None = None, flat_levels: bool = True,
+                      progress: ProgressFn = None, cancel: CancelFn = None) -> Roughing:
+    """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``.
+
+    ``stepdown`` (mm) between levels, ``stepover`` (mm, at most the diameter) the largest
+    radial width of cut, allowances (mm) left on the walls and floors, ``cell`` (mm) the
+    grid (default min(stepover/10, diameter/40) within [0.05, 0.5]), ``clearance_height``
+    (mm, default stock top + 5).  With ``flat_levels`` flat areas get a level of their own.
+    Moves are tool-tip positions; see the module docstring for the method.
+    """
+    started = time.perf_counter()
+    monitor = Monitor(progress, cancel, "roughing")
+    stepdown, s, ar, aa, cell, clearance = _validate(
+        height, stock, tool, stepdown, stepover, radial_allowance, axial_allowance, cell,
+        clearance_height)
+    notes: list[str] = []
+    R = tool.radius
+    if cell is None:
+        cell = min(max(min(s / 10.0, tool.diameter / 40.0), 0.05), 0.5)
+    margin = R + ar + s + 4.0 * cell
+    width = stock.x_max - stock.x_min + 2 * margin
+    depth = stock.y_max - stock.y_min + 2 * margin
+    if (width / cell) * (depth / cell) > MAX_CELLS:
+        coarse = math.sqrt(width * depth / MAX_CELLS)
+        notes.append(f"grid cell coarsened from {cell:g} mm to {coarse:.3g} mm to stay within "
+                     f"{MAX_CELLS / 1e6:g} million cells")
+        cell = coarse
+        margin = R + ar + s + 4.0 * cell
+    grid = Grid.covering(stock.x_min - margin, stock.x_max + margin, stock.y_min - margin,
+                         stock.y_max + margin, cell)
+    xs, ys = grid.centres()
+    part = np.asarray(height(xs, ys), dtype=float)
+    if part.shape != (grid.ny, grid.nx):
+        raise ParameterError(f"height must return an array of shape (len(ys), len(xs)) = "
+                             f"{(grid.ny, grid.nx)}, got {part.shape}")
+    has = np.isfinite(part)
+    if has.any():
+        xg, yg = np.meshgrid(xs, ys)
+        out = has & ((xg < stock.x_min - cell) | (xg > stock.x_max + cell)
+                     | (yg < stock.y_min - cell) | (yg > stock.y_max + cell))
+        if out.any():
+            raise ParameterError(
+                "stock must contain the part's XY extent: part found at "
+                f"x={xg[out][0]:.3f}, y={yg[out][0]:.3f} mm outside the stock")
+        top_part = float(part[has].max())
+        if top_part > stock.z_max + 1e-9:
+            raise ParameterError(
+                f"stock top ({stock.z_max:g} mm) lies below the part's highest point "
+                f"({top_part:.3f} mm)")
+    clearance = stock.z_max + 5.0 if clearance is None else clearance
+    ztol = min(0.01, stepdown / 50.0)
+    T = tip_height(part, cell, tool, ar, aa, stock.z_min, ztol)
+    monitor(0.05)
+
+    xg, yg = np.meshgrid(xs, ys)
+    in_stock = ((xg >= stock.x_min) & (xg <= stock.x_max)
+                & (yg >= stock.y_min) & (yg <= stock.y_max))
+    dxo = np.maximum(np.maximum(stock.x_min - xg, xg - stock.x_max), 0.0)
+    dyo = np.maximum(np.maximum(stock.y_min - yg, yg - stock.y_max), 0.0)
+    air = np.hypot(dxo, dyo) >= R * (1 + 1e-9)
+    levels = _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels)
+    Hp = np.where(has, part + aa, -np.inf)
+
+    job = _Job(grid, T, Hp, tool, s, ar, cell, stock, clearance, notes, monitor)
+    job.stepdown, job.in_stock = stepdown, in_stock
+    for li, z in enumerate(levels):
+        z_above = stock.z_max if li == 0 else levels[li - 1]
+        job.level(z, z_above, in_stock, air, li, len(levels))
+    job.writer.retract()
+    job.report_leftover()
+
+    moves = job.writer.moves
+    cut = 0.0
+    prev = None
+    for m in moves:
+        if prev is not None and m.kind == "feed":
+            cut += math.dist(prev, m[1:])
+        prev = m[1:]
+    stats = {
+        "seconds": time.perf_counter() - started,
+        "levels": len(levels),
+        "passes": job.passes,
+        "cutting_length_mm": cut,
+        "entries": {"helical": job.helical, "outside": job.outside, "ramp": job.ramps},
+        "entry_spans": job.entry_spans,
+        "retracts": job.writer.retracts,
+        "ramps": job.ramps,
+        "cell_mm": cell,
+        "notes": notes,
+    }
+    monitor(1.0)
+    params = {"stepdown": stepdown, "stepover": s, "radial_allowance": ar,
+              "axial_allowance": aa, "cell": cell, "flat_levels": bool(flat_levels),
+              "tool": {"diameter": tool.diameter, "shape": tool.shape.value,
+                       "corner_radius": tool.corner_radius}}
+    return Roughing(moves, [float(z) for z in levels], float(clearance), stats,
+                    TipHeight(grid, T), params)
+
+
+def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> list:
+    """Stock top - k stepdown down to the lowest level needed, plus flat-area heights."""
+    reach = T[in_stock]
+    low = max(float(reach.min()) if reach.size else stock.z_min, stock.z_min)
+    top = stock.z_max
+    levels = []
+    k = 1
+    while top - k * stepdown > low + 1e-6:
+        levels.append(top - k * stepdown)
+        k += 1
+    if low < top - 1e-6:
+        levels.append(low)
+    if flat_levels:
+        finite = np.isfinite(part)
+        filled = np.where(finite, part, 0.0)
+        gy, gx = np.gradient(filled, cell)
+        flat = finite & in_stock & (np.hypot(gx, gy) < math.tan(math.radians(FLAT_SLOPE_DEG)))
+        flat[1:-1, 1:-1] &= finite[:-2, 1:-1] & finite[2:, 1:-1] & finite[1:-1, :-2] & \
+            finite[1:-1, 2:]
+        if flat.any():
+            labels, n = label_regions(flat)
+            counts = np.bincount(labels[flat], minlength=n)
+            big = np.flatnonzero(counts * cell * cell >= FLAT_TOOL_AREAS * math.pi * R * R)
+            for comp in big.tolist():
+                h = float(np.median(part[labels == comp])) + aa
+                if low + 1e-3 < h < top - 1e-3 and all(abs(h - z) > 1e-3 for z in levels):
+                    levels.append(h)
+    return sorted(levels, reverse=True)
+
+
+class _Job:
+    """State of one roughing run: the grids, the writer and the running counts."""
+
+    def __init__(self, grid, T, Hp, tool, s, ar, cell, stock, clearance, notes, monitor):
+        self.grid, self.T, self.Hp, self.tool = grid, T, Hp, tool
+        self.s, self.ar, self.cell, self.stock = s, ar, cell, stock
+        self.notes, self.monitor = notes, monitor
+        self.R = tool.radius
+        self.Rc = tool.radius / cell
+        self.writer = _Writer(clearance)
+        self.passes = 0
+        self.helical = 0
+        self.outside = 0
+        self.ramps = 0
+        self.entry_spans: list = []
+        self.floor = np.full(T.shape, stock.z_max)  # lowest level cut at each cell
+        self.skipped: list = []
+
+    # coordinates
+    def xy(self, f: FloatArray) -> FloatArray:
+        g = self.grid
+        return np.column_stack([g.x0 + (f[:, 0] + 0.5) * g.cell, g.y0 + (f[:, 1] + 0.5) * g.cell])
+
+    def idx(self, p: FloatArray) -> FloatArray:
+        g = self.grid
+        p = np.atleast_2d(np.asarray(p, dtype=float))
+        return np.column_stack([(p[:, 0] - g.x0) / g.cell - 0.5, (p[:, 1] - g.y0) / g.cell - 0.5])
+
+    def window(self, f: FloatArray, pad: float) -> tuple[int, int, int, int]:
+        ny, nx = self.T.shape
+        j0 = max(int(math.floor(f[:, 0].min() - pad)), 0)
+        j1 = min(int(math.ceil(f[:, 0].max() + pad)) + 1, nx)
+        i0 = max(int(math.floor(f[:, 1].min() - pad)), 0)
+        i1 = min(int(math.ceil(f[:, 1].max() + pad)) + 1, ny)
+        return i0, i1, j0, j1
+
+    # the uncut-material grid
+    def mark(self, path_xy: FloatArray) -> None:
+        """Record the cut of the tool along a path at the level: cells within R of it leave
+        the uncut grid and the surface estimate drops to the level plus the profile there.
+        Distances come from the path's samples rounded to cells (good to 3/4 cell), exact to
+        the path's segments in the band where that rounding could decide."""
+        f = self.idx(_densify(path_xy, 0.5 * self.cell))
+        i0, i1, j0, j1 = self.window(f, self.Rc + 2)
+        m = np.zeros((i1 - i0, j1 - j0), bool)
+        ii = np.clip(np.rint(f[:, 1]).astype(int) - i0, 0, i1 - i0 - 1)
+        jj = np.clip(np.rint(f[:, 0]).astype(int) - j0, 0, j1 - j0 - 1)
+        m[ii, jj] = True
+        d = capped_distance(m, self.Rc + 1)
+        dist = np.minimum(d + 0.75, self.Rc + 1.0) * self.cell  # >= the true distance
+        band = np.flatnonzero((d > self.Rc - 1.0) & (d <= self.Rc + 1.0))
+        if len(band):
+            by, bx = np.divmod(band, j1 - j0)
+            pts = self.xy(np.column_stack([bx + j0, by + i0]).astype(float))
+            dist.flat[band] = _polyline_distance(pts, np.asarray(path_xy, dtype=float))
+        cut = dist <= self.R
+        self.uncut[i0:i1, j0:j1] &= ~cut
+        fl = self.floor[i0:i1, j0:j1]
+        fl[cut] = np.minimum(fl[cut], self.z)
+        sf = self.surface[i0:i1, j0:j1]
+        sf[cut] = np.minimum(sf[cut], self.z + self.tool.profile(dist[cut]))
+
+    def safe_at(self, q: FloatArray, z: float) -> float:
+        """Lowest tip height (>= z) at q (xy) where the tool meets none of the material the
+        surface estimate holds, the cells taken 3/4 cell nearer for their size (the profile
+        of a bull-nose or ball rises steeply at its rim)."""
+        f = self.idx(q)[0]
+        i0, i1, j0, j1 = self.window(f[None, :], self.Rc + 2)
+        jj, ii = np.meshgrid(np.arange(j0, j1), np.arange(i0, i1))
+        r = np.hypot(jj - f[0], ii - f[1]) * self.cell - 0.75 * self.cell
+        inside = r <= self.R
+        top = self.surface[i0:i1, j0:j1][inside] - self.tool.profile(np.maximum(r[inside], 0))
+        return max(float(top.max(initial=-np.inf)), z)
+
+    def clear_near(self, q: FloatArray, z: float) -> FloatArray | None:
+        """A point within a tool radius of q where the tool may descend straight to z and
+        then feed to q (a valid link); the nearest of the first few found, or None."""
+        k = int(self.Rc)
+        dj, di = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1))
+        r = np.hypot(dj, di).ravel()
+        order = np.argsort(r, kind="stable")
+        order = order[(r[order] >= 1.0) & (r[order] <= k)]
+        tried = 0
+        for o in order[:: max(1, len(order) // 60)]:
+            c = q + self.cell * np.array([dj.flat[o], di.flat[o]], dtype=float)
+            if self.safe_at(c, z) > z + 0.01:
+                continue
+            tried += 1
+            if self.link_ok((c[0], c[1], z), (q[0], q[1], z), z):
+                return c
+            if tried >= 6:
+                break
+        return None
+
+    def link_ok(self, p: tuple, q: tuple, z: float) -> bool:
+        """A feed from p to q at level z stays in {T <= z} and its tool meets no uncut
+        material (within the grid's rounding of the cut region)."""
+        a = np.array(p[:2])
+        b = np.array(q[:2])
+        f = self.idx(_densify(np.array([a, b]), 0.5 * self.cell))
+        if np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3):
+            return False
+        i0, i1, j0, j1 = self.window(f, self.Rc + 3)
+        sub = self.uncut[i0:i1, j0:j1]
+        if not sub.any():
+            return True
+        d = capped_distance(sub, self.Rc + 2)
+        return bool(np.all(_bilinear(d, f[:, 0] - j0, f[:, 1] - i0) >= self.Rc - 1.25))
+
+    def descend(self, q: FloatArray, z: float, over: float) -> None:
+        """Retract, rapid over q, rapid down to ``over`` and feed down to z."""
+        w = self.writer
+        w.retract()
+        w.add("rapid", q[0], q[1], w.clear)
+        if over < w.clear:
+            w.add("rapid", q[0], q[1], over)
+        w.add("feed", q[0], q[1], z)
+
+    def cut_path(self, p: FloatArray, z: float, z_above: float) -> None:
+        """Reach the start of pass p (xy) on level z and cut it: a straight stay-down link if
+        it meets no uncut material; else retract and descend straight at the start, or at a
+        point within a tool radius of it followed by such a link, where the surface estimate
+        leaves the tool's disk clear down to z; else ramp down along the pass itself at
+        RAMP_ANGLE_DEG from the surface at its start."""
+        w = self.writer
+        closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
+        q = (float(p[0, 0]), float(p[0, 1]), z)
+        route = p
+        if w.pos is not None and abs(w.pos[2] - z) < 1e-9 and \
+                math.dist(w.pos[:2], q[:2]) <= 10 * self.tool.diameter and \
+                self.link_ok(w.pos, q, z):
+            w.add("feed", *q)
+        elif (top := self.safe_at(p[0], z)) <= z + 0.01:
+            self.descend(p[0], z, z + 1.0)
+        elif (near := self.clear_near(p[0], z)) is not None:
+            self.descend(near, z, z + 1.0)
+            w.add("feed", *q)
+        else:
+            self.descend(p[0], top, top + 1.0)
+            first = len(w.moves)
+            ramp, route = _ramp(p, closed, top - z,
+                                math.tan(math.radians(RAMP_ANGLE_DEG)))
+            for x, y, zz in ramp:
+                w.add("feed", x, y, z + zz)
+            self.entry_spans.append([first, len(w.moves)])
+            self.ramps += 1
+        for x, y in route[1:]:
+            w.add("feed", x, y, z)
+        self.passes += 1
+        self.mark(p)
+
+    # one level
+    def level(self, z, z_above, in_stock, air, li, nlevels) -> None:
+        tip, cell = self.T, self.cell
+        if not hasattr(self, "surface"):
+            self.surface = np.where(in_stock, self.stock.z_max, -np.inf)
+        A = tip <= z + _EPS
+        self.uncut = in_stock & (self.Hp < z_above - _EPS)
+        self.z = z
+        labels, n = label_regions(A)
+        Q = A & air
+        entered = np.zeros(n + 1, bool)  # index -1 -> the last slot stays False
+        entered[np.unique(labels[Q])] = True
+        self.outside += int(entered.sum())
+        self.allowed = A & entered[labels]
+        for comp in range(n):
+            if entered[comp]:
+                continue
+            mask = labels == comp
+            centre = self.helix(mask, z, z_above)
+            if centre is None:
+                continue
+            entered[comp] = True
+            self.allowed |= mask
+            cx, cy, rh = centre
+            Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
+        frac0 = (li + 0.05) / nlevels
+        # growing fronts
+        k = 0
+        while True:
+            self.monitor(0.05 + 0.9 * (frac0 + min(k, 50) / 60.0 / nlevels))
+            dQ = capped_distance(Q, self.s / cell + 2) * cell
+            F = np.maximum(dQ - self.s, tip - z)
+            F[A & ~self.allowed] = 1.0
+            Qn = F <= 0.0
+            if Qn.sum() <= Q.sum():
+                break
+            k += 1
+            self.cut_contours(F, z, z_above, front=dQ - self.s)
+            Q = Qn
+        # walls
+        F = tip - z
+        F[A & ~self.allowed] = 1.0
+        self.cut_contours(F, z, z_above, front=None)
+
+    @property
+    def X(self):
+        xs, ys = self.grid.centres()
+        return xs[None, :]
+
+    @property
+    def Y(self):
+        xs, ys = self.grid.centres()
+        return ys[:, None]
+
+    def helix(self, mask, z, z_above):
+        """Helical entry into a component not reaching air; (cx, cy, radius) or None."""
+        idx = np.argwhere(mask)
+        i0, j0 = idx.min(axis=0) - 1
+        i1, j1 = idx.max(axis=0) + 2
+        i0, j0 = max(i0, 0), max(j0, 0)
+        sub = mask[i0:i1, j0:j1]
+        d = np.sqrt(squared_distance(~sub))
+        d[~sub] = 0.0
+        at = int(np.argmax(d))
+        ci, cj = divmod(at, sub.shape[1])
+        r_fit = (float(d.flat[at]) - 1.5) * self.cell
+        r_min = max(2 * self.cell, 0.05 * self.tool.diameter)
+        cx, cy = self.xy(np.array([[cj + j0, ci + i0]], dtype=float))[0]
+        if r_fit < r_min:
+            self.skipped.append((z, float(cx), float(cy), mask.sum() * self.cell ** 2))
+            return None
+        rh = min(0.4 * self.tool.diameter, 0.8 * self.R, r_fit)
+        w = self.writer
+        w.retract()
+        first = len(w.moves)
+        sx, sy = cx + rh, cy
+        w.add("rapid", sx, sy, w.clear)
+        z_above = self.safe_at(np.array([sx, sy]), z)
+        if z_above + 1.0 < w.clear:
+            w.add("rapid", sx, sy, z_above + 1.0)
+        w.add("feed", sx, sy, z_above)
+        dth = 2.0 * math.acos(max(1.0 - HELIX_CHORD_MM / rh, -1.0))
+        per_turn = 2 * math.pi * rh * math.tan(math.radians(RAMP_ANGLE_DEG))
+        turns = max((z_above - z) / per_turn, 0.0)
+        total = 2 * math.pi * (turns + 1.0)
+        n = max(8, int(math.ceil(total / dth)))
+        th = np.linspace(0.0, total, n + 1)[1:]
+        zz = np.maximum(z_above - (z_above - z) * th / max(2 * math.pi * turns, 1e-12), z)
+        # clockwise: the material outside stays on the left (climb)
+        px, py = cx + rh * np.cos(-th), cy + rh * np.sin(-th)
+        for x, y, zh in zip(px, py, zz):
+            w.add("feed", x, y, zh)
+        self.entry_spans.append([first, len(w.moves)])
+        self.helical += 1
+        self.passes += 1
+        ring = np.column_stack([px, py])
+        self.mark(ring)
+        # the core within R - rh of the centre
+        self.mark(np.array([[cx, cy], [cx, cy]]))
+        return float(cx), float(cy), rh
+
+    def cut_contours(self, F, z, z_above, front) -> None:
+        """Cut the contour F = 0 where the tool meets uncut material.
+
+        With ``front`` (distance to the cleared centres less the stepover, mm) the contour
+        is a new front: its front pieces are cut first (climb), then the pieces on the walls
+        {T = z} that the front newly reached, each from its end nearer the new front towards
+        the old one, so that the strip beside it is already cut.  Without, the contour is
+        the level's final wall pass.
+        """
+        lines = marching_squares(F)
+        if not lines:
+            return
+        # distance (cells) to uncut material, only around the contour (values beyond the
+        # window are not needed: a vertex's window reaches past the tool radius)
+        every = np.concatenate(lines)
+        i0, i1, j0, j1 = self.window(every, self.Rc + 4)
+        du = np.full(F.shape, 1e9)
+        sub = self.uncut[i0:i1, j0:j1]
+        if sub.any():
+            du[i0:i1, j0:j1] = capped_distance(sub, self.Rc + 2)
+        back = int(2 * self.Rc) + 2
+        fronts, walls = [], []
+        for line in lines:
+            dv = _bilinear(du, line[:, 0], line[:, 1])
+            cuts = dv < self.Rc - 1.25
+            if not cuts.any():
+                continue
+            closed = len(line) > 2 and bool(np.allclose(line[0], line[-1]))
+            free, clear = dv >= self.Rc - 1.25, dv >= self.Rc + 1.0
+            if front is None:
+                for piece in _stretches(line, cuts, free, clear, closed, back):
+                    ends = _bilinear(du, piece[[0, -1], 0], piece[[0, -1], 1]) >= self.Rc + 1.0
+                    fronts.append(piece[::-1] if ends[1] and not ends[0] else piece)
+                continue
+            tz = _bilinear(self.T - z, line[:, 0], line[:, 1])
+            fr = _bilinear(front, line[:, 0], line[:, 1])
+            is_front = fr >= tz
+            for piece in _stretches(line, cuts & is_front, free, clear, closed, back):
+                # climb, unless only the end is out of the material (saves a ramp)
+                ends = _bilinear(du, piece[[0, -1], 0], piece[[0, -1], 1]) >= self.Rc + 1.0
+                fronts.append(piece[::-1] if ends[1] and not ends[0] else piece)
+            # wall pieces away from the old boundary (distance to it above 1.5 cells)
+            new = fr + self.s > 1.5 * self.cell
+            for piece in _stretches(line, cuts & ~is_front & new, free, clear, closed, back):
+                d = _bilinear(front, piece[:, 0], piece[:, 1])
+                closed_piece = len(piece) > 2 and bool(np.allclose(piece[0], piece[-1]))
+                walls.append(piece if closed_piece or d[0] >= d[-1] else piece[::-1])
+        self.emit(fronts, z, z_above)
+        self.emit(walls, z, z_above)
+
+    def emit(self, stretches: list, z: float, z_above: float) -> None:
+        """Simplify the stretches (fractional indices) within cell/4 and cut them, nearest
+        next first; an open stretch is cut in its own direction, a closed one from its
+        vertex nearest the tool."""
+        if not stretches:
+            return
+        pts = [self.xy(p) for p in stretches]
+        starts = np.cumsum([0] + [len(p) for p in pts])
+        allp = np.concatenate(pts)
+        keep = simplify(np.column_stack([allp, np.full(len(allp), z)]), starts,
+                        0.25 * self.cell, "planar")
+        paths = [allp[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+        remaining = list(range(len(paths)))
+        while remaining:
+            here = np.array(self.writer.pos[:2]) if self.writer.pos is not None else \
+                paths[remaining[0]][0]
+            best, best_d, best_i = None, math.inf, 0
+            for r in remaining:
+                p = paths[r]
+                if len(p) > 2 and np.allclose(p[0], p[-1]):
+                    dd = np.hypot(*(p - here).T)
+                    i = int(np.argmin(dd))
+                    d0 = float(dd[i])
+                else:
+                    i, d0 = 0, math.dist(here, p[0])
+                if d0 < best_d:
+                    best, best_d, best_i = r, d0, i
+            remaining.remove(best)
+            p = paths[best]
+            if len(p) > 2 and np.allclose(p[0], p[-1]) and best_i:
+                p = np.concatenate([p[best_i:-1], p[:best_i + 1]])
+            self.cut_path(p, z, z_above)
+
+    def report_leftover(self) -> None:
+        cell = self.cell
+        if self.skipped:
+            # one entry per place (levels of one pocket lie within a tool radius)
+            groups: list = []
+            for z, x, y, _ in self.skipped:
+                for g in groups:
+                    if math.hypot(g[0] - x, g[1] - y) <= self.R:
+                        g[2], g[3] = max(g[2], z), min(g[3], z)
+                        break
+                else:
+                    groups.append([x, y, z, z])
+            parts = ", ".join(
+                f"({x:.1f}, {y:.1f}) at Z {hi:.2f}" + (f" to {lo:.2f}" if lo < hi else "")
+                for x, y, hi, lo in groups[:6])
+            more = f" and {len(groups) - 6} more" if len(groups) > 6 else ""
+            self.notes.append(
+                f"{len(groups)} pocket(s) where no helical entry fits the tool were skipped, "
+                f"left for a smaller tool: {parts}{more}")
+        # material more than a stepdown above the part, away from every wall that explains it
+        gap = self.ar + GRID_GROWTH_CELLS * cell + max(2 * cell, 0.45 * self.R)
+        base = np.where(np.isfinite(self.Hp), self.Hp, self.stock.z_min)
+        near = disk_max(base, gap / cell)
+        left = (self.floor - base > self.stepdown + 0.1) & (near < self.floor - self.stepdown) \
+            & self.in_stock
+        if not left.any():
+            return
+        labels, n = label_regions(left)
+        counts = np.bincount(labels[left], minlength=n)
+        xs, ys = self.grid.centres()
+        area_min = 0.05 * math.pi * self.R ** 2
+        for comp in np.flatnonzero(counts * cell * cell >= area_min).tolist():
+            m = labels == comp
+            iy, ix = np.nonzero(m)
+            self.notes.append(
+                f"material the tool cannot reach left for a smaller tool: about "
+                f"{counts[comp] * cell * cell:.1f} mm^2 around x={xs[ix].mean():.1f}, "
+                f"y={ys[iy].mean():.1f} mm, up to {float(self.floor[m].max()):.2f} mm high "
+                f"over a part down to {float(base[m].min()):.2f} mm")
+
+
+def _ramp(p: FloatArray, closed: bool, drop: float, slope: float) -> tuple:
+    """Points (x, y, height above the level) descending ``drop`` (mm) at ``slope``
+    (dz/dxy) along pass p from its start (round a closed pass, back and forth along an open
+    one), and the route (xy) at the level from where the ramp ends through the whole pass."""
+    need = drop / slope
+    n = len(p)
+    if n < 2 or need <= 0:
+        return np.empty((0, 3)), p
+    out = []
+    length = 0.0
+    i, step = 0, 1
+    while True:
+        j = i + step
+        if closed and j == n:
+            i, j = 0, 1
+        elif not closed and not 0 <= j < n:
+            step = -step
+            j = i + step
+        seg = float(np.hypot(*(p[j] - p[i])))
+        if length + seg >= need:
+            t = (need - length) / seg if seg > 0 else 1.0
+            end = p[i] + t * (p[j] - p[i])
+            out.append((end[0], end[1], 0.0))
+            break
+        length += seg
+        out.append((p[j][0], p[j][1], drop - length * slope))
+        i = j
+    ramp = np.array(out, dtype=float)
+    end = ramp[-1, :2]
+    if closed:
+        # from the end point forwards round the loop back to it (segment i -> j, j = i + 1)
+        route = np.vstack([end, p[j:-1], p[:j], end])
+    else:
+        # back along the pass to its start, then the whole pass
+        k = min(i, j)
+        route = np.vstack([end, p[k::-1], p[1:]])
+    return ramp, route
+
+
+def _stretches(line: FloatArray, cuts: np.ndarray, free: np.ndarray, clear: np.ndarray,
+               closed: bool, back: int) -> list:
+    """Runs of cutting vertices, each grown by one vertex at both ends and further over
+    ``free`` vertices (where the tool cuts nothing) to one where the tool's disk is
+    ``clear`` (at most ``back`` vertices), so that a pass can start and end out of the
+    material; a closed line that cuts everywhere stays closed."""
+    if closed:
+        c = cuts[:-1]
+        m = len(c)
+        grown = c | np.roll(c, 1) | np.roll(c, -1)
+        if grown.all():
+            return [line]
+        first = int(np.flatnonzero(~grown)[0])
+        body = np.roll(line[:-1], -first, axis=0)
+        c = np.roll(c, -first)
+        cl = np.roll(clear[:-1], -first)
+        fr = np.roll(free[:-1], -first)
+    else:
+        body, c, cl, fr, m = line, cuts, clear, free, len(line)
+    runs = []
+    i = 0
+    while i < m:
+        if not c[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < m and c[j + 1]:
+            j += 1
+        runs.append([i, j])
+        i = j + 1
+    taken = np.zeros(m, bool)
+    for r in runs:
+        taken[r[0]:r[1] + 1] = True
+    out = []
+    for i, j in runs:
+        a = max(i - 1, 0) if i > 0 and not taken[i - 1] else i
+        while a > 0 and a > i - back and not taken[a - 1] and fr[a - 1] and not cl[a]:
+            a -= 1
+        b = min(j + 1, m - 1) if j + 1 < m and not taken[j + 1] else j
+        while b < m - 1 and b < j + back and not taken[b + 1] and fr[b + 1] and not cl[b]:
+            b += 1
+        taken[a:b + 1] = True
+        out.append(body[a:b + 1])
+    return [o for o in out if len(o) >= 2]

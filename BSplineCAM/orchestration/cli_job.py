@@ -1,0 +1,277 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""``bsplinecam job NET --rough flat:10 --finish ball:6 --out DIR``: block to part.
+
+One FreeCAD job: Z-level roughing (flat or bull-nose end mill, T1) from a stock block grown by
+``--stock-margin`` around the part down to the part plus ``--allowance``, then the ball-end
+finishing op (T2) on the exact surface; one program with tool changes, posted by FreeCAD's
+post-processor and checked by LinuxCNC's rs274; then the whole program simulated from the block
+(``core.verify.verify_job``): per tool removed volume, engagement, material removal rate, air
+cutting and rapid collisions, and the final gouge, scallop and coverage.
+
+Writes DIR/NAME.ngc, DIR/NAME-job.FCStd, DIR/job.json (per-op figures), DIR/verify.json and
+pictures of the stock after each tool (DIR/stock-T1.png, DIR/stock-T2.png) with the final
+deviation map (DIR/deviation.png), all or nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from ..core import BSplineCAMError, Surface
+from ..core.errors import ParameterError
+from ..core.toolpath import check_request
+from ..core.toolpath.common import CuttingParameters, Strategy, check_range
+from . import rs274
+from .cli_toolpath import CUTTING_OPTIONS, DEFAULT_RAPID, machining_time
+from .cli_verify import add_machine_options, check_machine_limits
+
+#: Ranges of the roughing options (mm, percent).
+STOCK_MARGIN_RANGE = (0.0, 1000.0)
+STEPDOWN_RANGE = (0.01, 100.0)
+STEPOVER_RANGE = (1.0, 100.0)
+ALLOWANCE_RANGE = (0.0, 50.0)
+
+
+def register(sub) -> None:
+    p = sub.add_parser("job", help="block to part: roughing end mill + ball finishing in one "
+                       "program with tool changes, verified from the block")
+    p.add_argument("net", help="control net (.json, .csv, .dat) or part (.step, .stp, .brep, "
+                   ".FCStd)")
+    p.add_argument("--knots", choices=["uniform", "clamped"], help="override the file's knot layout")
+    p.add_argument("--faces", default=None,
+                   help="faces of a part to finish: up (default) or numbers such as 3,8,20; "
+                        "the roughing clears the whole part")
+    p.add_argument("--stock-margin", type=float, default=2.0,
+                   help="stock block around the part, sideways and above (mm, default 2)")
+    p.add_argument("--rough", default="flat:10",
+                   help="roughing tool SHAPE:DIAMETER[:CORNER], flat, bullnose or ball, mm "
+                        "(default flat:10)")
+    p.add_argument("--stepdown", type=float, default=2.0, help="roughing Z step (mm, default 2)")
+    p.add_argument("--stepover", type=float, default=40.0,
+                   help="roughing width of cut, percent of the roughing diameter (default 40)")
+    p.add_argument("--allowance", type=float, default=0.3,
+                   help="stock to leave after roughing, radial and axial (mm, default 0.3)")
+    p.add_argument("--radial-allowance", type=float, default=None,
+                   help="sideways stock to leave (mm, default --allowance)")
+    p.add_argument("--axial-allowance", type=float, default=None,
+                   help="vertical stock to leave (mm, default --allowance)")
+    p.add_argument("--no-flat-levels", action="store_true",
+                   help="no extra roughing levels at the part's flat areas")
+    p.add_argument("--finish", default="ball:6", help="finishing tool ball:DIAMETER (mm)")
+    p.add_argument("--rest-limit", type=float, default=1.0,
+                   help="rest passes take the roughing's terraces down to this much above the "
+                        "part, so no finishing move cuts deeper than allowance + scallop + "
+                        "this (mm, default 1; 0: no rest passes)")
+    p.add_argument("--scallop", type=float, default=0.01, help="largest scallop height (mm)")
+    p.add_argument("--tolerance", type=float, default=0.002,
+                   help="chordal tolerance along passes (mm, default 0.002)")
+    p.add_argument("--strategy", default="raster", choices=[s.value for s in Strategy])
+    p.add_argument("--angle", type=float, default=0.0, help="raster direction from +X (degrees)")
+    p.add_argument("--arcs", default="on", choices=["on", "off"],
+                   help="fit finishing passes with one-sided G2/G3 arcs (default on)")
+    p.add_argument("--post", default="linuxcnc",
+                   help="FreeCAD post-processor(s), comma-separated: the first writes NAME.ngc "
+                        "(verified), each other NAME-POST.ngc; every one checked by rs274")
+    p.add_argument("--feed", type=float, default=1200.0, help="cutting feed (mm/min)")
+    p.add_argument("--plunge-feed", type=float, default=400.0, help="vertical feed (mm/min)")
+    p.add_argument("--spindle", type=float, default=12000.0, help="spindle speed (rpm)")
+    p.add_argument("--rapid", type=float, default=DEFAULT_RAPID,
+                   help="rapid rate for the time estimates (mm/min)")
+    p.add_argument("--cell", type=float, default=0.1,
+                   help="Z-map cell of the verification (mm, default 0.1)")
+    p.add_argument("--no-rs274", action="store_true", help="do not check with LinuxCNC's rs274")
+    p.add_argument("--out", required=True, help="output folder")
+    add_machine_options(p)
+    p.set_defaults(func=cmd_job)
+
+
+def parse_tool(text: str, option: str):
+    """A core Tool from SHAPE:DIAMETER[:CORNER] (the --tools syntax of verify, one tool)."""
+    from ..core.tooltable import parse_tools_option
+
+    try:
+        return parse_tools_option(f"T1={text}")[1]
+    except ParameterError as exc:
+        raise ParameterError(f"{option} {text}: {exc}") from None
+
+
+def roughing_parameters(args: argparse.Namespace):
+    """The checked roughing options as pipeline.RoughingParameters (errors name the option)."""
+    from ..app.pipeline import RoughingParameters
+
+    tool = parse_tool(args.rough, "--rough")
+    margin = check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
+    stepdown = check_range(args.stepdown, "--stepdown", "mm", *STEPDOWN_RANGE)
+    stepover = check_range(args.stepover, "--stepover", "%", *STEPOVER_RANGE)
+    allowance = check_range(args.allowance, "--allowance", "mm", *ALLOWANCE_RANGE)
+    radial = allowance if args.radial_allowance is None else check_range(
+        args.radial_allowance, "--radial-allowance", "mm", *ALLOWANCE_RANGE)
+    axial = allowance if args.axial_allowance is None else check_range(
+        args.axial_allowance, "--axial-allowance", "mm", *ALLOWANCE_RANGE)
+    return tool, RoughingParameters(
+        shape=tool.shape.value, diameter=tool.diameter,
+        corner_radius=tool.corner_radius if tool.shape.value == "bullnose" else 0.0,
+        stepdown=stepdown, stepover_percent=int(round(stepover)), radial_allowance=radial,
+        axial_allowance=axial, stock_margin=margin, flat_levels=not args.no_flat_levels)
+
+
+def cmd_job(args: argparse.Namespace) -> int:
+    from .cli import (
+        EXIT_CHECK_FAILED,
+        _safe_name,
+        captured_console,
+        check_interrupted,
+        check_output,
+        emit,
+        json_text,
+        staged_output,
+    )
+
+    started = time.perf_counter()
+    args.rapid_rate = args.rapid  # one rapid rate for the time estimates
+    cutting_params = CuttingParameters.validate(args.feed, args.plunge_feed, args.spindle,
+                                                args.rapid, CUTTING_OPTIONS)
+    rough_tool, roughing = roughing_parameters(args)
+    finish_tool = parse_tool(args.finish, "--finish")
+    if finish_tool.shape.value != "ball":
+        raise ParameterError(f"--finish {args.finish}: the finishing tool must be a ball end "
+                             "(ball:DIAMETER)")
+    check_range(args.cell, "--cell", "mm", 0.01, 5.0)
+    check_machine_limits(args)
+    check_output(args.out)
+    from ..app import cam, compat, pipeline
+    from . import parts
+
+    posts = [p.strip() for p in args.post.split(",")]
+    if not all(posts) or len(set(posts)) != len(posts):
+        raise ParameterError(f"--post {args.post}: give post-processor names once each, "
+                             "separated by commas")
+    for post in posts:
+        try:
+            compat.post_module(post)
+        except ValueError as exc:
+            raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
+    names = ("--finish", "--scallop", "--tolerance", "--angle")
+    if parts.is_part(args.net):
+        if args.knots is not None:
+            raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
+        if args.strategy != Strategy.RASTER.value:
+            raise ParameterError(f"--strategy {args.strategy}: parts are finished by raster "
+                                 "only (for now)")
+        from ..core.toolpath.common import ToolParameters, check_angle
+
+        tool = ToolParameters.validate(finish_tool.diameter, args.scallop, args.tolerance,
+                                       names[:3])
+        angle = check_angle(args.angle, names[3])
+        strategy = Strategy.RASTER
+        selection = parts.parse_faces(args.faces)
+        model = parts.load_faces(args.net, parts._selection_text(selection))
+        name = _safe_name(Path(args.net).stem)
+
+        def run(params, program, document, others):
+            return pipeline.machine_part(args.net, params, program, posts[0], cutting, document,
+                                         roughing=roughing, more_posts=others,
+                                         faces=None if selection == "up" else selection)
+    else:
+        parts.refuse_faces_on_net(args.faces, args.net)
+        model = Surface.from_file(args.net, args.knots)
+        strategy, tool, angle = check_request(model, args.strategy, finish_tool.diameter,
+                                              args.scallop, args.tolerance, args.angle, names)
+        name = _safe_name(model.name)
+
+        def run(params, program, document, others):
+            return pipeline.machine(model, params, program, posts[0], cutting, document,
+                                    roughing=roughing, more_posts=others)
+    params = pipeline.FinishingParameters(
+        tool_diameter=finish_tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
+        strategy=strategy.value, angle=angle, arcs=args.arcs == "on",
+        rest_limit=check_range(args.rest_limit, "--rest-limit", "mm", 0.0, 50.0))
+    cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
+                          cutting_params.spindle, cutting_params.rapid)
+    with staged_output(Path(args.out)) as stage:
+        program = stage / f"{name}.ngc"
+        others = {post: stage / f"{name}-{post}.ngc" for post in posts[1:]}
+        try:
+            with captured_console():
+                report = run(params, program, stage / f"{name}-job.FCStd", others)
+        except ValueError as exc:
+            check_interrupted()
+            raise ParameterError(str(exc)) from None
+        check_interrupted()
+        text = program.read_text()
+        report["cutting_length_mm"], report["machining_time_s"] = (
+            round(v, 3) for v in machining_time(text, cutting_params.rapid))
+        report["program"] = program.name
+        tools = {1: rough_tool, 2: finish_tool}
+        report["programs"] = {post: path.name for post, path in
+                              [(posts[0], program), *others.items()]}
+        if not args.no_rs274 and rs274.available():
+            checks = {}
+            for post, path in [(posts[0], program), *others.items()]:
+                check = rs274.check(path, {n: t.diameter for n, t in tools.items()})
+                checks[post] = check.as_dict()
+                if not check.ok:
+                    emit(report)
+                    raise BSplineCAMError(f"{path.name} ({post} post): LinuxCNC's rs274 "
+                                          f"rejects the program: {check.message}")
+            report["rs274"] = checks[posts[0]]
+            report["rs274_by_post"] = checks
+        verified = verify_program(args, model, program, tools, report["stock_mm"], stage)
+        report["verify"] = {k: verified[k] for k in SUMMARY if k in verified}
+        report["elapsed_s"] = round(time.perf_counter() - started, 3)
+        (stage / "verify.json").write_text(json_text(verified))
+        (stage / "job.json").write_text(json_text(report))
+    emit({"out": str(Path(args.out).resolve()), **report["verify"],
+          "rs274": report.get("rs274", {}).get("ok")})
+    ok = report.get("rs274", {"ok": True})["ok"] and verified.get("ok", True)
+    return 0 if ok else EXIT_CHECK_FAILED
+
+
+#: Figures of verify.json repeated in job.json and printed on stdout.
+SUMMARY = ("ok", "checks", "gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "coverage",
+           "rapid_collisions", "machining_time_s", "machining_time_with_acceleration_s",
+           "tools")
+
+
+#: Largest gouge (mm) and radial engagement over the stepover (ratio) the job accepts.
+GOUGE_LIMIT_MM = 0.001
+ENGAGEMENT_RATIO = 1.1
+
+
+def verify_program(args, model, program_path, tools, stock, stage) -> dict:
+    """The whole program simulated from the stock block and measured against the model (a
+    core Surface, or a part's core faces);
+    writes the stock pictures and the deviation map into ``stage``; returns verify.json with
+    ``checks`` (each limit, its value and whether it holds) and ``ok``."""
+    from ..core.gcode import read_gcode_file
+    from ..core.verify import verify_job
+    from . import report as pictures
+    from .cli_verify import machine_time_metrics
+
+    program = read_gcode_file(str(program_path))
+    result = verify_job(model, program, tools, stock=tuple(stock), cell=args.cell,
+                        rapid_rate=args.rapid)
+    metrics = {"model": str(Path(args.net)), "program": Path(program_path).name,
+               **result.metrics, **machine_time_metrics(args, program)}
+    rough = metrics["tools"]["1"]
+    stepover = 0.01 * args.stepover * tools[1].diameter
+    checks = {
+        "gouge_max_mm": [metrics["gouge_max_mm"], GOUGE_LIMIT_MM,
+                         metrics["gouge_max_mm"] <= GOUGE_LIMIT_MM],
+        "scallop_max_mm": [metrics["scallop_max_mm"], args.scallop + args.tolerance,
+                           metrics["scallop_max_mm"] <= args.scallop + args.tolerance],
+        "rapid_collisions": [len(metrics["rapid_collisions"]), 0,
+                             not metrics["rapid_collisions"]],
+        "roughing_radial_engagement_max_mm": [
+            rough["radial_engagement_max_mm"], round(ENGAGEMENT_RATIO * stepover, 6),
+            (rough["radial_engagement_max_mm"] or 0.0) <= ENGAGEMENT_RATIO * stepover],
+    }
+    metrics["checks"] = {k: {"value": v, "limit": lim, "ok": bool(ok)}
+                         for k, (v, lim, ok) in checks.items()}
+    metrics["ok"] = all(ok for _, _, ok in checks.values())
+    pictures.plot_deviation(result, stage / "deviation.png")
+    for number in sorted(result.job.snapshots):
+        pictures.plot_stock(result, number, stage / f"stock-T{number}.png")
+    return metrics

@@ -1,0 +1,382 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Z-level roughing (core.toolpath.roughing): the moves are cut, one at a time, out of a Z-map
+of the stock block by the exact swept-tool envelope of core.simulate, and the stock left is
+compared with parts known in closed form."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from BSplineCAM.core.errors import ParameterError
+from BSplineCAM.core.simulate import Grid, Tool, _cut, _windows
+from BSplineCAM.core.toolpath.common import ToolpathCancelled
+from BSplineCAM.core.toolpath.roughing import (
+    RAMP_ANGLE_DEG,
+    Stock,
+    capped_distance,
+    generate_roughing,
+    marching_squares,
+    tip_height,
+)
+
+SIM_CELL = 0.2
+CUT_EPS = 0.05  # mm: a cell counts as cut when the move lowers it by more
+
+
+def disk_max(values: np.ndarray, radius_cells: float) -> np.ndarray:
+    """max over a disk of the given radius (cells), by scipy as an independent reference."""
+    ndimage = pytest.importorskip("scipy.ndimage")
+    k = int(math.floor(radius_cells))
+    yy, xx = np.mgrid[-k:k + 1, -k:k + 1]
+    foot = xx * xx + yy * yy <= radius_cells ** 2 + 1e-9
+    return ndimage.maximum_filter(values, footprint=foot, mode="nearest")
+
+
+class Machined:
+    """The result of cutting the moves one by one, with per-move observations."""
+
+    def __init__(self, rough, stock: Stock, tool: Tool, fresh_only: bool = False):
+        grid = Grid.covering(stock.x_min, stock.x_max, stock.y_min, stock.y_max, SIM_CELL)
+        self.grid = grid
+        h = np.full((grid.ny, grid.nx), stock.z_max, dtype=np.float32)
+        xs, ys = grid.centres()
+        moves = rough.moves
+        pos = np.array([moves[0].x, moves[0].y, rough.clearance_height]) if moves else None
+        self.rapid_cut = 0.0
+        self.engagement = []  # (move index, width mm) of non-descending cutting feeds
+        self.descents = []    # (move index, slope dz/dxy) of descending feeds that cut
+        for i, m in enumerate(moves):
+            end = np.array([m.x, m.y, m.z])
+            st, en = pos[None, :], end[None, :]
+            win = _windows(st, en, tool.radius, grid)
+            ix0, ix1, iy0, iy1 = (int(v) for v in win[0])
+            if ix1 < ix0 or iy1 < iy0 or min(pos[2], end[2]) >= stock.z_max:
+                pos = end
+                continue
+            before = h[iy0:iy1 + 1, ix0:ix1 + 1].copy()
+            _cut(h, np.array([0]), st, en, win, tool, grid, None)
+            depth = before - h[iy0:iy1 + 1, ix0:ix1 + 1]
+            cut = depth > CUT_EPS
+            if m.kind == "rapid":
+                self.rapid_cut = max(self.rapid_cut, float(depth.max(initial=0.0)))
+            elif cut.any():
+                d = end[:2] - pos[:2]
+                length = float(np.hypot(*d))
+                dz = end[2] - pos[2]
+                if dz < -1e-9:
+                    self.descents.append((i, -dz / max(length, 1e-12)))
+                elif length > 1e-9:
+                    if fresh_only:
+                        # only material still at the top of the move's level (its slab)
+                        above = [z for z in (stock.z_max, *rough.levels) if z > m.z + 1e-9]
+                        cut &= before > min(above) - CUT_EPS
+                    n = np.array([-d[1], d[0]]) / length
+                    iy, ix = np.nonzero(cut)
+                    if not len(iy):
+                        pos = end
+                        continue
+                    across = (xs[ix0 + ix] - pos[0]) * n[0] + (ys[iy0 + iy] - pos[1]) * n[1]
+                    width = min(float(across.max() - across.min()), tool.diameter)
+                    self.engagement.append((i, width))
+            pos = end
+        self.height = h.astype(float)
+        self.xs, self.ys = xs, ys
+
+
+def check_common(rough, stock, tool, part_fn, stepdown, stepover, ar, aa, head_on=False):
+    """(a) no gouge, (b) bounded stock left, (c) engagement, (d) clean rapids, (e) ramps;
+    returns the machined Z-map and the part on its grid.
+
+    Width of cut: a flat end mill's counts every cell the move lowers by more than CUT_EPS.
+    A ball or bull-nose also shaves, over its whole width, the cusps or corner fillets the
+    previous pass of the level left below the level above (0.25 mm cusps for the ball test);
+    for them the width counts the cells of fresh material, still at the top of the level's
+    slab, that the move lowers."""
+    sim = Machined(rough, stock, tool, fresh_only=tool.shape.value != "flat")
+    part = part_fn(sim.xs, sim.ys)
+    base = np.where(np.isfinite(part), part, stock.z_min)
+    # (a) the stock left covers the part offset by the allowances (horizontal ar, vertical aa)
+    offset = np.minimum(disk_max(base, ar / SIM_CELL) + aa, stock.z_max)
+    gouge = float((offset - sim.height).max())
+    assert gouge <= 0.02, f"gouge {gouge:.4f} mm"
+    # (b) at most one stepdown above the part (plus the allowances and half a millimetre of
+    # wall scallop and grid slack sideways)
+    upper = disk_max(base, (ar + 0.5) / SIM_CELL) + aa + stepdown + 0.05
+    excess = float((sim.height - upper).max())
+    assert excess <= 0.0, f"stock left {excess:.3f} mm above part + allowance + stepdown"
+    # (c) radial width of cut: within 1.1 s.  With ``head_on`` (fronts meeting a sloped wall
+    # head-on), a pass ends with its front half over the terrace above the slope, which the
+    # previous pass's end only half covered: within a tool radius of the wall the width is
+    # then at most R + s/2 (the crescent between two end disks s apart, each at most s
+    # thick).
+    widths = [(i, w) for i, w in sim.engagement if not _in_entry(rough, i)]
+    assert widths, "no cutting feed moves"
+    at_wall = [w for i, w in widths if _ends_at_wall(rough, i)]
+    inner = [w for i, w in widths if not _ends_at_wall(rough, i)]
+    worst = max(inner, default=0.0)
+    assert worst <= 1.1 * stepover, f"engagement {worst:.3f} mm > 1.1 * {stepover}"
+    cap = min(tool.diameter, tool.radius + stepover / 2) if head_on else stepover
+    assert max(at_wall, default=0.0) <= 1.1 * cap, f"{max(at_wall):.3f} mm next to a wall"
+    # (d) rapids remove nothing
+    assert sim.rapid_cut <= 0.01, f"a rapid cut {sim.rapid_cut:.4f} mm"
+    # (e) no straight plunge: descending feeds into material ramp at most at the ramp angle
+    limit = math.tan(math.radians(RAMP_ANGLE_DEG)) * 1.05
+    steep = [s for i, s in sim.descents if s > limit]
+    assert not steep, f"{len(steep)} descending cuts steeper than the ramp, up to {max(steep)}"
+    return sim, base
+
+
+def _ends_at_wall(rough, i):
+    """The move ends within a tool radius (plus the allowance and the grid's growth) of
+    tip heights above its level: its tool reaches over the wall's contour."""
+    tip = rough.tip_height
+    g = tip.grid
+    m = rough.moves[i]
+    reach = (rough.parameters["tool"]["diameter"] / 2 + rough.parameters["radial_allowance"]
+             ) / g.cell + 4
+    j = (m.x - g.x0) / g.cell - 0.5
+    k = (m.y - g.y0) / g.cell - 0.5
+    j0, j1 = max(int(j - reach), 0), int(j + reach) + 2
+    k0, k1 = max(int(k - reach), 0), int(k + reach) + 2
+    jj, kk = np.meshgrid(np.arange(j0, min(j1, g.nx)), np.arange(k0, min(k1, g.ny)))
+    near = np.hypot(jj - j, kk - k) <= reach
+    return bool((tip.z[k0:k1, j0:j1][near] > m.z + 1e-6).any())
+
+
+def _in_entry(rough, i):
+    return any(a <= i < b for a, b in rough.stats["entry_spans"])
+
+
+# -- parts ----------------------------------------------------------------------------------
+def hemisphere_on_plate(xs, ys):
+    X, Y = np.meshgrid(xs, ys)
+    r2 = X * X + Y * Y
+    h = np.where(r2 <= 100.0, 5.0 + np.sqrt(np.maximum(100.0 - r2, 0.0)), 5.0)
+    return np.where((np.abs(X) <= 25) & (np.abs(Y) <= 25), h, np.nan)
+
+
+def bowl(xs, ys):
+    X, Y = np.meshgrid(xs, ys)
+    h = np.minimum(2.0 + (X * X + Y * Y) / 20.0, 10.0)
+    return np.where((np.abs(X) <= 20) & (np.abs(Y) <= 20), h, np.nan)
+
+
+def slope(xs, ys):
+    X, Y = np.meshgrid(xs, ys)
+    h = 4.0 + 0.25 * X
+    return np.where((np.abs(X) <= 16) & (np.abs(Y) <= 12), h, np.nan)
+
+
+def slot_plate(xs, ys):
+    """A plate at z 10 with a 6 mm slot down to z 4 along y = 0, x in [-10, 10], and a round
+    pocket of radius 4.8 mm down to z 4 at (14, 9)."""
+    X, Y = np.meshgrid(xs, ys)
+    slot = (np.abs(Y) <= 3.0) & (np.abs(X) <= 10.0)
+    pocket = np.hypot(X - 14.0, Y - 9.0) <= 4.8
+    h = np.where(slot | pocket, 4.0, 10.0)
+    return np.where((np.abs(X) <= 20) & (np.abs(Y) <= 15), h, np.nan)
+
+
+# -- tests ----------------------------------------------------------------------------------
+def test_flat_end_mill_hemisphere_boss():
+    stock = Stock(-25, 25, -25, 25, 0.0, 17.0)
+    tool = Tool(8.0, "flat")
+    rough = generate_roughing(hemisphere_on_plate, stock, tool, stepdown=3.0, stepover=3.0,
+                              radial_allowance=0.3, axial_allowance=0.2)
+    sim, base = check_common(rough, stock, tool, hemisphere_on_plate, 3.0, 3.0, 0.3, 0.2)
+    # a level on the plate (5 + 0.2) leaves the plate clean away from the boss
+    assert any(abs(z - 5.2) < 1e-6 for z in rough.levels)
+    X, Y = np.meshgrid(sim.xs, sim.ys)
+    plate = (np.hypot(X, Y) > 10 + 8 + 1) & (np.abs(X) < 24) & (np.abs(Y) < 24)
+    left = sim.height[plate] - 5.2
+    assert float(np.abs(left).max()) <= 0.05
+    # the boss's top (15 + 0.2 allowance) is the highest material after the first level
+    assert rough.levels[0] == pytest.approx(14.0)
+    st = rough.stats
+    assert st["entries"]["helical"] == 0 and st["entries"]["outside"] >= 1
+    assert st["passes"] > 0 and st["cutting_length_mm"] > 0
+    assert not [n for n in st["notes"] if "smaller tool" in n]
+    # every move below the stock top stays under the clearance, rapids at clearance or down
+    assert all(m.z <= rough.clearance_height for m in rough.moves)
+
+
+def test_bull_nose_bowl_needs_helix():
+    stock = Stock(-20, 20, -20, 20, 0.0, 10.0)
+    tool = Tool(8.0, "bullnose", 1.0)
+    rough = generate_roughing(bowl, stock, tool, stepdown=2.0, stepover=3.0,
+                              axial_allowance=0.1)
+    sim, base = check_common(rough, stock, tool, bowl, 2.0, 3.0, 0.0, 0.1)
+    st = rough.stats
+    assert st["entries"]["helical"] >= 3
+    # (e) no straight plunge into material: descending cuts ramp at most at the ramp angle
+    slopes = [s for i, s in sim.descents]
+    assert slopes, "the helices cut nothing"
+    limit = math.tan(math.radians(RAMP_ANGLE_DEG)) * 1.05
+    assert max(slopes) <= limit, f"descending cut with slope {max(slopes):.4f}"
+    assert all(_in_entry(rough, i) for i, _ in sim.descents)
+    # the helix is a polyline of small chords on a circle around a fixed centre
+    a, b = st["entry_spans"][0]
+    pts = np.array([m[1:3] for m in rough.moves[a:b] if m.kind == "feed"])[2:]
+    # least-squares circle: x^2 + y^2 = 2 a x + 2 b y + c
+    M = np.column_stack([2 * pts, np.ones(len(pts))])
+    sol = np.linalg.lstsq(M, (pts ** 2).sum(axis=1), rcond=None)[0]
+    centre = sol[:2]
+    radius = np.hypot(*(pts - centre).T)
+    assert float(radius.std()) < 0.05 and 0.5 < float(radius.mean()) <= 3.2 + 1e-6
+
+
+def test_ball_sloped_plane():
+    stock = Stock(-16, 16, -12, 12, 0.0, 9.0)
+    tool = Tool(6.0, "ball")
+    rough = generate_roughing(slope, stock, tool, stepdown=1.5, stepover=2.4,
+                              radial_allowance=0.2, axial_allowance=0.2, flat_levels=False)
+    check_common(rough, stock, tool, slope, 1.5, 2.4, 0.2, 0.2, head_on=True)
+    assert rough.levels == sorted(rough.levels, reverse=True)
+    assert rough.levels[0] == pytest.approx(7.5)
+
+
+def test_region_too_small_is_reported_not_cut():
+    stock = Stock(-20, 20, -15, 15, 0.0, 10.0)
+    tool = Tool(8.0, "flat")
+    progress = []
+    rough = generate_roughing(slot_plate, stock, tool, stepdown=3.0, stepover=3.0,
+                              progress=progress.append)
+    notes = rough.stats["notes"]
+    # the 6 mm slot: the 8 mm tool cannot enter it at all
+    slot = [n for n in notes if "cannot reach" in n and "x=0.0" in n and "y=0.0" in n]
+    assert len(slot) == 1, notes
+    # the 9.6 mm pocket: the tool fits, but no helix does (a straight plunge would be needed)
+    helix = [n for n in notes if "no helical entry" in n]
+    assert len(helix) == 1 and helix[0].startswith("1 pocket"), notes
+    x, y = (float(v) for v in re.search(r"\(([-\d.]+), ([-\d.]+)\)", helix[0]).groups())
+    assert math.hypot(x - 14.0, y - 9.0) < 0.5
+    assert rough.stats["entries"]["helical"] == 0
+    # neither keeps less material: the tool never reaches below the plate inside them
+    sim = Machined(rough, stock, tool)
+    X, Y = np.meshgrid(sim.xs, sim.ys)
+    inside = ((np.abs(Y) < 2.5) & (np.abs(X) < 9.5)) | (np.hypot(X - 14, Y - 9) < 4.5)
+    assert float(sim.height[inside].min()) >= 10.0 - 1e-3
+    assert sim.rapid_cut <= 0.01
+    assert progress and progress[-1] == pytest.approx(1.0)
+    assert all(b >= a for a, b in zip(progress, progress[1:]))
+
+
+def plateau(xs, ys):
+    """A plate at z 5 with a 24 x 24 mm plateau at z 9.3 (vertical sides)."""
+    X, Y = np.meshgrid(xs, ys)
+    h = np.where((np.abs(X) <= 12) & (np.abs(Y) <= 12), 9.3, 5.0)
+    return np.where((np.abs(X) <= 22) & (np.abs(Y) <= 22), h, np.nan)
+
+
+@pytest.mark.parametrize("flat_levels", [True, False])
+def test_flat_levels_clean_terraces(flat_levels):
+    stock = Stock(-22, 22, -22, 22, 0.0, 12.0)
+    tool = Tool(8.0, "flat")
+    rough = generate_roughing(plateau, stock, tool, stepdown=3.0, stepover=4.0,
+                              axial_allowance=0.2, flat_levels=flat_levels)
+    sim, base = check_common(rough, stock, tool, plateau, 3.0, 4.0, 0.0, 0.2)
+    X, Y = np.meshgrid(sim.xs, sim.ys)
+    top = (np.abs(X) < 11) & (np.abs(Y) < 11)
+    left = float((sim.height[top] - 9.5).max())
+    if flat_levels:
+        assert any(abs(z - 9.5) < 1e-9 for z in rough.levels)
+        assert left <= 0.05
+    else:
+        assert rough.levels == pytest.approx([9.0, 6.0, 5.2])
+        assert left == pytest.approx(12.0 - 9.5, abs=1e-3)  # never reached: above level 9
+
+
+def test_tip_height_matches_brute_force():
+    rng = np.random.default_rng(3)
+    part = rng.uniform(0.0, 3.0, (23, 27))
+    part[5:9, 4:7] = np.nan
+    cell = 0.5
+    for tool in (Tool(4.0, "flat"), Tool(4.0, "ball"), Tool(4.0, "bullnose", 0.8)):
+        got = tip_height(part, cell, tool, 0.3, 0.1, -1.0, 0.0)
+        grow = 0.3 + 1.5 * cell
+        k = int((tool.radius + grow) / cell)
+        ref = np.full(part.shape, -np.inf)
+        H = np.where(np.isfinite(part), part + 0.1, -np.inf)
+        for dy in range(-k, k + 1):
+            for dx in range(-k, k + 1):
+                r = cell * math.hypot(dx, dy)
+                if r > tool.radius + grow + 1e-9:
+                    continue
+                f = float(tool.profile(min(max(r - grow, 0.0), tool.radius)))
+                sh = np.full(part.shape, -np.inf)
+                ys = slice(max(dy, 0), part.shape[0] + min(dy, 0))
+                yd = slice(max(-dy, 0), part.shape[0] + min(-dy, 0))
+                xs = slice(max(dx, 0), part.shape[1] + min(dx, 0))
+                xd = slice(max(-dx, 0), part.shape[1] + min(-dx, 0))
+                sh[yd, xd] = H[ys, xs]
+                ref = np.maximum(ref, sh - f)
+        ref = np.maximum(ref, -1.0)
+        np.testing.assert_allclose(got, ref, atol=1e-12)
+
+
+def test_capped_distance_and_contours():
+    from scipy import ndimage
+
+    rng = np.random.default_rng(5)
+    mask = rng.random((40, 50)) < 0.02
+    ref = ndimage.distance_transform_edt(~mask)
+    got = capped_distance(mask, 6.0)
+    near = ref <= 6.0
+    np.testing.assert_allclose(got[near], ref[near], atol=1e-9)
+    assert np.all(got[~near] > 6.0)
+    # a circle of radius 10 cells: one closed loop, inside on its right (clockwise)
+    yy, xx = np.mgrid[0:41, 0:41]
+    F = np.hypot(xx - 20.0, yy - 20.0) - 10.0
+    lines = marching_squares(F)
+    assert len(lines) == 1
+    loop = lines[0]
+    assert np.allclose(loop[0], loop[-1])
+    np.testing.assert_allclose(np.hypot(loop[:, 0] - 20, loop[:, 1] - 20), 10.0, atol=0.02)
+    area = 0.5 * np.sum(loop[:-1, 0] * loop[1:, 1] - loop[1:, 0] * loop[:-1, 1])
+    assert area < 0  # clockwise
+
+
+def test_stock_around():
+    s = Stock.around((0, 10, -5, 5, 1, 4), 2.0)
+    assert (s.x_min, s.x_max, s.y_min, s.y_max, s.z_min, s.z_max) == (-2, 12, -7, 7, 1, 6)
+    s = Stock.around((0, 10, -5, 5, 1, 4), 2.0, top_margin=0.5)
+    assert s.z_max == 4.5
+    with pytest.raises(ParameterError, match="x_max"):
+        Stock(1, 0, 0, 1, 0, 1)
+
+
+def test_cancel():
+    stock = Stock(-25, 25, -25, 25, 0.0, 17.0)
+    with pytest.raises(ToolpathCancelled):
+        generate_roughing(hemisphere_on_plate, stock, Tool(8.0, "flat"), 3.0, 3.0,
+                          cancel=lambda: True)
+
+
+@pytest.mark.parametrize(("kwargs", "word"), [
+    ({"stepdown": 0.0}, "stepdown"),
+    ({"stepdown": -1.0}, "stepdown"),
+    ({"stepover": 0.0}, "stepover"),
+    ({"stepover": 9.0}, "stepover"),
+    ({"radial_allowance": -0.1}, "radial_allowance"),
+    ({"radial_allowance": 100.0}, "radial_allowance"),
+    ({"axial_allowance": -0.1}, "axial_allowance"),
+    ({"axial_allowance": 50.0}, "axial_allowance"),
+    ({"cell": 0.0}, "cell"),
+    ({"cell": -0.2}, "cell"),
+    ({"clearance_height": 10.0}, "clearance_height"),
+    ({"stock": Stock(-20, 20, -25, 25, 0, 17)}, "stock"),
+    ({"stock": Stock(-25, 25, -25, 25, 0, 14)}, "stock"),
+    ({"height": 3.0}, "height"),
+])
+def test_bad_input(kwargs, word):
+    args = {"stock": Stock(-25, 25, -25, 25, 0.0, 17.0), "tool": Tool(8.0, "flat"),
+            "stepdown": 3.0, "stepover": 3.0}
+    args.update(kwargs)
+    height = args.pop("height", hemisphere_on_plate)
+    with pytest.raises(ParameterError, match=word) as info:
+        generate_roughing(height, **args)
+    assert "mm" in str(info.value)

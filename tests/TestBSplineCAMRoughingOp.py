@@ -1,0 +1,189 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Block to part inside FreeCAD (0.20, 1.0, 1.1): the roughing op before the finishing op.
+
+unittest classes run by ``freecadcmd`` (tools/run_freecad_tests.sh).  The job's program, posted
+by every post, is checked by LinuxCNC's rs274 and simulated from its *text*, from the job's
+stock block, with both tools (core.verify.verify_job), against the exact design surface.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+import unittest
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from BSplineCAM import Surface  # noqa: E402
+from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
+from BSplineCAM.core.gcode import read_gcode  # noqa: E402
+from BSplineCAM.core.simulate import Tool  # noqa: E402
+from BSplineCAM.core.verify import verify_job  # noqa: E402
+from BSplineCAM.orchestration import rs274  # noqa: E402
+
+FreeCAD = compat.ensure_freecad()
+ROUGH = pipeline.RoughingParameters(shape="flat", diameter=8.0, stepdown=2.0,
+                                    stepover_percent=40, radial_allowance=0.3,
+                                    axial_allowance=0.3, stock_margin=2.0)
+FINISH = pipeline.FinishingParameters(tool_diameter=6.0, scallop=0.05, tolerance=0.01,
+                                      arcs=True)
+CELL = 0.1
+
+
+def bump() -> Surface:
+    """A 50 x 50 mm net: a bump 9 mm high on a gentle slope (walls up to about 40 deg)."""
+    x, y = np.meshgrid(np.linspace(0, 50, 8), np.linspace(0, 50, 8), indexing="ij")
+    z = 10 + 0.05 * x + 9 * np.exp(-((x - 25) ** 2 + (y - 25) ** 2) / 120)
+    return Surface(np.stack([x, y, z], axis=-1), "clamped", "bump")
+
+
+class RoughingFixture(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.doc = FreeCAD.newDocument("TestBSplineCAMRoughingOp")
+        cls.surface = bump()
+        cls.model, cls.job, cls.finish = pipeline.build_job(
+            cls.surface, FINISH, cam.Cutting(), cls.doc, roughing=ROUGH)
+        cls.doc.recompute()
+        cls.rough = cls.job.Operations.Group[0]
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.programs = {}
+
+    @classmethod
+    def tearDownClass(cls):
+        FreeCAD.closeDocument(cls.doc.Name)
+        cls.tmp.cleanup()
+
+    def program(self, post: str = "linuxcnc") -> Path:
+        if post not in self.programs:
+            path = Path(self.tmp.name) / f"{post}.ngc"
+            cam.post_process(self.job, post, path, remember=False)
+            self.programs[post] = path
+        return self.programs[post]
+
+    def stock(self) -> tuple:
+        b = self.job.Stock.Shape.BoundBox
+        return (b.XMin, b.XMax, b.YMin, b.YMax, b.ZMin, b.ZMax)
+
+
+class TestRoughingJob(RoughingFixture):
+    def test_ops_tools_and_stock(self):
+        self.assertEqual([o.Name for o in self.job.Operations.Group],
+                         [self.rough.Name, self.finish.Name])
+        tcs = {int(tc.ToolNumber): compat.core_tool_shape(tc.Tool) for tc in self.job.Tools.Group}
+        self.assertEqual(tcs, {1: ("flat", 8.0, 0.0), 2: ("ball", 6.0, 3.0)})
+        self.assertIs(self.rough.ToolController.Tool, next(
+            tc.Tool for tc in self.job.Tools.Group if int(tc.ToolNumber) == 1))
+        x0, x1, y0, y1, z0, z1 = self.stock()
+        self.assertAlmostEqual(x0, -2.0, places=6)
+        self.assertAlmostEqual(x1, 52.0, places=6)
+        self.assertAlmostEqual(y1, 52.0, places=6)
+        top = float(np.max(self.surface.grid(101, 101)[..., 2]))
+        self.assertAlmostEqual(z1, top + 2.0, delta=0.01)
+        for op in (self.rough, self.finish):
+            report = json.loads(op.Report)
+            self.assertNotIn("error", report, op.Label)
+            self.assertTrue(op.Path.Commands, op.Label)
+        levels = json.loads(self.rough.Report)["levels"]
+        self.assertEqual(levels, sorted(levels, reverse=True))
+        self.assertIn("rest", json.loads(self.finish.Report))
+
+    def test_every_post_passes_rs274_with_two_tool_changes(self):
+        if not rs274.available():
+            self.skipTest("LinuxCNC's rs274 is not installed")
+        for post in compat.POST_PROCESSORS:
+            with self.subTest(post=post):
+                path = self.program(post)
+                text = path.read_text()
+                program = read_gcode(text, post, require_end=False)
+                changes = [t for _, t in program.tool_changes]
+                if post == "grbl":  # grbl has no tool changer: the post writes them as comments
+                    self.assertEqual(changes, [])
+                    self.assertLess(text.index("( M6 T1 )"), text.index("( M6 T2 )"))
+                else:  # fanuc's footer unloads the spindle (M6 T0)
+                    self.assertEqual(changes[:2], [1, 2], post)
+                    self.assertIn(changes[2:], ([], [0]), post)
+                check = rs274.check(path, {1: 8.0, 2: 6.0})
+                self.assertTrue(check.ok, f"{post}: {check.message}")
+
+    def test_whole_program_from_the_block(self):
+        """Simulated from the stock block with both tools: no gouge, no rapid collision, the
+        roughing leaves the allowance (never less) and never engages more than the stepover
+        by 10 % outside its entries, and the finishing tool never cuts deeper than
+        allowance + scallop + rest limit (the rest passes took the terraces)."""
+        program = read_gcode(self.program().read_text(), "linuxcnc")
+        result = verify_job(self.surface, program, {1: Tool(8.0, "flat"), 2: Tool(6.0)},
+                            stock=self.stock(), cell=CELL)
+        m = result.metrics
+        self.assertLessEqual(m["gouge_max_mm"], 1e-3)
+        self.assertEqual(m["rapid_collisions"], [])
+        self.assertLessEqual(m["scallop_max_mm"], FINISH.scallop + FINISH.tolerance + 1e-3)
+        t1, t2 = m["tools"]["1"], m["tools"]["2"]
+        stepover = 0.4 * 8.0
+        self.assertLessEqual(t1["radial_engagement_max_mm"], 1.1 * stepover + CELL)
+        self.assertLessEqual(t1["axial_engagement_max_mm"], ROUGH.stepdown + 1e-3)
+        limit = self.finish.RestLimit.Value
+        deepest = ROUGH.axial_allowance + FINISH.scallop + limit
+        self.assertLessEqual(t2["axial_engagement_max_mm"], deepest + CELL)
+        # the stock after roughing, against the exact design inside the footprint
+        after = result.job.snapshots[1]
+        design = result.design
+        inside = np.isfinite(design)
+        left = after[inside] - design[inside]
+        # a flat end over a slope leaves at least the allowance (the grid: within a cell's
+        # height change on the steepest wall, 0.1 mm * tan 40 deg)
+        self.assertGreaterEqual(float(left.min()), min(ROUGH.axial_allowance,
+                                                       ROUGH.radial_allowance) - 0.09)
+        self.assertLessEqual(float(np.percentile(left, 50)), ROUGH.stepdown + 0.3)
+
+    def test_saved_and_reopened(self):
+        path = str(Path(self.tmp.name) / "rough.FCStd")
+        self.doc.saveCopy(path)
+        doc = FreeCAD.openDocument(path)
+        try:
+            rough = doc.getObject(self.rough.Name)
+            before = len(rough.Path.Commands)
+            rough.touch()
+            doc.recompute()
+            self.assertEqual(len(rough.Path.Commands), before)
+            self.assertNotIn("error", json.loads(rough.Report))
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+
+
+class TestRoughingBadInput(RoughingFixture):
+    def recompute_error(self) -> str:
+        self.rough.touch()
+        self.doc.recompute()
+        return json.loads(self.rough.Report or "{}").get("error", "")
+
+    def test_stepdown_deeper_than_the_cutting_edge(self):
+        bit = self.rough.ToolController.Tool
+        edge = float(getattr(bit.CuttingEdgeHeight, "Value", bit.CuttingEdgeHeight))
+        saved = self.rough.StepDown.Value
+        try:
+            self.rough.StepDown = edge + 1.0
+            self.assertIn("StepDown", self.recompute_error())
+        finally:
+            self.rough.StepDown = saved
+            self.doc.recompute()
+
+    def test_allowance_larger_than_the_stock(self):
+        saved = self.rough.AxialAllowance.Value
+        try:
+            self.rough.AxialAllowance = 500.0
+            self.assertIn("allowance", self.recompute_error().lower())
+        finally:
+            self.rough.AxialAllowance = saved
+            self.doc.recompute()
+        self.assertNotIn("error", json.loads(self.rough.Report))
+
+
+if __name__ == "__main__":
+    unittest.main()
