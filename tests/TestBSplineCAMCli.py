@@ -428,3 +428,39 @@ def test_real_cli_refusal_is_one_line(tmp_path):
         capture_output=True, text=True, timeout=300)
     assert_refused(proc.returncode, proc.stderr, "--scallop", "million cutter locations")
     assert not out.exists()
+
+
+# -- job options (refused before FreeCAD is needed) ---------------------------------------------
+JOB = ["job", CASE]
+
+
+@pytest.mark.parametrize("extra, fragments", [
+    (["--stepdown", "0"], ["--stepdown", "mm"]),
+    (["--stepdown=-2"], ["--stepdown", "mm"]),
+    (["--stepdown", "nan"], ["--stepdown", "mm"]),
+    (["--stepover", "0"], ["--stepover", "%"]),
+    (["--stepover", "150"], ["--stepover", "%"]),
+    (["--allowance=-0.3"], ["--allowance", "mm"]),
+    (["--radial-allowance", "inf"], ["--radial-allowance", "mm"]),
+    (["--axial-allowance=-1"], ["--axial-allowance", "mm"]),
+    (["--stock-margin=-2"], ["--stock-margin", "mm"]),
+    (["--rough", "drill:5"], ["--rough", "drill"]),
+    (["--rough", "flat"], ["--rough"]),
+    (["--rough", "flat:0"], ["--rough"]),
+    (["--rough", "bullnose:10:7"], ["--rough"]),
+    (["--finish", "flat:6"], ["--finish", "ball end"]),
+    (["--finish", "ball:-6"], ["--finish"]),
+    (["--scallop", "0"], ["--scallop", "mm"]),
+    (["--rest-limit=-1"], ["--rest-limit", "mm"]),
+    (["--cell", "0"], ["--cell", "mm"]),
+    (["--post", "linuxcnc,,grbl"], ["--post"]),
+    (["--post", "linuxcnc,linuxcnc"], ["--post"]),
+    (["--feed", "0"], ["--feed", "mm/min"]),
+    (["--faces", "3"], ["--faces"]),
+])
+def test_job_options_refused(capsys, tmp_path, extra, fragments):
+    out = tmp_path / "out"
+    status, stdout, err = run_main(capsys, *JOB, *extra, "--out", str(out))
+    assert_refused(status, err, *fragments)
+    assert stdout == ""
+    assert not out.exists()

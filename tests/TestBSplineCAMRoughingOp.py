@@ -185,5 +185,49 @@ class TestRoughingBadInput(RoughingFixture):
         self.assertNotIn("error", json.loads(self.rough.Report))
 
 
+class TestJobCommand(unittest.TestCase):
+    """``bsplinecam job`` in this FreeCAD: block to part on the bump, every output checked."""
+
+    def run_job(self, out: Path, *extra: str) -> int:
+        from BSplineCAM.orchestration import cli
+
+        net = out.parent / "bump.json"
+        net.write_text(json.dumps({"name": "bump", "knots": "clamped",
+                                   "control_points": np.asarray(bump().control_points).tolist()}))
+        return cli.main(["job", str(net), "--rough", "flat:8", "--stepdown", "2",
+                         "--stepover", "40", "--allowance", "0.3", "--finish", "ball:6",
+                         "--scallop", "0.05", "--tolerance", "0.01", *extra,
+                         "--out", str(out)])
+
+    def test_block_to_part_outputs(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "job"
+            status = self.run_job(out, "--post", "linuxcnc,grbl")
+            names = sorted(p.name for p in out.iterdir())
+            self.assertEqual(status, 0, names)
+            for name in ("bump.ngc", "bump-grbl.ngc", "bump-job.FCStd", "job.json",
+                         "verify.json", "deviation.png", "stock-T1.png", "stock-T2.png"):
+                self.assertIn(name, names)
+            job = json.loads((out / "job.json").read_text())
+            verified = json.loads((out / "verify.json").read_text())
+            self.assertTrue(verified["ok"], verified["checks"])
+            self.assertEqual(sorted(verified["tools"]), ["1", "2"])
+            self.assertEqual(verified["tools"]["1"]["tool"]["shape"], "flat")
+            self.assertGreater(verified["tools"]["1"]["removed_volume_mm3"],
+                               verified["tools"]["2"]["removed_volume_mm3"])
+            self.assertEqual(job["roughing"]["levels"], sorted(job["roughing"]["levels"],
+                                                              reverse=True))
+            if rs274.available():
+                self.assertEqual(set(job["rs274_by_post"]), {"linuxcnc", "grbl"})
+                self.assertTrue(all(r["ok"] for r in job["rs274_by_post"].values()))
+
+    def test_stepdown_beyond_the_cutting_edge_writes_nothing(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "job"
+            status = self.run_job(out, "--stepdown", "45")
+            self.assertEqual(status, 2)
+            self.assertFalse(out.exists())
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -98,9 +98,8 @@ def parse_tool(text: str, option: str):
 
 
 def roughing_parameters(args: argparse.Namespace):
-    """The checked roughing options as pipeline.RoughingParameters (errors name the option)."""
-    from ..app.pipeline import RoughingParameters
-
+    """(roughing tool, the checked roughing options as pipeline.RoughingParameters' fields);
+    errors name the option.  No FreeCAD needed."""
     tool = parse_tool(args.rough, "--rough")
     margin = check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
     stepdown = check_range(args.stepdown, "--stepdown", "mm", *STEPDOWN_RANGE)
@@ -110,7 +109,7 @@ def roughing_parameters(args: argparse.Namespace):
         args.radial_allowance, "--radial-allowance", "mm", *ALLOWANCE_RANGE)
     axial = allowance if args.axial_allowance is None else check_range(
         args.axial_allowance, "--axial-allowance", "mm", *ALLOWANCE_RANGE)
-    return tool, RoughingParameters(
+    return tool, dict(
         shape=tool.shape.value, diameter=tool.diameter,
         corner_radius=tool.corner_radius if tool.shape.value == "bullnose" else 0.0,
         stepdown=stepdown, stepover_percent=int(round(stepover)), radial_allowance=radial,
@@ -139,20 +138,15 @@ def cmd_job(args: argparse.Namespace) -> int:
         raise ParameterError(f"--finish {args.finish}: the finishing tool must be a ball end "
                              "(ball:DIAMETER)")
     check_range(args.cell, "--cell", "mm", 0.01, 5.0)
+    rest_limit = check_range(args.rest_limit, "--rest-limit", "mm", 0.0, 50.0)
     check_machine_limits(args)
-    check_output(args.out)
-    from ..app import cam, compat, pipeline
-    from . import parts
-
     posts = [p.strip() for p in args.post.split(",")]
     if not all(posts) or len(set(posts)) != len(posts):
         raise ParameterError(f"--post {args.post}: give post-processor names once each, "
                              "separated by commas")
-    for post in posts:
-        try:
-            compat.post_module(post)
-        except ValueError as exc:
-            raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
+    check_output(args.out)
+    from . import parts
+
     names = ("--finish", "--scallop", "--tolerance", "--angle")
     if parts.is_part(args.net):
         if args.knots is not None:
@@ -169,6 +163,7 @@ def cmd_job(args: argparse.Namespace) -> int:
         selection = parts.parse_faces(args.faces)
         model = parts.load_faces(args.net, parts._selection_text(selection))
         name = _safe_name(Path(args.net).stem)
+        from ..app import pipeline
 
         def run(params, program, document, others):
             return pipeline.machine_part(args.net, params, program, posts[0], cutting, document,
@@ -180,14 +175,22 @@ def cmd_job(args: argparse.Namespace) -> int:
         strategy, tool, angle = check_request(model, args.strategy, finish_tool.diameter,
                                               args.scallop, args.tolerance, args.angle, names)
         name = _safe_name(model.name)
+        from ..app import pipeline
 
         def run(params, program, document, others):
             return pipeline.machine(model, params, program, posts[0], cutting, document,
                                     roughing=roughing, more_posts=others)
+    from ..app import cam, compat
+
+    roughing = pipeline.RoughingParameters(**roughing)
+    for post in posts:
+        try:
+            compat.post_module(post)
+        except ValueError as exc:
+            raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
     params = pipeline.FinishingParameters(
         tool_diameter=finish_tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
-        strategy=strategy.value, angle=angle, arcs=args.arcs == "on",
-        rest_limit=check_range(args.rest_limit, "--rest-limit", "mm", 0.0, 50.0))
+        strategy=strategy.value, angle=angle, arcs=args.arcs == "on", rest_limit=rest_limit)
     cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
                           cutting_params.spindle, cutting_params.rapid)
     with staged_output(Path(args.out)) as stage:
