@@ -142,6 +142,33 @@ class TestRoughingJob(RoughingFixture):
                                                        ROUGH.radial_allowance) - 0.09)
         self.assertLessEqual(float(np.percentile(left, 50)), ROUGH.stepdown + 0.3)
 
+    def test_verify_feature_follows_the_tool_changes(self):
+        """The workbench's Verify on a job with roughing: both tools from the stock block, the
+        per-tool figures in Metrics and the stock after T1 as a mesh of its own."""
+        from BSplineCAM.app import verify_feature
+
+        before = {o.Name for o in self.doc.Objects}
+        result = verify_feature.verify_job(self.job, cell=0.25)
+        try:
+            metrics = json.loads(result.Metrics)
+            self.assertEqual(sorted(metrics["tools"]), ["1", "2"])
+            self.assertEqual(metrics["tools"]["1"]["tool"]["shape"], "flat")
+            self.assertLessEqual(metrics["gouge_max_mm"], 2e-3)
+            stages = list(result.StockAfter)
+            self.assertEqual(len(stages), 1)
+            self.assertEqual(stages[0].Label, "Stock after T1 (flat 8 mm)")
+            self.assertEqual(stages[0].Mesh.CountPoints, result.Mesh.CountPoints)
+            # the roughed stock lies above the finished part everywhere, by the allowance
+            # on average over the part
+            top = result.GridRows * result.GridColumns
+            rough = np.array([p.z for p in stages[0].Mesh.Points[:top]])
+            final = np.array([p.z for p in result.Mesh.Points[:top]])
+            self.assertTrue(np.all(rough >= final - 1e-6))
+            self.assertGreater(float(np.mean(rough - final)), ROUGH.axial_allowance)
+        finally:
+            for name in {o.Name for o in self.doc.Objects} - before:
+                self.doc.removeObject(name)
+
     def test_saved_and_reopened(self):
         path = str(Path(self.tmp.name) / "rough.FCStd")
         self.doc.saveCopy(path)

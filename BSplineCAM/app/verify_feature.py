@@ -59,6 +59,9 @@ PROPERTIES: tuple[tuple[str, str, str, str], ...] = (
      "Machined - design per top vertex (mm; 1e9 off the footprint)"),
     ("App::PropertyString", "Metrics", "Verification",
      "Gouge, scallop, coverage, lengths and times of the program (JSON)"),
+    ("App::PropertyLinkList", "StockAfter", "Verification",
+     "The stock after each tool but the last (meshes, hidden at first), for a job with "
+     "roughing"),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM verification object"),
 )
 #: Stored in ``Deviation`` for vertices off the design's footprint (a float list holds no NaN).
@@ -77,7 +80,8 @@ class VerificationFeature(StatelessProxy):
     @staticmethod
     def ensure_properties(obj) -> None:
         add_missing_properties(obj, [
-            (kind, name, group, tip, 0 if name in ("Surface", "Job") else PROP_READONLY | PROP_OUTPUT, None)
+            (kind, name, group, tip,
+             0 if name in ("Surface", "Job", "StockAfter") else PROP_READONLY | PROP_OUTPUT, None)
             for kind, name, group, tip in PROPERTIES])
         for name in ("Deviation",):
             obj.setEditorMode(name, 2)  # hidden: thousands of numbers
@@ -183,14 +187,19 @@ def default_cell(surface: Surface) -> float:
 
 def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float | None = None,
                       stride: int | None = None, program: str = "program", job=None,
-                      surface: Surface | None = None, doc=None, progress=None):
+                      surface: Surface | None = None, doc=None, progress=None,
+                      tools: dict | None = None, stock: tuple | None = None):
     """Simulate G-code text against a surface object; return the new simulated-part object.
 
     ``surface_obj`` is the design (a BSplineCAM surface object; ``surface`` overrides its
     geometry, e.g. in job coordinates); ``tool_diameter`` is the ball end's (mm); ``cell``
-    the Z-map cell (mm, default: :func:`default_cell`).  ``progress(fraction)`` is told of
-    each stage (default: FreeCAD's progress bar when the GUI is up) and may raise to cancel;
-    the document is touched only after the simulation.  The metrics are also printed.
+    the Z-map cell (mm, default: :func:`default_cell`).  With ``tools`` ({number: core Tool})
+    the program's tool changes are followed from the block ``stock`` (x0, x1, y0, y1, z0, z1
+    mm; :func:`BSplineCAM.core.verify.verify_job`), the per-tool figures join the metrics and
+    the stock after each tool but the last becomes a mesh of its own (``StockAfter``).
+    ``progress(fraction)`` is told of each stage (default: FreeCAD's progress bar when the
+    GUI is up) and may raise to cancel; the document is touched only after the simulation.
+    The metrics are also printed.
     """
     progress = progress or _progress_reporter(f"Verifying {program}")
     try:
@@ -202,11 +211,18 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
         progress(0.05)
         parsed = read_gcode(gcode, source=program)
         progress(0.15)
-        result = verify(surface, parsed, Tool(float(tool_diameter)), cell,
-                        progress=lambda f: progress(0.15 + 0.65 * f))
+        if tools:
+            from ..core.verify import verify_job as verify_program_job
+
+            result = verify_program_job(surface, parsed, tools, stock, cell,
+                                        progress=lambda f: progress(0.15 + 0.65 * f))
+        else:
+            result = verify(surface, parsed, Tool(float(tool_diameter)), cell,
+                            progress=lambda f: progress(0.15 + 0.65 * f))
         progress(0.8)
         data = zmap_mesh(result, stride)
         mesh = to_mesh(data)
+        stages = stage_meshes(result, data.stride)
         progress(0.95)
     finally:
         close = getattr(progress, "close", None)
@@ -229,16 +245,57 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
         metrics = {"program": program, **result.metrics}
         obj.Metrics = json.dumps(metrics, sort_keys=True)
         obj.Mesh = mesh
+        made = []
+        for number, label, stage in stages:
+            part = doc.addObject("Mesh::Feature", f"StockAfterT{number}")
+            made.append(part)
+            part.Label = f"Stock after T{number} ({label})"
+            part.Mesh = stage
+            if part.ViewObject is not None:
+                part.ViewObject.Visibility = False
+            part.purgeTouched()
+        obj.StockAfter = made
         if FreeCAD.GuiUp:
             from ..gui.verify_view import attach_view_provider
 
             attach_view_provider(obj)
         obj.purgeTouched()
     except BaseException:
+        for part in locals().get("made", []):
+            doc.removeObject(part.Name)
         doc.removeObject(obj.Name)
         raise
     FreeCAD.Console.PrintMessage(format_metrics(obj.Label, metrics))
     return obj
+
+
+def stage_meshes(result: Verification, stride: int) -> list:
+    """(tool number, tool label, Mesh) of the stock after each tool but the last of a
+    whole-program verification; [] for one tool."""
+    job = getattr(result, "job", None)
+    if job is None or len(job.snapshots) < 2:
+        return []
+    import dataclasses
+
+    from ..core.simulate import Simulation
+
+    out = []
+    order = list(job.snapshots)  # in the order the program used them
+    for number in order[:-1]:
+        tool = job.tools[number].tool
+        sim = Simulation(job.grid, np.asarray(job.snapshots[number], dtype=float),
+                         float(job.stock[5]), ())
+        stage = dataclasses.replace(result, simulation=sim)
+        label = f"{tool.shape.value} {tool.diameter:g} mm"
+        out.append((number, label, to_mesh(zmap_mesh(stage, stride))))
+    return out
+
+
+def job_tools(job) -> dict:
+    """{tool number: core Tool} of the job's tool controllers (flat, bull-nose, ball)."""
+    from .stock_left import core_tool
+
+    return {int(tc.ToolNumber): core_tool(tc) for tc in job.Tools.Group}
 
 
 def deviation_of(obj) -> np.ndarray:
@@ -292,8 +349,16 @@ def verify_job(job, cell: float | None = None, stride: int | None = None, progre
     diameter = float(op.ToolController.Tool.Diameter)
     source = op.Surface
     gcode = job_program(job)
+    used = {int(o.ToolController.ToolNumber) for o in job.Operations.Group
+            if getattr(o, "Active", True) and getattr(o, "ToolController", None) is not None}
+    tools = stock = None
+    if len(used) > 1:  # roughing and finishing: the whole program from the stock block
+        from .stock_left import stock_box
+
+        tools, stock = job_tools(job), stock_box(job)
     return make_verification(source, gcode, diameter, cell, stride, program=f"{job.Label} (linuxcnc)",
-                             job=job, surface=surface, doc=job.Document, progress=progress)
+                             job=job, surface=surface, doc=job.Document, progress=progress,
+                             tools=tools, stock=stock)
 
 
 def verify_file(surface_obj, path: str | os.PathLike, tool_diameter: float,
@@ -323,6 +388,13 @@ def format_metrics(label: str, m: dict) -> str:
         f"  Z-map              {m['grid_cells'][1]} x {m['grid_cells'][0]} cells of "
         f"{m['cell_mm']:.3g} mm",
     ]
+    for number, t in sorted((m.get("tools") or {}).items()):
+        tool = t["tool"]
+        lines.append(
+            f"  T{number} {tool['shape']} {tool['diameter_mm']:g} mm: removed "
+            f"{t['removed_volume_mm3'] / 1000:.1f} cm3, radial engagement max "
+            f"{t['radial_engagement_max_mm']} mm, axial max {t['axial_engagement_max_mm']} mm, "
+            f"{len(t['rapid_collisions'])} rapid collisions")
     return "\n".join(lines) + "\n"
 
 
