@@ -123,11 +123,14 @@ def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> No
     tool = t["tool"]
     inside = np.isfinite(left)
     low = float(np.min(left[inside])) if inside.any() else float("nan")
+    def mm(value) -> str:
+        return "-" if value is None else f"{value:.2f}"
+
     ax.set_title(f"Stock after T{number} ({tool['shape']} Ø{tool['diameter_mm']:g} mm): "
-                 f"left {low:.3f} to {top:.3f} mm above the design\n"
-                 f"removed {t['removed_volume_mm3'] / 1000:.1f} cm³, radial engagement max "
-                 f"{t['radial_engagement_max_mm']} mm, axial max {t['axial_engagement_max_mm']} mm",
-                 fontsize=9)
+                 f"left {max(low, 0.0) if low > -5e-4 else low:.3f} to {top:.3f} mm above "
+                 f"the design\nremoved {t['removed_volume_mm3'] / 1000:.1f} cm³, radial "
+                 f"engagement max {mm(t['radial_engagement_max_mm'])} mm, axial max "
+                 f"{mm(t['axial_engagement_max_mm'])} mm (entries apart)", fontsize=9)
     ax.set_aspect("equal")
     fig.tight_layout()
     _save(fig, path)

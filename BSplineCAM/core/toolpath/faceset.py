@@ -565,13 +565,15 @@ class FaceSet:
         self.stats = {"pairs": 0, "levels": 0, "uncertified": 0}
 
     # -- drop-cutter ---------------------------------------------------------------------------
-    def drop_ball(self, xy, radius: float, selected_only: bool = False):
+    def drop_ball(self, xy, radius: float, selected_only: bool = False,
+                  certify: float = CERTIFY):
         """Tip heights (m,) (mm; NaN where the ball meets no face), contact face index (-1
         none), contact (u, v) and whether the contact lies on a selected face.
 
-        The centre height c = tip + R is within ``CERTIFY`` mm below the true maximum of
-        f over all faces (only the selected ones if ``selected_only``), by the bound of the
-        module docstring.
+        The centre height c = tip + R is within ``certify`` mm (default ``CERTIFY``) below
+        the true maximum of f over all faces (only the selected ones if ``selected_only``),
+        by the bound of the module docstring.  A looser ``certify`` stops the branch and
+        bound sooner (callers that add it back get a height never below the true one).
         """
         R = float(radius)
         if not (math.isfinite(R) and R > 0):
@@ -580,7 +582,7 @@ class FaceSet:
         if not np.all(np.isfinite(q)):
             bad = int(np.flatnonzero(~np.isfinite(q).all(axis=1))[0])
             raise ParameterError(f"query point {bad} is not finite (mm): {q[bad].tolist()}")
-        res = self.centre_heights(q, R, selected_only)
+        res = self.centre_heights(q, R, selected_only, certify)
         tip = res.centre - R
         tip[~np.isfinite(tip)] = np.nan
         on_sel = np.zeros(len(q), bool)
@@ -589,7 +591,8 @@ class FaceSet:
         on_sel[found] = sel[res.face[found]]
         return tip, res.face, res.u, res.v, on_sel
 
-    def centre_heights(self, q: FloatArray, R: float, selected_only: bool = False) -> DropResult:
+    def centre_heights(self, q: FloatArray, R: float, selected_only: bool = False,
+                       certify: float = CERTIFY) -> DropResult:
         """Certified ball-centre heights (see :meth:`drop_ball`), chunk by chunk."""
         m = len(q)
         if m == 0:
@@ -600,11 +603,12 @@ class FaceSet:
         data = [d for d in self.data if d.selected or not selected_only]
         for start in range(0, m, QUERY_CHUNK):
             sl = slice(start, min(m, start + QUERY_CHUNK))
-            r = self._chunk(q[sl], R, data, not selected_only)
+            r = self._chunk(q[sl], R, data, not selected_only, certify)
             out.centre[sl], out.face[sl], out.u[sl], out.v[sl], out.gap[sl] = r
         return out
 
-    def _chunk(self, q: FloatArray, R: float, data: list, walls: bool = True) -> tuple:
+    def _chunk(self, q: FloatArray, R: float, data: list, walls: bool = True,
+               certify: float = CERTIFY) -> tuple:
         m = len(q)
         best = np.full(m, -np.inf)
         face = np.full(m, -1)
@@ -656,7 +660,7 @@ class FaceSet:
             groups = []
             for d, it, ub in evaluated:
                 self.stats["pairs"] += len(it.query)
-                open_ = ub > best[it.query] + CERTIFY
+                open_ = ub > best[it.query] + certify
                 rb = reg_box[it.query]
                 open_ &= ~((reg_face[it.query] == d.index) & (it.box[:, 0] >= rb[:, 0])
                            & (it.box[:, 1] <= rb[:, 1]) & (it.box[:, 2] >= rb[:, 2])

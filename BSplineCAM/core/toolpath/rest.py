@@ -107,19 +107,34 @@ class _DropCutterHeights:
         return self.dc.heights_and_slopes(xy)
 
 
+#: Certification of the rest passes' drop-cutter over faces (mm): the branch and bound stops
+#: once within this of the maximum, and this is added back, so a rest pass lies at most this
+#: above its offset surface and never below it (the passes clear terraces, not the part).
+REST_CERTIFY = 0.005
+
+
 class _FaceHeights:
-    """Callable tip heights of a ball over a FaceSet, with ``heights_and_slopes``."""
+    """Callable tip heights of a ball over a FaceSet, with ``heights_and_slopes``: upper
+    bounds within ``REST_CERTIFY`` of the true tip height."""
 
     def __init__(self, faceset: Any, radius: float):
         from .faces_raster import FaceQuery
 
         self.query = FaceQuery(faceset, radius)
 
+    def _heights(self, xy: FloatArray):
+        tip, face, u, v, _ = self.query.faceset.drop_ball(xy, self.query.radius,
+                                                         certify=REST_CERTIFY)
+        return tip + REST_CERTIFY, face, u, v
+
     def __call__(self, xy: FloatArray) -> FloatArray:
-        return self.query.heights(xy)[0]
+        return self._heights(xy)[0]
 
     def heights_and_slopes(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
-        return self.query.heights_and_slopes(xy)
+        tip, face, u, v = self._heights(xy)
+        grad = self.query.slopes(xy, face, u, v)
+        grad[~np.isfinite(tip)] = np.nan
+        return tip, grad
 
 
 def net_cl_height(surface: Any) -> ClHeightFn:

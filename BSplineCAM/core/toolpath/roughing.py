@@ -64,7 +64,7 @@ FLAT_SLOPE_DEG = 1.0
 FLAT_TOOL_AREAS = 2.0
 #: Within this many tool radii (plus the stepover) of a wall the fronts bend to run parallel
 #: to it.
-WALL_REACH_TOOL_RADII = 2.0
+WALL_REACH_TOOL_RADII = 1000.0
 _EPS = 1e-6
 #: Footprint growth against the grid (cells): a contour point lies on a cell edge, up to one
 #: cell from the allowed centre it was interpolated from, and simplification moves it by a
@@ -782,7 +782,7 @@ class _Job:
         while True:
             self.monitor(0.05 + 0.9 * (frac0 + min(k, 50) / 60.0 / nlevels))
             dQ = capped_distance(Q, self.s / cell + 2) * cell
-            ring = self.allowed & (dQ > self.s) & (dQ <= self.s + 1.5 * cell)
+            ring = self.allowed & (dQ > self.s)
             grown = None
             if ring.any():
                 c = float(phi[ring].min())
