@@ -238,6 +238,9 @@ class TestJobCommand(unittest.TestCase):
             job = json.loads((out / "job.json").read_text())
             verified = json.loads((out / "verify.json").read_text())
             self.assertTrue(verified["ok"], verified["checks"])
+            self.assertEqual(set(verified["checks"]),
+                             {"gouge_max_mm", "scallop_max_mm", "rapid_collisions"})
+            self.assertIn("roughing_radial_engagement_max_mm", verified["targets"])
             self.assertEqual(sorted(verified["tools"]), ["1", "2"])
             self.assertEqual(verified["tools"]["1"]["tool"]["shape"], "flat")
             self.assertGreater(verified["tools"]["1"]["removed_volume_mm3"],

@@ -57,6 +57,9 @@ print(f"  machined from the block: gouge {ver['gouge_max_mm'] * 1000:.2f} um, sc
       f"({ver['machining_time_with_acceleration_s'] / 60:.1f} min with acceleration)")
 for name, check in ver["checks"].items():
     print(f"    {'ok  ' if check['ok'] else 'FAIL'} {name}: {check['value']} (limit {check['limit']})")
+for name, target in ver.get("targets", {}).items():
+    print(f"    {'ok  ' if target['ok'] else 'OVER'} {name}: {target['value']} (target {target['limit']}; "
+          "a target, see the README's known limits)")
 ok = status == 0 and cross["exact_route_ok"] and ver["ok"] and all(
     r["ok"] for r in job.get("rs274_by_post", {}).values())
 sys.exit(0 if ok else 1)

@@ -5,7 +5,7 @@
 # Environment:
 #   FREECAD             GUI binary (default: freecad)
 #   FREECADCMD          its command-line twin, asked where the Mod folder is (default: freecadcmd)
-#   BSPLINECAM_TIMEOUT  seconds before FreeCAD is killed (default: 600)
+#   BSPLINECAM_TIMEOUT  seconds before FreeCAD is killed (default: 900)
 #   BSPLINECAM_DOCS     where screenshots go (default: docs/)
 #
 # FreeCAD runs with a throw-away HOME whose Mod folder links to this repository, so the test
@@ -15,7 +15,7 @@
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 FREECAD="${FREECAD:-freecad}"
-TIMEOUT="${BSPLINECAM_TIMEOUT:-600}"
+TIMEOUT="${BSPLINECAM_TIMEOUT:-900}"
 WORK="$(mktemp -d -t bsplinecam-gui.XXXXXX)"
 trap 'rm -rf "$WORK"' EXIT
 

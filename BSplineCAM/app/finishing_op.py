@@ -675,16 +675,17 @@ def _is_surface(obj) -> bool:
     return is_surface(obj)
 
 
-def register_with_setup_sheet() -> None:
-    """Tell CAM's setup sheet the op exists (it keeps none of its properties), so making an op
-    does not log "SetupSheet has no support for SurfaceFinish"."""
-    compat.cam_module("setup_sheet").RegisterOperation("SurfaceFinish", Create, lambda: [])
+def new_op(proxy_class, type_name: str, factory, name: str, obj=None, parentJob=None):  # noqa: N803
+    """A new op of ``proxy_class`` in ``parentJob`` (default: the active job), like CAM's
+    ops' Create; CAM's setup sheet is told the op type exists (it keeps none of its
+    properties), so making one does not log "SetupSheet has no support for ..."."""
+    compat.cam_module("setup_sheet").RegisterOperation(type_name, factory, lambda: [])
+    if obj is None:
+        obj = FreeCAD.ActiveDocument.addObject("Path::FeaturePython", name)
+    obj.Proxy = proxy_class(obj, name, parentJob)
+    return obj
 
 
 def Create(name: str = "SurfaceFinish", obj=None, parentJob=None):  # noqa: N802, N803 - FreeCAD factory convention
     """A new finishing op in ``parentJob`` (default: the active job), like CAM's ops' Create."""
-    register_with_setup_sheet()
-    if obj is None:
-        obj = FreeCAD.ActiveDocument.addObject("Path::FeaturePython", name)
-    obj.Proxy = ObjectSurfaceFinish(obj, name, parentJob)
-    return obj
+    return new_op(ObjectSurfaceFinish, "SurfaceFinish", Create, name, obj, parentJob)

@@ -191,15 +191,8 @@ def find_surface(job):
     return find_surface_object(job)
 
 
-def register_with_setup_sheet() -> None:
-    """Tell CAM's setup sheet the op exists (see finishing_op.register_with_setup_sheet)."""
-    compat.cam_module("setup_sheet").RegisterOperation("SurfaceRough", Create, lambda: [])
-
-
 def Create(name: str = "SurfaceRough", obj=None, parentJob=None):  # noqa: N802, N803 - FreeCAD factory convention
     """A new roughing op in ``parentJob`` (default: the active job), like CAM's ops' Create."""
-    register_with_setup_sheet()
-    if obj is None:
-        obj = FreeCAD.ActiveDocument.addObject("Path::FeaturePython", name)
-    obj.Proxy = ObjectSurfaceRough(obj, name, parentJob)
-    return obj
+    from .finishing_op import new_op
+
+    return new_op(ObjectSurfaceRough, "SurfaceRough", Create, name, obj, parentJob)

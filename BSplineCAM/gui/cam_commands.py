@@ -247,7 +247,63 @@ def check_op(op) -> None:
         raise ValueError(f"{op.Label}: {why}")
 
 
-class JobPanel:
+def spin(value: float, low: float, high: float, decimals: int, suffix: str, step: float):
+    """A double spin box of a task panel."""
+    box = QtGui.QDoubleSpinBox()
+    box.setRange(low, high)
+    box.setDecimals(decimals)
+    box.setSingleStep(step)
+    box.setSuffix(suffix)
+    box.setValue(value)
+    return box
+
+
+class PanelBase:
+    """OK and Cancel of the machining task panels; ``attempt`` runs the work of OK."""
+
+    def new_form(self, title: str):
+        """The panel's widget with a form layout (narrow docks put labels above fields)."""
+        self.form = QtGui.QWidget()
+        self.form.setWindowTitle(title)  # short: the task box is as wide as its title
+        self.form.setWindowIcon(QtGui.QIcon(icon("job")))
+        layout = QtGui.QFormLayout(self.form)
+        layout.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)
+        layout.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
+        self.layout = layout
+        return layout
+
+    def add_message(self) -> None:
+        """The red line under the fields where a refusal is explained."""
+        self.message = QtGui.QLabel("")
+        self.message.setWordWrap(True)
+        self.message.setStyleSheet("color: #b00000")
+        self.layout.addRow(self.message)
+
+    def attempt(self, title: str, work) -> bool:
+        """Run ``work()``; on failure or interruption say why in the panel (and a dialog for
+        a failure) and return False, the panel staying open for a retry."""
+        try:
+            work()
+        except ToolpathCancelled as exc:
+            self.message.setText(f"Interrupted: {exc}")
+            FreeCAD.Console.PrintWarning(f"BSplineCAM {title.lower()}: {exc}\n")
+            return False
+        except Exception as exc:  # noqa: BLE001 - a message, the panel stays for a retry
+            text = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
+            self.message.setText(text)
+            report_error(title, text)
+            return False
+        return True
+
+    def getStandardButtons(self) -> int:  # noqa: N802 - FreeCAD API
+        return task_buttons(QtGui.QDialogButtonBox.Ok, QtGui.QDialogButtonBox.Cancel)
+
+    def reject(self) -> bool:
+        FreeCADGui.Control.closeDialog()
+        return True
+
+
+class JobPanel(PanelBase):
     """Task panel of the job's parameters; OK validates, computes, and closes on success."""
 
     #: The panel last opened (for scripting and tests; not saved).
@@ -259,22 +315,7 @@ class JobPanel:
         self.surface = surface
         self.faces = [(obj, list(names)) for obj, names in (faces or [])]
         self.job = self.op = None
-        self.form = QtGui.QWidget()
-        self.form.setWindowTitle("Machining job")  # short: the task box is as wide as its title
-        self.form.setWindowIcon(QtGui.QIcon(icon("job")))
-        layout = QtGui.QFormLayout(self.form)
-        layout.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)  # narrow docks: labels above
-        layout.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
-        self.layout = layout
-
-        def spin(value, low, high, decimals, suffix, step):
-            box = QtGui.QDoubleSpinBox()
-            box.setRange(low, high)
-            box.setDecimals(decimals)
-            box.setSingleStep(step)
-            box.setSuffix(suffix)
-            box.setValue(value)
-            return box
+        layout = self.new_form("Machining job")
 
         def combo(items, current):
             box = QtGui.QComboBox()
@@ -313,10 +354,7 @@ class JobPanel:
             widget.setToolTip(tip)
             widget.setMinimumWidth(60)
             layout.addRow(label, widget)
-        self.message = QtGui.QLabel("")
-        self.message.setWordWrap(True)
-        self.message.setStyleSheet("color: #b00000")
-        layout.addRow(self.message)
+        self.add_message()
         self.strategy.currentIndexChanged.connect(self.show_strategy_fields)
         self.show_strategy_fields()
         JobPanel.last = self
@@ -400,12 +438,9 @@ class JobPanel:
         cutting.validate()
         return params, cutting
 
-    def getStandardButtons(self) -> int:  # noqa: N802 - FreeCAD API
-        return task_buttons(QtGui.QDialogButtonBox.Ok, QtGui.QDialogButtonBox.Cancel)
-
     def accept(self) -> bool:
         """Validate, compute; the panel stays open (with the reason) when anything fails."""
-        try:
+        def work() -> None:
             params, cutting = self.parameters()
             if self.surface is not None:
                 self.job, self.op = create_job(self.surface, params, cutting)
@@ -414,14 +449,8 @@ class JobPanel:
                                  "Add selected faces")
             else:
                 self.job, self.op = create_faces_job(self.faces, params, cutting)
-        except ToolpathCancelled as exc:
-            self.message.setText(f"Interrupted: {exc}")
-            FreeCAD.Console.PrintWarning(f"BSplineCAM job: {exc}\n")
-            return False
-        except Exception as exc:  # noqa: BLE001 - a message, the panel stays for a retry
-            text = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
-            self.message.setText(text)
-            report_error("Machining job", text)
+
+        if not self.attempt("Machining job", work):
             return False
         FreeCADGui.Control.closeDialog()
         report = json.loads(self.op.Report or "{}")
@@ -429,10 +458,6 @@ class JobPanel:
                   f"{report.get('cutting_length_mm', 0):.0f} mm of cutting")
         FreeCADGui.Selection.clearSelection()
         FreeCADGui.Selection.addSelection(self.job)
-        return True
-
-    def reject(self) -> bool:
-        FreeCADGui.Control.closeDialog()
         return True
 
 

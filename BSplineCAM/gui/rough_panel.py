@@ -13,24 +13,23 @@ from __future__ import annotations
 
 import json
 
-import FreeCAD
 import FreeCADGui
 from PySide import QtGui
 
 from ..app import compat
-from ..core.toolpath.common import ToolpathCancelled
 from . import progress_bar, results_panel
 from .cam_commands import (
+    PanelBase,
     _cutting_source,
     app_toolbit_factory,
     attach_job_view_providers,
     check_op,
     is_job,
     selected_job,
+    spin,
 )
 from .commands import BaseCommand, obj_ref, transaction, wait_cursor
-from .messages import report_error, show_info, task_buttons
-from .resources import icon
+from .messages import show_info
 
 SHAPES = ["flat", "bullnose", "ball"]
 
@@ -62,7 +61,7 @@ def add_roughing(job, roughing, cutting):
     return op
 
 
-class RoughPanel:
+class RoughPanel(PanelBase):
     """Task panel of the roughing parameters; OK validates, computes, and closes on success."""
 
     #: The panel last opened (for scripting and tests; not saved).
@@ -71,23 +70,7 @@ class RoughPanel:
     def __init__(self, job) -> None:
         self.job = job
         self.op = None
-        self.form = QtGui.QWidget()
-        self.form.setWindowTitle("Roughing")
-        self.form.setWindowIcon(QtGui.QIcon(icon("job")))
-        layout = QtGui.QFormLayout(self.form)
-        layout.setRowWrapPolicy(QtGui.QFormLayout.WrapLongRows)
-        layout.setFieldGrowthPolicy(QtGui.QFormLayout.AllNonFixedFieldsGrow)
-        self.layout = layout
-
-        def spin(value, low, high, decimals, suffix, step):
-            box = QtGui.QDoubleSpinBox()
-            box.setRange(low, high)
-            box.setDecimals(decimals)
-            box.setSingleStep(step)
-            box.setSuffix(suffix)
-            box.setValue(value)
-            return box
-
+        layout = self.new_form("Roughing")
         self.shape = QtGui.QComboBox()
         self.shape.addItems(SHAPES)
         self.diameter = spin(10.0, 0.0, 100.0, 3, " mm", 1.0)
@@ -122,10 +105,7 @@ class RoughPanel:
         ):
             widget.setToolTip(tip)
             layout.addRow(label, widget)
-        self.message = QtGui.QLabel("")
-        self.message.setWordWrap(True)
-        self.message.setStyleSheet("color: #b00000")
-        layout.addRow(self.message)
+        self.add_message()
         self.shape.currentIndexChanged.connect(self.show_corner)
         self.show_corner()
         RoughPanel.last = self
@@ -161,30 +141,17 @@ class RoughPanel:
         cutting.validate()
         return params, cutting
 
-    def getStandardButtons(self) -> int:  # noqa: N802 - FreeCAD API
-        return task_buttons(QtGui.QDialogButtonBox.Ok, QtGui.QDialogButtonBox.Cancel)
-
     def accept(self) -> bool:
-        try:
+        def work() -> None:
             params, cutting = self.parameters()
             self.op = add_roughing(self.job, params, cutting)
-        except ToolpathCancelled as exc:
-            self.message.setText(f"Interrupted: {exc}")
-            FreeCAD.Console.PrintWarning(f"BSplineCAM roughing: {exc}\n")
-            return False
-        except Exception as exc:  # noqa: BLE001 - a message, the panel stays for a retry
-            text = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
-            self.message.setText(text)
-            report_error("Roughing", text)
+
+        if not self.attempt("Roughing", work):
             return False
         FreeCADGui.Control.closeDialog()
         report = json.loads(self.op.Report or "{}")
         show_info("Roughing", f"{self.op.Label}: {len(report.get('levels', []))} levels, "
                   f"{report.get('cutting_length_mm', 0):.0f} mm of cutting")
-        return True
-
-    def reject(self) -> bool:
-        FreeCADGui.Control.closeDialog()
         return True
 
 

