@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""BSplineCAM's raster op against FreeCAD's own 3D Surface op (OpenCAMLib) on the case study.
+"""BSplineCAM's raster op against FreeCAD's own 3D Surface op (OpenCAMLib) on the case study
+(or ``--surface dome|saddle|waves|NET``).
 
 Both ops sit in one job on the same model and tool (6 mm ball by default) and aim at the same
 scallop height (0.01 mm by default): the raster by its curvature-aware stepover, the 3D
@@ -112,10 +113,31 @@ def measure(surface: Surface, text: str, path: Path, diameter: float, cell: floa
     return result
 
 
+def benchmark_surface(name: str) -> Surface:
+    """The surfaces of the benchmark: the case study, or one made here by name (a steep dome,
+    a saddle, a field of waves), or a control-net file."""
+    if name == "case-study":
+        return Surface.from_json(CASE_STUDY)
+    if name in SURFACES:
+        n, size, height = SURFACES[name]
+        x, y = np.meshgrid(np.linspace(0, size, n), np.linspace(0, size, n), indexing="ij")
+        z = height(x / size, y / size)
+        return Surface(np.stack([x, y, z], axis=-1), "clamped", name)
+    return Surface.from_file(name)
+
+
+#: name -> (net points per side, footprint side mm, z(u, w) mm on [0, 1]^2).
+SURFACES = {
+    "dome": (9, 60.0, lambda u, w: 10 + 40 * np.exp(-((u - 0.5) ** 2 + (w - 0.5) ** 2) / 0.05)),
+    "saddle": (8, 80.0, lambda u, w: 20 + 30 * (u - 0.5) ** 2 - 30 * (w - 0.5) ** 2),
+    "waves": (14, 100.0, lambda u, w: 15 + 4 * np.sin(6 * u) * np.cos(5 * w) + 3 * u),
+}
+
+
 def run(args: argparse.Namespace) -> dict:
     if not compat.opencamlib_available():
         raise SystemExit(f"this benchmark: {compat.opencamlib_missing_message()}")
-    surface = Surface.from_json(CASE_STUDY)
+    surface = benchmark_surface(args.surface)
     params = pipeline.FinishingParameters(
         tool_diameter=args.diameter,
         scallop=args.scallop,
@@ -145,7 +167,7 @@ def run(args: argparse.Namespace) -> dict:
             results[key].update(measure(surface, text, path, args.diameter, args.cell))
             results[key]["program"] = str(path)
         return {
-            "surface": CASE_STUDY.name,
+            "surface": args.surface,
             "freecad": ".".join(map(str, compat.freecad_version())),
             "tool_diameter_mm": args.diameter,
             "scallop_mm": args.scallop,
@@ -174,7 +196,7 @@ def run(args: argparse.Namespace) -> dict:
 def table(figures: dict) -> str:
     ours, theirs = figures["bsplinecam"], figures["freecad_3d_surface"]
     lines = [
-        f"case study, {figures['tool_diameter_mm']:g} mm ball, scallop "
+        f"{figures['surface']}, {figures['tool_diameter_mm']:g} mm ball, scallop "
         f"{figures['scallop_mm']:g} mm, FreeCAD {figures['freecad']}",
         f"{'':24}{'BSplineCAM raster':>20}{'FreeCAD 3D Surface':>20}{'FC/ours':>10}",
     ]
@@ -187,6 +209,8 @@ def table(figures: dict) -> str:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--surface", default="case-study",
+                        help="case-study, dome, saddle, waves, or a control-net file")
     parser.add_argument("--diameter", type=float, default=6.0, help="ball diameter (mm)")
     parser.add_argument("--scallop", type=float, default=0.01, help="scallop height (mm)")
     parser.add_argument("--tolerance", type=float, default=0.002, help="chordal tolerance (mm)")
