@@ -54,6 +54,9 @@ from BSplineCAM.core.machining_time import machining_time  # noqa: E402
 from BSplineCAM.core.simulate import Tool  # noqa: E402
 from BSplineCAM.core.verify import verify_job  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from toolpath import post_alone, timed_recompute  # noqa: E402  (benchmarks/toolpath.py)
+
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"
 OUT = ROOT / "build" / "bench"
@@ -94,28 +97,6 @@ GOUGE_MM = 0.01
 SLACK_MM = 0.02
 
 
-def timed_recompute(doc, op) -> float:
-    """Seconds of the document recompute that computes ``op``; raises if it made no path."""
-    start = time.perf_counter()
-    doc.recompute()
-    seconds = time.perf_counter() - start
-    if not op.Path.Commands:
-        raise RuntimeError(f"{op.Label} produced no path")
-    return seconds
-
-
-def post_alone(job, op, path: Path) -> str:
-    """Post ``op`` alone (the job's other ops made inactive meanwhile) with linuxcnc."""
-    others = [o for o in job.Operations.Group if o is not op]
-    states = [o.Active for o in others]
-    try:
-        for other in others:
-            other.Active = False
-        op.Active = True
-        return cam.post_process(job, "linuxcnc", path)
-    finally:
-        for other, state in zip(others, states):
-            other.Active = state
 
 
 def make_job(doc, surface: Surface, args: argparse.Namespace):

@@ -75,12 +75,16 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
     def initOperation(self, obj):  # noqa: N802 - FreeCAD API
         self.ensure_properties(obj)
 
-    @staticmethod
-    def ensure_properties(obj) -> None:
-        add_missing_properties(obj, PROPERTIES)
+    #: The op's own properties and version (a subclass names its own).
+    properties = PROPERTIES
+    version = OBJECT_VERSION
+
+    @classmethod
+    def ensure_properties(cls, obj) -> None:
+        add_missing_properties(obj, cls.properties)
         for name in ("Report", "Version"):
             obj.setEditorMode(name, 1)
-        obj.Version = OBJECT_VERSION
+        obj.Version = cls.version
 
     def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
         """Rebuild what the proxy needs from properties (a restored proxy has only its class):

@@ -24,7 +24,6 @@ from .finishing_op import (
     moves_to_commands,
     progress_reporter,
 )
-from .proxy import add_missing_properties
 
 OBJECT_VERSION = "1"
 #: Chordal tolerance (mm) of the helical arcs fitted to the entries: the roughing's own
@@ -59,12 +58,8 @@ PROPERTIES = (
 class ObjectSurfaceRough(ObjectSurfaceFinish):
     """Z-level roughing of a BSplineCAM surface or a model's faces, from the job's stock."""
 
-    @staticmethod
-    def ensure_properties(obj) -> None:
-        add_missing_properties(obj, PROPERTIES)
-        for name in ("Report", "Version"):
-            obj.setEditorMode(name, 1)
-        obj.Version = OBJECT_VERSION
+    properties = PROPERTIES
+    version = OBJECT_VERSION
 
     def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
         self.ensure_properties(obj)
