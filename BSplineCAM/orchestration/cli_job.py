@@ -16,6 +16,7 @@ deviation map (DIR/deviation.png), all or nothing.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -226,7 +227,12 @@ def cmd_job(args: argparse.Namespace) -> int:
         report["elapsed_s"] = round(time.perf_counter() - started, 3)
         (stage / "verify.json").write_text(json_text(verified))
         (stage / "job.json").write_text(json_text(report))
+    for note in report.get("roughing", {}).get("notes", []):
+        print(f"bsplinecam job: warning: roughing: {note}", file=sys.stderr)
+    for warning in verified.get("warnings", []):
+        print(f"bsplinecam job: warning: {warning}", file=sys.stderr)
     emit({"out": str(Path(args.out).resolve()), **report["verify"],
+          "notes": report.get("roughing", {}).get("notes", []),
           "rs274": report.get("rs274", {}).get("ok")})
     ok = report.get("rs274", {"ok": True})["ok"] and verified.get("ok", True)
     return 0 if ok else EXIT_CHECK_FAILED
