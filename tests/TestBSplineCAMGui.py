@@ -1301,11 +1301,61 @@ class TestRoughingCommand(CamTestCase):
         self.assertNotIn("error", json.loads(rough.Report))
         shapes = {int(tc.ToolNumber): compat.core_tool_shape(tc.Tool)[0] for tc in job.Tools.Group}
         self.assertEqual(shapes, {1: "flat", 2: "ball"})
+        self.edit_roughing(rough, undo + 1)
         # undo takes it all back
+        self.doc.undo()
         self.doc.undo()
         process_events()
         self.assertEqual([o.Name for o in self.doc.Objects], names)
         self.assertEqual([o.Name for o in job.Operations.Group], [op.Name])
+
+    def edit_roughing(self, rough, undo: int) -> None:
+        """Double-click opens the panel filled from the op; a bad field changes nothing; OK
+        changes the op in one transaction and recomputes it."""
+        from BSplineCAM.gui import rough_panel
+
+        rough_panel.RoughPanel.last = None
+        vobj = rough.ViewObject
+        self.assertIsInstance(vobj.Proxy, rough_panel.RoughOpViewProvider)
+        self.assertTrue(vobj.Proxy.doubleClicked(vobj))
+        process_events()
+        panel = rough_panel.RoughPanel.last
+        self.assertIsNotNone(panel, "double-clicking the roughing op opened no panel")
+        self.assertTrue(panel.editing)
+        self.assertEqual((panel.stepdown.value(), panel.stepover.value(), panel.diameter.value()),
+                         (4.0, 50.0, 12.0))
+        self.assertEqual(panel.shape.currentText(), "flat")
+        self.assertFalse(panel.diameter.isEnabled())  # the controller's bit
+        self.assertAlmostEqual(panel.horizontal_feed.value(),
+                               float(rough.ToolController.HorizFeed.getValueAs("mm/min")))
+        levels = json.loads(rough.Report)["levels"]
+        panel.stepdown.setValue(100.0)  # deeper than the cutting edge: refused, nothing changes
+        with message_boxes() as boxes:
+            self.assertFalse(panel.accept())
+            process_events()
+        self.assertTrue(panel.message.text(), "no reason shown for the refusal")
+        self.assertEqual(len(boxes), 1, boxes)
+        self.assertEqual(self.doc.UndoCount, undo)
+        self.assertIn("StepDown", panel.message.text())
+        self.assertAlmostEqual(rough.StepDown.Value, 4.0)
+        self.assertEqual(json.loads(rough.Report)["levels"], levels)
+        panel.stepdown.setValue(3.0)
+        panel.horizontal_feed.setValue(900.0)
+        with message_boxes() as boxes:
+            accepted = panel.accept()
+        if not accepted:
+            self.fail(f"the edit was refused: {panel.message.text()} {boxes}")
+        process_events()
+        self.assertFalse(FreeCADGui.Control.activeDialog())
+        self.assertEqual(self.doc.UndoCount, undo + 1)
+        self.assertAlmostEqual(rough.StepDown.Value, 3.0)
+        self.assertAlmostEqual(float(rough.ToolController.HorizFeed.getValueAs("mm/min")), 900.0)
+        self.assertNotEqual(json.loads(rough.Report)["levels"], levels)
+        feed = rough.ToolController.HorizFeed.Value  # Path commands hold mm/s
+        self.assertAlmostEqual(feed, 15.0)
+        self.assertTrue(any(abs(c.Parameters.get("F", 0) - feed) < 1e-9
+                            for c in rough.Path.Commands if c.Name == "G1"),
+                        "the new feed is not in the recomputed path")
 
 
 class TestZScreenshots(PictureChecks, GuiTestCase):

@@ -56,14 +56,29 @@ def make_controller(shape: str, diameter: float, corner_radius: float = 0.0,
     bit = compat.make_tool_bit(doc, shape, diameter, corner_radius)
     tc = compat.cam_module("controller").Create(f"TC: {bit.Label}", bit, number)
     compat.make_proxy_restorable(tc)
+    set_cutting(tc, cutting)
+    tc.recompute()
+    return tc
+
+
+def set_cutting(tc, cutting: Cutting) -> None:
+    """Feeds, rapids and spindle speed (forward) of the tool controller ``tc``."""
+    cutting.validate()
     tc.HorizFeed = f"{cutting.horizontal_feed} mm/min"
     tc.VertFeed = f"{cutting.vertical_feed} mm/min"
     tc.HorizRapid = f"{cutting.rapid} mm/min"
     tc.VertRapid = f"{cutting.rapid} mm/min"
     tc.SpindleSpeed = float(cutting.spindle_speed)
     tc.SpindleDir = "Forward"
-    tc.recompute()
-    return tc
+
+
+def controller_cutting(tc) -> Cutting:
+    """The tool controller's feeds (mm/min) and spindle speed (rpm) as a :class:`Cutting`."""
+    def mm_min(quantity) -> float:  # a speed quantity (mm/s internally) or a plain number
+        return float(quantity.getValueAs("mm/min")) if hasattr(quantity, "getValueAs") \
+            else float(quantity)
+    return Cutting(horizontal_feed=mm_min(tc.HorizFeed), vertical_feed=mm_min(tc.VertFeed),
+                   spindle_speed=float(tc.SpindleSpeed), rapid=mm_min(tc.HorizRapid))
 
 
 def add_controller(job, shape: str, diameter: float, corner_radius: float = 0.0,

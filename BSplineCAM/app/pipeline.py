@@ -90,12 +90,7 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
         tc.ToolNumber = int(tc.ToolNumber) + 1
     tc = cam.add_controller(job, roughing.shape, roughing.diameter, roughing.corner_radius,
                             cutting, number=1)
-    stock = job.Stock
-    for name in ("ExtXneg", "ExtXpos", "ExtYneg", "ExtYpos", "ExtZpos"):
-        if hasattr(stock, name):
-            setattr(stock, name, roughing.stock_margin)
-    if hasattr(stock, "ExtZneg"):
-        stock.ExtZneg = 0.0
+    set_stock_margin(job, roughing.stock_margin)
     group = list(job.Operations.Group)
     if group and group[0] is not op:  # roughing goes first, before the finishing ops
         job.Operations.Group = [op, *(o for o in group if o is not op)]
@@ -103,12 +98,68 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
     for other in job.Operations.Group:  # the finishing ops start from the roughed stock
         if other is not op and hasattr(other, "RestFrom"):
             other.RestFrom = [*other.RestFrom, op]
+    set_roughing(op, roughing)
+    return op
+
+
+#: The stock block's extensions beyond the part that the margin sets (not the bottom).
+MARGIN_EXTENSIONS = ("ExtXneg", "ExtXpos", "ExtYneg", "ExtYpos", "ExtZpos")
+
+
+def set_stock_margin(job, margin: float) -> None:
+    """Grow the job's stock block by ``margin`` mm on every side but the bottom."""
+    if not margin >= 0:
+        raise ValueError(f"stock margin must be >= 0 mm, got {margin}")
+    stock = job.Stock
+    for name in MARGIN_EXTENSIONS:
+        if hasattr(stock, name):
+            setattr(stock, name, margin)
+    if hasattr(stock, "ExtZneg"):
+        stock.ExtZneg = 0.0
+
+
+def stock_margin(job) -> float | None:
+    """The margin :func:`set_stock_margin` gave, or None when the stock is not such a block."""
+    stock = getattr(job, "Stock", None)
+    values = {float(getattr(getattr(stock, n, None), "Value", getattr(stock, n, float("nan"))))
+              for n in MARGIN_EXTENSIONS}
+    return values.pop() if len(values) == 1 and all(v == v for v in values) else None
+
+
+def set_roughing(op, roughing: RoughingParameters) -> None:
+    """The roughing op's step-down, stepover, stock to leave and flat levels (not its tool)."""
     op.StepDown = roughing.stepdown
     op.StepOver = int(roughing.stepover_percent)
     op.RadialAllowance = roughing.radial_allowance
     op.AxialAllowance = roughing.axial_allowance
     op.FlatLevels = bool(roughing.flat_levels)
-    return op
+
+
+def roughing_of(op) -> RoughingParameters:
+    """The op's parameters as a :class:`RoughingParameters` (tool from its controller's bit,
+    margin from its job's stock: the defaults where they cannot be read)."""
+    shape, diameter, corner = compat.core_tool_shape(op.ToolController.Tool)
+    job = op.Proxy.job_of(op)
+    margin = stock_margin(job) if job is not None else None
+    return RoughingParameters(
+        shape=shape, diameter=float(diameter),
+        corner_radius=float(corner) if shape == "bullnose" else 0.0,
+        stepdown=float(op.StepDown.Value), stepover_percent=int(op.StepOver),
+        radial_allowance=float(op.RadialAllowance.Value),
+        axial_allowance=float(op.AxialAllowance.Value),
+        stock_margin=RoughingParameters.stock_margin if margin is None else margin,
+        flat_levels=bool(op.FlatLevels))
+
+
+def edit_roughing(op, roughing: RoughingParameters, cutting: cam.Cutting) -> None:
+    """Change a roughing op in place: its parameters, its controller's feeds and speed and
+    the stock margin (the tool itself is its controller's bit).  Not recomputed."""
+    cutting.validate()
+    job = op.Proxy.job_of(op)
+    cam.set_cutting(op.ToolController, cutting)
+    if job is not None:
+        set_stock_margin(job, roughing.stock_margin)
+    set_roughing(op, roughing)
 
 
 def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = cam.Cutting(),

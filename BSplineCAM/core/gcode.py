@@ -37,8 +37,8 @@ from enum import IntEnum
 
 import numpy as np
 
-from .errors import BSplineCAMError, NetError
-from .netio import MAX_COORDINATE_MM, MAX_DIGITS, MAX_NESTING, read_bytes
+from .errors import BSplineCAMError
+from .netio import MAX_COORDINATE_MM, MAX_DIGITS, MAX_NESTING, read_text
 from .typing import FloatArray, IntArray
 
 MM_PER_INCH = 25.4
@@ -220,21 +220,7 @@ def read_gcode(text: str, source: str = "program", require_end: bool = True) -> 
 def read_gcode_file(path: str, require_end: bool = True) -> Program:
     """Read a program file (UTF-8, a byte-order mark allowed); unreadable, undecodable or
     binary files and files over MAX_PROGRAM_BYTES raise GcodeError."""
-    try:
-        data = read_bytes(path, MAX_PROGRAM_BYTES, "MAX_PROGRAM_BYTES")
-    except NetError as exc:
-        raise GcodeError(str(exc)) from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + data.count(b"\r", 0, exc.start) \
-            - data.count(b"\r\n", 0, exc.start) + 1
-        raise GcodeError(f"{path}: line {line}: not a text file (invalid UTF-8 byte "
-                         f"0x{data[exc.start]:02x})") from None
-    nul = text.find("\x00")
-    if nul >= 0:
-        line = len(split_lines(text[:nul] + "x"))
-        raise GcodeError(f"{path}: line {line}: not a text file (contains NUL bytes)")
+    text = read_text(path, MAX_PROGRAM_BYTES, "MAX_PROGRAM_BYTES", GcodeError)
     return read_gcode(text, path, require_end)
 
 

@@ -236,22 +236,36 @@ def read_bytes(path: str | os.PathLike, limit: int, limit_name: str) -> bytes:
     return b"".join(pieces)
 
 
-def read_text(path: Path) -> str:
-    """A file's UTF-8 text (a leading byte-order mark dropped); a NetError names the file, and
-    the line where it can, when it is missing, larger than MAX_FILE_BYTES, not UTF-8 or holds
-    NUL bytes."""
-    data = read_bytes(path, MAX_FILE_BYTES, "MAX_FILE_BYTES")
+def read_text(path: str | os.PathLike, limit: int | None = None,
+              limit_name: str = "MAX_FILE_BYTES", error: type[Exception] = NetError) -> str:
+    """A file's UTF-8 text (a leading byte-order mark dropped); ``error`` names the file, and
+    the line where it can (lines end at LF, CR LF or CR), when it is missing, larger than
+    ``limit`` bytes (``limit_name``; default MAX_FILE_BYTES), not UTF-8 or holds NUL bytes.
+    Every reader of a text file (nets, programs, tool tables) goes through here."""
+    if limit is None:
+        limit = MAX_FILE_BYTES
+    try:
+        data = read_bytes(path, limit, limit_name)
+    except NetError as exc:
+        if error is NetError:
+            raise
+        raise error(str(exc)) from None
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise NetError(
-            f"{path}: line {line}: not a text file (invalid UTF-8 byte 0x{data[exc.start]:02x})"
-        ) from None
+        raise error(f"{path}: line {_line_at(data, exc.start)}: not a text file (invalid UTF-8 "
+                    f"byte 0x{data[exc.start]:02x})") from None
     nul = text.find("\x00")
     if nul >= 0:
-        raise NetError(f"{path}: line {_line_of(text, nul)}: not a text file (NUL byte)")
+        raise error(f"{path}: line {_line_at(text, nul)}: not a text file (contains NUL bytes)")
     return text
+
+
+def _line_at(text: str | bytes, offset: int) -> int:
+    """The line (from 1) holding ``offset``, lines ended by LF, CR LF or CR."""
+    lf, cr = ("\n", "\r") if isinstance(text, str) else (b"\n", b"\r")
+    return (text.count(lf, 0, offset) + text.count(cr, 0, offset)
+            - text.count(cr + lf, 0, offset) + 1)
 
 
 def _lines(text: str, path: Path) -> list[str]:

@@ -22,9 +22,9 @@ import re
 
 import numpy as np
 
-from .errors import NetError, ParameterError
+from .errors import ParameterError
 from .gcode import MoveKind, Program
-from .netio import MAX_COORDINATE_MM, MAX_DIGITS, read_bytes
+from .netio import MAX_COORDINATE_MM, MAX_DIGITS, read_text
 from .simulate import Tool, ToolShape
 from .toolpath.common import MAX_TOOL_DIAMETER, MIN_TOOL_DIAMETER
 
@@ -185,19 +185,7 @@ def parse_tool_table(text: str, source: str = "tool table") -> dict[int, Tool]:
 def read_tool_table(path: str | os.PathLike) -> dict[int, Tool]:
     """Tools of a LinuxCNC tool-table file (UTF-8, see the module docstring); errors name the
     file, the line and the word."""
-    try:
-        data = read_bytes(path, MAX_TABLE_BYTES, "MAX_TABLE_BYTES")
-    except NetError as exc:
-        raise ToolTableError(str(exc)) from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise ToolTableError(f"{path}: line {line}: not a text file (invalid UTF-8 byte "
-                             f"0x{data[exc.start]:02x})") from None
-    if "\x00" in text:
-        line = text.count("\n", 0, text.find("\x00")) + 1
-        raise ToolTableError(f"{path}: line {line}: not a text file (contains NUL bytes)")
+    text = read_text(path, MAX_TABLE_BYTES, "MAX_TABLE_BYTES", ToolTableError)
     return parse_tool_table(text, str(path))
 
 

@@ -126,7 +126,7 @@ class FinishOpViewProvider(StatelessProxy):
         return icon("job")
 
 
-def attach_job_view_providers(job, op) -> None:
+def attach_job_view_providers(job, op, provider=None) -> None:
     """What CAM's own job command does in the GUI: the job's tree and icons, tool bit hidden."""
     if job.ViewObject is not None and job.ViewObject.Proxy is None:
         job.ViewObject.Proxy = compat.cam_module("job_gui").ViewProvider(job.ViewObject)
@@ -139,7 +139,7 @@ def attach_job_view_providers(job, op) -> None:
                 compat.cam_module("icon_gui").Attach(bit.ViewObject, "ToolBit")
             bit.ViewObject.Visibility = False
     if op.ViewObject is not None:
-        FinishOpViewProvider(op.ViewObject)
+        (provider or FinishOpViewProvider)(op.ViewObject)
 
 
 # -- the job ---------------------------------------------------------------------------------
@@ -272,6 +272,38 @@ class PanelBase:
         self.layout = layout
         return layout
 
+    def make_cutting_fields(self) -> None:
+        """The feed and spindle boxes (laid out by :meth:`cutting_rows`, read by
+        :meth:`cutting`), from the defaults of :class:`~BSplineCAM.app.cam.Cutting`."""
+        from ..app.cam import Cutting
+
+        self.horizontal_feed = spin(Cutting.horizontal_feed, 0.0, 100000.0, 0, " mm/min", 100.0)
+        self.vertical_feed = spin(Cutting.vertical_feed, 0.0, 100000.0, 0, " mm/min", 50.0)
+        self.spindle = spin(Cutting.spindle_speed, 0.0, 100000.0, 0, " rpm", 500.0)
+        self.rapid = Cutting.rapid
+
+    def cutting_rows(self) -> tuple:
+        """(label, widget, tooltip) rows of the feed and spindle fields."""
+        return (("Horizontal feed", self.horizontal_feed, "Cutting feed"),
+                ("Vertical feed", self.vertical_feed, "Plunge feed"),
+                ("Spindle speed", self.spindle, "Spindle speed (forward)"))
+
+    def set_cutting(self, cutting) -> None:
+        self.horizontal_feed.setValue(cutting.horizontal_feed)
+        self.vertical_feed.setValue(cutting.vertical_feed)
+        self.spindle.setValue(cutting.spindle_speed)
+        self.rapid = cutting.rapid
+
+    def cutting(self):
+        """The fields' :class:`~BSplineCAM.app.cam.Cutting`; ValueError names a bad one."""
+        from ..app.cam import Cutting
+
+        cutting = Cutting(horizontal_feed=self.horizontal_feed.value(),
+                          vertical_feed=self.vertical_feed.value(),
+                          spindle_speed=self.spindle.value(), rapid=self.rapid)
+        cutting.validate()
+        return cutting
+
     def add_message(self) -> None:
         """The red line under the fields where a refusal is explained."""
         self.message = QtGui.QLabel("")
@@ -330,9 +362,7 @@ class JobPanel(PanelBase):
         self.angle = spin(0.0, -360.0, 360.0, 2, " °", 15.0)
         self.direction = combo(DIRECTIONS, "zigzag")
         self.iso_direction = combo(ISO_DIRECTIONS, "u")
-        self.horizontal_feed = spin(1200.0, 0.0, 100000.0, 0, " mm/min", 100.0)
-        self.vertical_feed = spin(400.0, 0.0, 100000.0, 0, " mm/min", 50.0)
-        self.spindle = spin(12000.0, 0.0, 100000.0, 0, " rpm", 500.0)
+        self.make_cutting_fields()
         if surface is not None:
             target = QtGui.QLabel(surface.Label)
             target.setWordWrap(True)
@@ -347,9 +377,7 @@ class JobPanel(PanelBase):
             ("Raster angle", self.angle, "Direction of raster passes in the XY plane"),
             ("Direction", self.direction, "zigzag or one-way raster passes"),
             ("Iso direction", self.iso_direction, "Parameter followed by isoparametric passes"),
-            ("Horizontal feed", self.horizontal_feed, "Cutting feed"),
-            ("Vertical feed", self.vertical_feed, "Plunge feed"),
-            ("Spindle speed", self.spindle, "Spindle speed (forward)"),
+            *self.cutting_rows(),
         ):
             widget.setToolTip(tip)
             widget.setMinimumWidth(60)
@@ -419,7 +447,6 @@ class JobPanel(PanelBase):
 
     def parameters(self) -> tuple:
         """(FinishingParameters, Cutting) from the form; ValueError names a bad field."""
-        from ..app.cam import Cutting
         from ..app.pipeline import FinishingParameters
         from ..core.toolpath.common import ToolParameters
 
@@ -432,11 +459,7 @@ class JobPanel(PanelBase):
             # FreeCAD's path view cannot draw the R-form G18/G19 arcs the posts need: a job
             # made here shows whole passes; the op's Arcs property turns arcs on
             arcs=False)
-        cutting = Cutting(horizontal_feed=self.horizontal_feed.value(),
-                          vertical_feed=self.vertical_feed.value(),
-                          spindle_speed=self.spindle.value())
-        cutting.validate()
-        return params, cutting
+        return params, self.cutting()
 
     def accept(self) -> bool:
         """Validate, compute; the panel stays open (with the reason) when anything fails."""

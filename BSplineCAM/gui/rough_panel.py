@@ -6,7 +6,9 @@ stepover, stock to leave and the stock block's margin; one transaction adds the 
 controller (T1; the job's other tools move up one number), grows the job's stock, adds the
 roughing op (:mod:`BSplineCAM.app.roughing_op`) first in the job and computes it (progress
 and Cancel in the status bar).  Any failure or cancel aborts the transaction: the document is
-left as it was.  The op's properties stay editable in the property view afterwards.
+left as it was.  Double-clicking the op (or "Edit roughing" in its context menu) opens the
+same panel filled from the op to change it, again in one transaction; the tool is then its
+controller's bit, shown but not edited there.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from PySide import QtGui
 from ..app import compat
 from . import progress_bar, results_panel
 from .cam_commands import (
+    FinishOpViewProvider,
     PanelBase,
     _cutting_source,
     app_toolbit_factory,
@@ -30,6 +33,7 @@ from .cam_commands import (
 )
 from .commands import BaseCommand, obj_ref, transaction, wait_cursor
 from .messages import show_info
+from .resources import icon
 
 SHAPES = ["flat", "bullnose", "ball"]
 
@@ -52,13 +56,64 @@ def add_roughing(job, roughing, cutting):
         FreeCADGui.doCommand(f"rough = pipeline.add_roughing(job, pipeline.{roughing!r}, "
                              f"{_cutting_source(cutting)})")
         op = next(o for o in doc.Objects if o.Name not in before and is_roughing_op(o))
-        attach_job_view_providers(job, op)
-        try:
-            FreeCADGui.doCommand(f"App.getDocument({doc.Name!r}).recompute()")
-        finally:
-            progress_bar.finish()
-        check_op(op)
+        attach_job_view_providers(job, op, RoughOpViewProvider)
+        _recompute_and_check(op)
     return op
+
+
+def edit_roughing(op, roughing, cutting) -> None:
+    """One transaction: the op's parameters, feeds and stock margin changed, recomputed.
+    Raises (and aborts, leaving the op as it was) if the op fails or is cancelled."""
+    doc = op.Document
+    with wait_cursor(), transaction("BSplineCAM edit roughing", doc):
+        FreeCADGui.doCommand("from BSplineCAM.app import cam, pipeline")
+        FreeCADGui.doCommand(f"pipeline.edit_roughing({obj_ref(op)}, pipeline.{roughing!r}, "
+                             f"{_cutting_source(cutting)})")
+        _recompute_and_check(op)
+
+
+def _recompute_and_check(op) -> None:
+    try:
+        FreeCADGui.doCommand(f"App.getDocument({op.Document.Name!r}).recompute()")
+    finally:
+        progress_bar.finish()
+    check_op(op)
+
+
+class RoughOpViewProvider(FinishOpViewProvider):
+    """The roughing op in the job's tree: double-click (or its context menu) edits it in the
+    roughing task panel."""
+
+    def setEdit(self, vobj, mode: int = 0):  # noqa: N802 - FreeCAD API
+        """Mode 0 opens the roughing panel on the op; other modes fall back to FreeCAD's."""
+        if mode != 0:
+            return None
+        op = vobj.Object
+        job = op.Proxy.job_of(op)
+        if job is None:
+            return None
+        FreeCADGui.Control.showDialog(RoughPanel(job, op))
+        return True
+
+    def unsetEdit(self, vobj, mode: int = 0):  # noqa: N802 - FreeCAD API
+        if mode != 0:
+            return None
+        FreeCADGui.Control.closeDialog()
+        return True
+
+    def doubleClicked(self, vobj) -> bool:  # noqa: N802 - FreeCAD API
+        if results_panel.editing_dialog():
+            return False
+        results_panel.close_results()
+        FreeCADGui.getDocument(vobj.Object.Document.Name).setEdit(vobj.Object.Name, 0)
+        return True
+
+    def setupContextMenu(self, vobj, menu) -> None:  # noqa: N802 - FreeCAD API
+        from PySide import QtGui as Widgets
+
+        action = Widgets.QAction(Widgets.QIcon(icon("job")), "Edit roughing", menu)
+        action.triggered.connect(lambda: self.doubleClicked(vobj))
+        menu.addAction(action)
 
 
 class RoughPanel(PanelBase):
@@ -67,10 +122,12 @@ class RoughPanel(PanelBase):
     #: The panel last opened (for scripting and tests; not saved).
     last: RoughPanel | None = None
 
-    def __init__(self, job) -> None:
+    def __init__(self, job, op=None) -> None:
+        """A panel adding roughing to ``job``, or editing its roughing ``op``."""
         self.job = job
-        self.op = None
-        layout = self.new_form("Roughing")
+        self.op = op
+        self.editing = op is not None
+        layout = self.new_form("Edit roughing" if self.editing else "Roughing")
         self.shape = QtGui.QComboBox()
         self.shape.addItems(SHAPES)
         self.diameter = spin(10.0, 0.0, 100.0, 3, " mm", 1.0)
@@ -82,9 +139,7 @@ class RoughPanel(PanelBase):
         self.margin = spin(2.0, 0.0, 1000.0, 2, " mm", 1.0)
         self.flat_levels = QtGui.QCheckBox("Extra levels at flat areas")
         self.flat_levels.setChecked(True)
-        self.horizontal_feed = spin(1200.0, 0.0, 100000.0, 0, " mm/min", 100.0)
-        self.vertical_feed = spin(400.0, 0.0, 100000.0, 0, " mm/min", 50.0)
-        self.spindle = spin(12000.0, 0.0, 100000.0, 0, " rpm", 500.0)
+        self.make_cutting_fields()
         target = QtGui.QLabel(job.Label)
         layout.addRow("Job", target)
         for label, widget, tip in (
@@ -99,16 +154,48 @@ class RoughPanel(PanelBase):
             ("Stock margin", self.margin, "The job's stock block around the part, sideways "
              "and above"),
             ("", self.flat_levels, "Extra Z levels at the part's flat areas"),
-            ("Horizontal feed", self.horizontal_feed, "Cutting feed"),
-            ("Vertical feed", self.vertical_feed, "Plunge feed"),
-            ("Spindle speed", self.spindle, "Spindle speed (forward)"),
+            *self.cutting_rows(),
         ):
             widget.setToolTip(tip)
             layout.addRow(label, widget)
         self.add_message()
+        if self.editing:
+            self.fill_from_op()
         self.shape.currentIndexChanged.connect(self.show_corner)
         self.show_corner()
         RoughPanel.last = self
+
+    def fill_from_op(self) -> None:
+        """The fields from the op, its controller and its job's stock; the tool is the
+        controller's bit and is changed there, so its fields are read-only."""
+        from ..app import cam, pipeline
+
+        params = pipeline.roughing_of(self.op)
+        self.set_cutting(cam.controller_cutting(self.op.ToolController))
+        self.shape.setCurrentIndex(SHAPES.index(params.shape))
+        for box, value in ((self.diameter, params.diameter), (self.corner, params.corner_radius),
+                           (self.stepdown, params.stepdown),
+                           (self.stepover, params.stepover_percent),
+                           (self.radial, params.radial_allowance),
+                           (self.axial, params.axial_allowance), (self.margin, params.stock_margin)):
+            box.setValue(value)
+        self.flat_levels.setChecked(params.flat_levels)
+        tip = f"The bit of {self.op.ToolController.Label}: change it in the tool controller"
+        for widget in (self.shape, self.diameter, self.corner):
+            widget.setEnabled(False)
+            widget.setToolTip(tip)
+
+    def reject(self) -> bool:
+        self.close()
+        return True
+
+    def close(self) -> None:
+        """Close the panel, leaving the op's edit mode when it was opened by editing."""
+        gui_doc = FreeCADGui.getDocument(self.job.Document.Name)
+        if self.editing and gui_doc is not None and gui_doc.getInEdit() is not None:
+            gui_doc.resetEdit()
+        else:
+            FreeCADGui.Control.closeDialog()
 
     def show_corner(self, *_args) -> None:
         shown = self.shape.currentText() == "bullnose"
@@ -119,7 +206,6 @@ class RoughPanel(PanelBase):
 
     def parameters(self) -> tuple:
         """(RoughingParameters, Cutting) from the form; ValueError names a bad field."""
-        from ..app.cam import Cutting
         from ..app.pipeline import RoughingParameters
         from ..core.simulate import Tool
 
@@ -135,20 +221,19 @@ class RoughPanel(PanelBase):
             stepdown=self.stepdown.value(), stepover_percent=int(self.stepover.value()),
             radial_allowance=self.radial.value(), axial_allowance=self.axial.value(),
             stock_margin=self.margin.value(), flat_levels=self.flat_levels.isChecked())
-        cutting = Cutting(horizontal_feed=self.horizontal_feed.value(),
-                          vertical_feed=self.vertical_feed.value(),
-                          spindle_speed=self.spindle.value())
-        cutting.validate()
-        return params, cutting
+        return params, self.cutting()
 
     def accept(self) -> bool:
         def work() -> None:
             params, cutting = self.parameters()
-            self.op = add_roughing(self.job, params, cutting)
+            if self.editing:
+                edit_roughing(self.op, params, cutting)
+            else:
+                self.op = add_roughing(self.job, params, cutting)
 
         if not self.attempt("Roughing", work):
             return False
-        FreeCADGui.Control.closeDialog()
+        self.close()
         report = json.loads(self.op.Report or "{}")
         show_info("Roughing", f"{self.op.Label}: {len(report.get('levels', []))} levels, "
                   f"{report.get('cutting_length_mm', 0):.0f} mm of cutting")

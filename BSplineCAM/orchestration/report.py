@@ -43,8 +43,7 @@ def plot_deviation(result: Verification, path: str | os.PathLike) -> None:
     top = max(m["scallop_max_mm"], 1e-3)  # the edge band saturates (the bar extends)
     bottom = -max(m["gouge_max_mm"], 0.1 * top, 1e-4)
     fig, ax = plt.subplots(figsize=(7.5, 6.4), dpi=110)
-    cmap = plt.get_cmap("RdYlBu").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("RdYlBu").with_extremes(bad="0.85")
     image = ax.imshow(dev, origin="lower", extent=_extent(result), cmap=cmap,
                       norm=TwoSlopeNorm(vmin=bottom, vcenter=0.0, vmax=top),
                       interpolation="nearest")
