@@ -1326,6 +1326,10 @@ class TestRoughingCommand(CamTestCase):
                          (4.0, 50.0, 12.0))
         self.assertEqual(panel.shape.currentText(), "flat")
         self.assertFalse(panel.diameter.isEnabled())  # the controller's bit
+        wait(500)
+        DOCS.mkdir(parents=True, exist_ok=True)
+        self.assertTrue(QtGui.QApplication.primaryScreen().grabWindow(
+            FreeCADGui.getMainWindow().winId()).save(str(DOCS / "rough_panel.png"), "PNG"))
         self.assertAlmostEqual(panel.horizontal_feed.value(),
                                float(rough.ToolController.HorizFeed.getValueAs("mm/min")))
         levels = json.loads(rough.Report)["levels"]
