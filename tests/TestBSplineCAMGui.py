@@ -1286,13 +1286,7 @@ class TestRoughingCommand(CamTestCase):
         panel.stepdown.setValue(4.0)
         panel.stepover.setValue(50.0)
         panel.diameter.setValue(12.0)
-        with message_boxes() as boxes:
-            accepted = panel.accept()
-        if not accepted:
-            self.fail(f"the roughing panel refused: {panel.message.text()} {boxes}")
-        process_events()
-        self.assertFalse(FreeCADGui.Control.activeDialog())
-        self.assertEqual(self.doc.UndoCount, undo + 1)
+        self.accept_panel(panel, undo + 1)
         rough = job.Operations.Group[0]
         self.assertTrue(rough_panel.is_roughing_op(rough))
         self.assertIs(job.Operations.Group[1], op)
@@ -1308,6 +1302,16 @@ class TestRoughingCommand(CamTestCase):
         process_events()
         self.assertEqual([o.Name for o in self.doc.Objects], names)
         self.assertEqual([o.Name for o in job.Operations.Group], [op.Name])
+
+    def accept_panel(self, panel, undo: int) -> None:
+        """OK on ``panel``: accepted, closed, one more undo step (``undo`` in all)."""
+        with message_boxes() as boxes:
+            accepted = panel.accept()
+        if not accepted:
+            self.fail(f"the roughing panel refused: {panel.message.text()} {boxes}")
+        process_events()
+        self.assertFalse(FreeCADGui.Control.activeDialog())
+        self.assertEqual(self.doc.UndoCount, undo)
 
     def edit_roughing(self, rough, undo: int) -> None:
         """Double-click opens the panel filled from the op; a bad field changes nothing; OK
@@ -1345,13 +1349,7 @@ class TestRoughingCommand(CamTestCase):
         self.assertEqual(json.loads(rough.Report)["levels"], levels)
         panel.stepdown.setValue(3.0)
         panel.horizontal_feed.setValue(900.0)
-        with message_boxes() as boxes:
-            accepted = panel.accept()
-        if not accepted:
-            self.fail(f"the edit was refused: {panel.message.text()} {boxes}")
-        process_events()
-        self.assertFalse(FreeCADGui.Control.activeDialog())
-        self.assertEqual(self.doc.UndoCount, undo + 1)
+        self.accept_panel(panel, undo + 1)
         self.assertAlmostEqual(rough.StepDown.Value, 3.0)
         self.assertAlmostEqual(float(rough.ToolController.HorizFeed.getValueAs("mm/min")), 900.0)
         self.assertNotEqual(json.loads(rough.Report)["levels"], levels)
