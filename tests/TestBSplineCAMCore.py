@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import CASE_STUDY, random_net
@@ -239,8 +241,8 @@ def test_large_grid_normals_in_threads_equal_the_tangent_path(threads, monkeypat
     """A grid large enough to be shared among threads gives the same normals."""
     monkeypatch.setattr(matrix, "NORMAL_THREADS", threads)
     surface = Surface.from_json(CASE_STUDY)
-    u, w = np.linspace(0, 1, 420), np.linspace(0, 1, 390)
-    assert len(u) * len(w) >= 1.2 * matrix.NORMAL_THREAD_POINTS
+    u, w = np.linspace(0, 1, 540), np.linspace(0, 1, 500)
+    assert len(u) * len(w) >= 2 * matrix.NORMAL_THREAD_POINTS  # enough for two threads
     slow, _ = matrix.grid_normals(surface.control_points, surface.knots, u, w)
     np.testing.assert_allclose(surface.normals(u, w, grid=True), slow, atol=1e-12)
 
@@ -262,6 +264,41 @@ def test_grid_normals_on_a_collapsed_edge_match_the_tangent_path():
     normals = surface.normals(u, w, grid=True)
     assert np.isfinite(normals).all()
     np.testing.assert_allclose(np.linalg.norm(normals, axis=-1), 1.0, atol=1e-12)
+
+
+def _collapsed_corner_net():
+    """A clamped net whose u = 0 and w = 0 edges are one point."""
+    x, y = np.meshgrid(np.linspace(0, 30, 6), np.linspace(0, 30, 5), indexing="ij")
+    net = np.stack([x, y, 0.02 * (x - 15) ** 2 + 0.01 * y * x], -1)
+    net[0, :] = net[:, 0] = net[0, 0]
+    return net
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("collapsed", ["corner", "point"])
+def test_large_grid_normals_on_collapsed_nets_in_threads(threads, collapsed, monkeypatch):
+    """Zero normals in every block of a grid shared among threads: two edges collapsed to one
+    point (the normals along them vanish), or the whole net (all vanish, exactly).  They are
+    flagged like the blocked tangent path flags them, without a floating-point warning in any
+    thread, the rest agree with that path within 1e-12, and the surface's normals are unit."""
+    monkeypatch.setattr(matrix, "NORMAL_THREADS", threads)
+    net = _collapsed_corner_net() if collapsed == "corner" else np.full((6, 5, 3), 7.0)
+    surface = Surface(net, "clamped")
+    u, w = np.linspace(0, 1, 540), np.linspace(0, 1, 500)
+    assert len(u) * len(w) >= 2 * matrix.NORMAL_THREAD_POINTS  # enough for two threads
+    form = surface.patch_form
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fast, degenerate = matrix.grid_unit_normals(form, matrix.normal_form(form), u, w)
+    slow, slow_degenerate = matrix.grid_normals(net, "clamped", u, w)
+    np.testing.assert_array_equal(degenerate, slow_degenerate)
+    expected = np.ones_like(degenerate)
+    if collapsed == "corner":
+        expected[1:, 1:] = False
+    np.testing.assert_array_equal(degenerate, expected)
+    np.testing.assert_allclose(fast, slow, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(surface.normals(u, w, grid=True), axis=-1), 1.0,
+                               atol=1e-12)
 
 
 # --- properties (hypothesis) ------------------------------------------------------------------

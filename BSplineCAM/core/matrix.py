@@ -17,10 +17,11 @@ of degree (5, 5) built once per net (:func:`normal_form`), by the same two stage
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
+from itertools import count
 from math import comb
 
 import numpy as np
@@ -345,6 +346,13 @@ def evaluate_curve(
 NORMAL_THREADS = max(1, min(2, os.cpu_count() or 1))
 NORMAL_THREAD_POINTS = 1 << 17
 
+#: Grid points per block of w-rows in :func:`grid_unit_normals`: a block's coordinate planes
+#: stay in cache between the product that makes them and their normalisation, each numpy call
+#: works on enough points that its fixed cost does not show, and each product (6 multiply-adds
+#: per point and coordinate: 196608) stays below the 65536 x 4 from which OpenBLAS threads a
+#: product by default (its interface/gemm.c), so our threads do not queue for BLAS's.
+NORMAL_BLOCK_POINTS = 1 << 15
+
 #: Normals shorter than this fraction of the grid's longest are recomputed from the tangents
 #: (:func:`grid_unit_normals`): there the product polynomial's rounding, relative to its
 #: length, could exceed 1e-13.
@@ -356,9 +364,10 @@ class NormalCoefficients:
     """Bezier (Bernstein) coefficients of the unnormalised normal Su x Sw of every patch.
 
     Su is of degree (2, 3) and Sw of degree (3, 2) in the local (s, t) of a patch, so their
-    cross product is one polynomial of degree (5, 5): ``coef[i, k, j * 18 + 3 l + c]`` is
+    cross product is one polynomial of degree (5, 5): ``coef[i, k, j * 18 + 6 c + l]`` is
     coordinate c of the B5_k(s) B5_l(t) term of patch (i, j), the layout stage 1 of
-    :func:`grid_unit_normals` multiplies by [B5_0(s) ... B5_5(s)].  Derivatives are with
+    :func:`grid_unit_normals` multiplies by [B5_0(s) ... B5_5(s)] (each coordinate's six
+    t-coefficients together, so that stage 2 gives coordinate planes).  Derivatives are with
     respect to the normalised parameters (mm per unit), as :func:`evaluate_grid` gives them.
     """
 
@@ -403,7 +412,8 @@ def normal_form(form: PatchCoefficients) -> NormalCoefficients:
                 su[:, :, None, None, i1, j1], sw)
     five = np.array([comb(5, k) for k in range(6)], dtype=float)
     out /= five[:, None, None] * five[None, :, None]
-    coef = np.ascontiguousarray(out.transpose(0, 2, 1, 3, 4)).reshape(pu, 6, pw * 18)
+    # (i, j, k, l, c) -> (i, k, j, c, l)
+    coef = np.ascontiguousarray(out.transpose(0, 2, 1, 4, 3)).reshape(pu, 6, pw * 18)
     coef.setflags(write=False)
     return NormalCoefficients(coef, form.counts)
 
@@ -432,24 +442,43 @@ def _runs(index: IntArray, limit: int) -> list[tuple[int, int, int]]:
     return runs
 
 
+def _square_lengths(block: FloatArray, out: FloatArray, scratch: FloatArray) -> FloatArray:
+    """x^2 + y^2 + z^2 of the coordinate planes ``block`` (3, m, n), written to ``out``."""
+    np.multiply(block[0], block[0], out=out)
+    np.multiply(block[1], block[1], out=scratch)
+    out += scratch
+    np.multiply(block[2], block[2], out=scratch)
+    out += scratch
+    return out
+
+
 def _normalised_blocks(runs: list[tuple[int, int, int]], basis_w: FloatArray,
-                       stage1: FloatArray, out: FloatArray, length: FloatArray) -> None:
-    """Stage 2 of :func:`grid_unit_normals` for some blocks of w-rows: each block is made in
-    a small buffer that stays in cache, its lengths taken, and written out normalised."""
+                       stage1: FloatArray, out: FloatArray, low: FloatArray,
+                       high: FloatArray, order: Iterator[int]) -> None:
+    """Stage 2 of :func:`grid_unit_normals` for the blocks of w-rows whose numbers ``order``
+    (shared among threads) hands out: each block's three coordinate planes are made by BLAS
+    in ``out`` (3, len(w), len(u)) and normalised there while in cache, one 1/sqrt per point
+    multiplied into the planes.  ``low[k]`` and ``high[k]`` receive the least and greatest
+    squared length of block k, for the guard."""
     nu = out.shape[2]
-    work = np.empty((NORMAL_BLOCK_ROWS, 3, nu))
-    flat = work.reshape(NORMAL_BLOCK_ROWS, 3 * nu)
-    inverse = np.empty((NORMAL_BLOCK_ROWS, nu))
-    with np.errstate(divide="ignore", invalid="ignore"):  # zero normals: masked later
-        for lo, hi, j in runs:
+    rows = max((hi - lo for lo, hi, _ in runs), default=0)
+    square = np.empty((rows, nu))
+    scratch = np.empty((rows, nu))
+    with np.errstate(divide="ignore", invalid="ignore"):  # per thread: zeros are redone
+        for k in order:
+            if k >= len(runs):
+                break
+            lo, hi, j = runs[k]
             m = hi - lo
-            block = work[:m]
-            lengths = length[lo:hi]
-            np.matmul(basis_w[lo:hi], stage1[j], out=flat[:m])
-            np.einsum("mcn,mcn->mn", block, block, out=lengths)
-            np.sqrt(lengths, out=lengths)
-            np.divide(1.0, lengths, out=inverse[:m])
-            np.multiply(block, inverse[:m, None, :], out=out[lo:hi])
+            block = out[:, lo:hi]
+            q = square[:m]
+            np.matmul(basis_w[lo:hi], stage1[j], out=block)
+            _square_lengths(block, q, scratch[:m])
+            low[k] = np.minimum.reduce(q, axis=None, initial=np.inf)
+            high[k] = np.maximum.reduce(q, axis=None, initial=0.0)
+            np.sqrt(q, out=q)
+            np.divide(1.0, q, out=q)
+            block *= q
 
 
 def grid_unit_normals(
@@ -459,14 +488,18 @@ def grid_unit_normals(
 
     The normal polynomial of each patch (:func:`normal_form`) is evaluated like points are by
     :func:`grid_planes`: stage 1 applies the quintic Bernstein rows [B_0(s) ... B_5(s)] along
-    u, stage 2 one BLAS product with [B_0(t) ... B_5(t)] per block of a few w-rows, normalised
-    while in cache (blocks shared among ``NORMAL_THREADS`` threads on large grids).  No
-    tangent is formed and no cross product taken per point: the work per point is one matrix
-    product of six rows instead of the points' four, then the length and the division.
+    u, stage 2 BLAS products with [B_0(t) ... B_5(t)] per block of a few w-rows, written as
+    coordinate planes (3, len(w), len(u)) and normalised while in cache (on large grids each
+    stage is shared among ``NORMAL_THREADS`` threads).  No tangent is formed and no cross
+    product taken per point: the work per point is 18 multiply-adds (the points' 12), 5 flops
+    for the squared length, one square root, one division and 3 multiplies.  The planes
+    layout keeps every elementwise step on contiguous memory.
     Normals shorter than ``NORMAL_GUARD`` of the longest (near a collapsed edge, where the
     product's rounding could show) are recomputed from Su and Sw
     (:func:`evaluate_patch_orders`), so the result agrees with :func:`grid_normals` within
-    1e-12.  Shapes: (len(u), len(w), 3) and (len(u), len(w)); degenerate normals are zero.
+    1e-12; blocks with no such normal are found from their least length alone.  Shapes:
+    (len(u), len(w), 3), a view of the planes, and (len(u), len(w)); degenerate normals are
+    zero.
     """
     u = np.atleast_1d(np.asarray(u, dtype=float))
     w = np.atleast_1d(np.asarray(w, dtype=float))
@@ -475,37 +508,62 @@ def grid_unit_normals(
     iu, su = locate(u, n_u)
     iw, sw = locate(w, n_w)
     basis_u = _bernstein_rows(su, 5)
-    # stage 1, laid out (w-span j, Bernstein index l, coordinate c, u) like grid_planes' rows
-    stage1 = np.empty((nform.coef.shape[2], nu))
-    for lo, hi, i in _runs(iu, nu):
-        np.matmul(nform.coef[i].T, basis_u[lo:hi].T, out=stage1[:, lo:hi])
-    stage1 = stage1.reshape(-1, 6, 3 * nu)
     basis_w = _bernstein_rows(sw, 5)
-    out = np.empty((nw, 3, nu))
-    length = np.empty((nw, nu))
-    runs = _runs(iw, NORMAL_BLOCK_ROWS)
-    threads = min(NORMAL_THREADS, max(1, nw * nu // NORMAL_THREAD_POINTS))
-    if threads > 1:  # numpy and BLAS release the GIL: the blocks run on both cores
-        cut = np.linspace(0, len(runs), threads + 1).astype(int)
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(lambda k: _normalised_blocks(runs[cut[k]:cut[k + 1]], basis_w, stage1,
-                                                       out, length), range(threads)))
+    stage1 = np.empty((nform.coef.shape[2], nu))  # rows (w-span j, coordinate c, index l)
+    out = np.empty((3, nw, nu))
+    runs = _runs(iw, max(1, NORMAL_BLOCK_POINTS // max(nu, 1)))
+    low = np.empty(len(runs))
+    high = np.empty(len(runs))
+    threads = max(1, min(NORMAL_THREADS, nw * nu // NORMAL_THREAD_POINTS, len(runs)))
+    runs_u = _runs(iu, max(1, -(-nu // (4 * threads))))
+    # blocks handed out one at a time (next() on a count holds the GIL), so that a thread
+    # the machine holds back takes fewer
+    order_u, order_w = count(), count()
+
+    def first() -> None:  # stage 1 of bands of u
+        for k in order_u:
+            if k >= len(runs_u):
+                break
+            lo, hi, i = runs_u[k]
+            np.matmul(nform.coef[i].T, basis_u[lo:hi].T, out=stage1[:, lo:hi])
+
+    def second() -> None:  # stage 2 of blocks of w-rows
+        _normalised_blocks(runs, basis_w, stage1.reshape(-1, 3, 6, nu), out, low, high, order_w)
+
+    if threads > 1:  # numpy and BLAS release the GIL: each stage runs on all cores
+        with ThreadPoolExecutor(threads - 1) as pool:
+            for stage in (first, second):
+                others = [pool.submit(stage) for _ in range(1, threads)]
+                stage()
+                for other in others:
+                    other.result()
     else:
-        _normalised_blocks(runs, basis_w, stage1, out, length)
-    longest = float(length.max(initial=0.0))
-    normals = out.transpose(2, 0, 1)
-    suspect = ~(length > NORMAL_GUARD * longest)  # zero, short or not finite
-    if suspect.any():
-        suspect_w, suspect_u = np.nonzero(suspect)
-        tu, tw = evaluate_patch_orders(form, u[suspect_u], w[suspect_w], ((1, 0), (0, 1)))
-        exact = np.cross(tu, tw)
-        exact_length = np.sqrt(np.einsum("mc,mc->m", exact, exact))
-        length[suspect_w, suspect_u] = exact_length
-        exact /= np.where(exact_length > 0, exact_length, 1.0)[:, None]
-        normals[suspect_u, suspect_w] = exact
-        degenerate = length <= 1e-14 * max(1.0, longest)
-        if degenerate.any():
-            out.transpose(0, 2, 1)[degenerate] = 0.0
-    else:
-        degenerate = np.zeros((nw, nu), dtype=bool)
-    return normals, degenerate.T
+        first()
+        second()
+    stage1 = stage1.reshape(-1, 3, 6, nu)
+    normals = out.transpose(2, 1, 0)
+    degenerate = np.zeros((nu, nw), dtype=bool)
+    longest = float(np.sqrt(high.max(initial=0.0)))
+    # every normal that may be degenerate (length <= 1e-14 of the longest) is a suspect too
+    limit = max(NORMAL_GUARD * longest, 1e-14 * max(1.0, longest))
+    suspect_runs = np.flatnonzero(~(low > limit * limit))  # short, zero or not finite
+    if len(suspect_runs) == 0:
+        return normals, degenerate
+    picks_u, picks_w = [], []
+    for k in suspect_runs.tolist():  # the block's lengths again, to find its suspects
+        lo, hi, j = runs[k]
+        block = np.matmul(basis_w[lo:hi], stage1[j])
+        q = _square_lengths(block, np.empty((hi - lo, nu)), np.empty((hi - lo, nu)))
+        rows, cols = np.nonzero(~(q > limit * limit))
+        picks_w.append(rows + lo)
+        picks_u.append(cols)
+    suspect_u, suspect_w = np.concatenate(picks_u), np.concatenate(picks_w)
+    tu, tw = evaluate_patch_orders(form, u[suspect_u], w[suspect_w], ((1, 0), (0, 1)))
+    exact = np.cross(tu, tw)
+    exact_length = np.sqrt(np.einsum("mc,mc->m", exact, exact))
+    exact /= np.where(exact_length > 0, exact_length, 1.0)[:, None]
+    zero = exact_length <= 1e-14 * max(1.0, longest)
+    exact[zero] = 0.0
+    normals[suspect_u, suspect_w] = exact
+    degenerate[suspect_u, suspect_w] = zero
+    return normals, degenerate
