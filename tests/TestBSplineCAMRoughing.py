@@ -147,6 +147,34 @@ def _ends_at_wall(rough, i):
     return bool((tip.z[k0:k1, j0:j1][near] > m.z + 1e-6).any())
 
 
+def _ramps_retraced(rough):
+    """Per entry: the length of the level moves right after it that run along its XY track
+    (within 0.05 mm, sampled at ten points per move) over the track's length."""
+    out = []
+    moves = rough.moves
+    for a, b in rough.stats["entry_spans"]:
+        track = np.array([[m.x, m.y] for m in moves[a - 1:b]])
+        seg_a, seg_b = track[:-1], track[1:]
+        ab = seg_b - seg_a
+        length = float(np.hypot(*ab.T).sum())
+        if length < 1e-6:
+            continue
+        level = moves[b - 1].z
+        along = 0.0
+        i = b
+        while i < len(moves) and moves[i].kind == "feed" and abs(moves[i].z - level) < 1e-9:
+            p0, p1 = np.array(moves[i - 1][1:3]), np.array(moves[i][1:3])
+            q = p0 + np.linspace(0.05, 0.95, 10)[:, None] * (p1 - p0)
+            t = np.einsum("kij,ij->ki", q[:, None, :] - seg_a[None],
+                          ab) / np.maximum((ab * ab).sum(axis=1), 1e-300)
+            foot = seg_a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+            d = np.hypot(*np.moveaxis(q[:, None, :] - foot, -1, 0)).min(axis=1)
+            along += 0.1 * float(np.hypot(*(p1 - p0))) * int((d < 0.05).sum())
+            i += 1
+        out.append(along / length)
+    return out
+
+
 def _in_entry(rough, i):
     return any(a <= i < b for a, b in rough.stats["entry_spans"])
 
@@ -202,6 +230,11 @@ def test_flat_end_mill_hemisphere_boss():
     assert not [n for n in st["notes"] if "smaller tool" in n]
     # every move below the stock top stays under the clearance, rapids at clearance or down
     assert all(m.z <= rough.clearance_height for m in rough.moves)
+    # rapids between passes travel just above the material instead of at the clearance
+    # height; check_common's simulation shows that they remove nothing
+    low = [b for a, b in zip(rough.moves, rough.moves[1:]) if b.kind == "rapid"
+           and a.z == b.z < stock.z_max and math.hypot(b.x - a.x, b.y - a.y) > 1.0]
+    assert st["lifts"] > 0 and len(low) >= st["lifts"] // 2
 
 
 def test_bull_nose_bowl_needs_helix():
@@ -236,6 +269,11 @@ def test_ball_sloped_plane():
                               radial_allowance=0.2, axial_allowance=0.2, flat_levels=False)
     check_common(rough, stock, tool, slope, 1.5, 2.4, 0.2, 0.2, head_on=True)
     assert rough.levels == sorted(rough.levels, reverse=True)
+    # a ramp reaches its level where its pass starts: the pass then runs over the ramp's
+    # track once, never back over it first
+    retraced = _ramps_retraced(rough)
+    assert rough.stats["ramps"] > 0 and len(retraced) == rough.stats["ramps"]
+    assert max(retraced) <= 1.1, f"a pass runs {max(retraced):.2f} times over its ramp"
     assert rough.levels[0] == pytest.approx(7.5)
 
 
