@@ -227,3 +227,126 @@ def test_check_face_is_never_gouged_and_never_cut():
     assert np.all(np.nan_to_num(tip, nan=-9) >= np.nan_to_num(only_sel, nan=-9) - CERTIFY)
     assert np.all(on_sel == (face == 0))
     assert (face == 1).any() and (face == 0).any()
+
+
+# --------------------------------------------------------------------------- tangent joints
+# A rolling-ball fillet meeting a flat top tangentially (G1): along the shared edge the maximum
+# of f ties between the two faces, the case the per-face certified regions are for.  The top is
+# a larger surface trimmed at the edge (its side of the joint is a trim segment), the fillet's
+# side is its domain's own side.
+
+RHO, R_BALL, LENGTH = 10.0, 3.0, 8.0
+
+
+def fillet_arc(rho: float = RHO, length: float = LENGTH) -> NurbsSurface:
+    """Exact quarter cylinder (axis along y at x = z = 0, radius rho) from its top line
+    (0, y, rho) down to (rho, y, 0): a rational quadratic arc extruded along y."""
+    c = math.sqrt(0.5)
+    arc = [(0.0, rho), (rho, rho), (rho, 0.0)]
+    poles = np.array([[[x, y, z] for y in (0.0, length)] for x, z in arc])
+    weights = np.array([[1.0, 1.0], [c, c], [1.0, 1.0]])
+    return NurbsSurface(poles, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1, weights=weights)
+
+
+def trimmed_top(surface: NurbsSurface, x_edge: float = 0.0, y0: float = 0.0,
+                y1: float = LENGTH) -> Face:
+    """The part x <= x_edge, y0 <= y <= y1 of a surface whose x grows linearly with u and y
+    with v (a plane-like net): the trim rectangle in (u, v)."""
+    (u0, u1), (v0, v1) = surface.domain
+    ends = surface.evaluate(np.array([u0, u1, u0]), np.array([v0, v0, v1]))
+    ue = u0 + (x_edge - ends[0, 0]) / (ends[1, 0] - ends[0, 0]) * (u1 - u0)
+    va = v0 + (y0 - ends[0, 1]) / (ends[2, 1] - ends[0, 1]) * (v1 - v0)
+    vb = v0 + (y1 - ends[0, 1]) / (ends[2, 1] - ends[0, 1]) * (v1 - v0)
+    outer = np.array([[u0, va], [ue, va], [ue, vb], [u0, vb], [u0, va]])
+    return Face(surface, outer, index=2)
+
+
+def fillet_exact(x: np.ndarray) -> np.ndarray:
+    """Closed-form tip height over the fillet and the flat top at z = RHO (x < 0)."""
+    return np.where(x <= 0.0, RHO, np.sqrt((RHO + R_BALL) ** 2 - np.maximum(x, 0.0) ** 2)
+                    - R_BALL)
+
+
+def test_tangent_fillet_and_top_closed_form():
+    fillet = fillet_arc()
+    top = trimmed_top(plane(-6.0, 1.0, -1.0, LENGTH + 1.0, RHO))
+    fs = FaceSet([Face(fillet, rectangle(fillet)), top])
+    rng = np.random.default_rng(23)
+    # a band across the joint, densest where the two faces tie (|x| small)
+    x = np.concatenate([rng.uniform(-3.0, RHO + R_BALL - 1.0, 300),
+                        rng.uniform(-0.05, 0.05, 300), np.linspace(-1e-3, 1e-3, 41)])
+    y = rng.uniform(R_BALL, LENGTH - R_BALL, len(x))
+    tip, face, u, v, _ = fs.drop_ball(np.column_stack([x, y]), R_BALL)
+    exact = fillet_exact(x)
+    assert np.all(tip <= exact + 1e-9)
+    np.testing.assert_allclose(tip, exact, atol=CERTIFY)
+    assert set(np.unique(face)) == {0, 1}
+    assert fs.stats["uncertified"] == 0
+
+
+def bumped_top(bump: float) -> NurbsSurface:
+    """A flat top at z = RHO (uniform cubic net, poles 0.25 mm apart, x from -6 to 2) with one
+    pole next to the joint (x = -0.5, y = 4) raised by ``bump``: a narrow hump on the top just
+    before the fillet, lower than the ball's reach from the fillet side only by a little."""
+    xs = np.linspace(-6.0, 2.0, 33)
+    ys = np.linspace(-1.0, LENGTH + 1.0, 41)
+    pts = np.zeros((len(xs), len(ys), 3))
+    pts[..., 0], pts[..., 1] = np.meshgrid(xs, ys, indexing="ij")
+    pts[..., 2] = RHO
+    pts[22, 20, 2] += bump  # x = -0.5, y = 4
+    return NurbsSurface.from_surface(Surface(pts, knots="uniform"))
+
+
+def brute_top(face: Face, q: np.ndarray, R: float) -> float:
+    """Largest f over a trimmed top's material (u up to its trim edge): a dense sample of the
+    material, then three 10x zooms around each of its four best samples (the hump's top and
+    the trim edge are separate local maxima)."""
+    s = face.surface
+    (u0, _u1), _ = s.domain
+    ue = float(face.outer[1, 0])
+    va, vb = float(face.outer[0, 1]), float(face.outer[2, 1])
+
+    def f_grid(gu, gv):
+        pts = s.evaluate_grid(gu, gv)
+        d2 = ((pts[..., :2] - q) ** 2).sum(axis=-1)
+        return np.where(d2 <= R * R, pts[..., 2] + np.sqrt(np.maximum(R * R - d2, 0)), -np.inf)
+
+    gu, gv = np.linspace(u0, ue, 161), np.linspace(va, vb, 161)
+    f = f_grid(gu, gv)
+    best = float(f.max())
+    for flat in np.argsort(f, axis=None)[-4:]:
+        i, j = np.unravel_index(flat, f.shape)
+        cu, cv, du, dv = gu[i], gv[j], 2 * (gu[1] - gu[0]), 2 * (gv[1] - gv[0])
+        for _ in range(3):
+            zu = np.clip(np.linspace(cu - du, cu + du, 41), u0, ue)
+            zv = np.clip(np.linspace(cv - dv, cv + dv, 41), va, vb)
+            fz = f_grid(zu, zv)
+            k, m = np.unravel_index(np.argmax(fz), fz.shape)
+            best = max(best, float(fz[k, m]))
+            cu, cv, du, dv = zu[k], zv[m], du / 10, dv / 10
+    return best
+
+
+@pytest.mark.parametrize("bump", [0.0, 0.1, 0.3])
+def test_hump_next_to_a_tangent_joint_is_kept(bump):
+    """The per-face regions drop the top's sub-patches near the shared edge once the fillet
+    holds the maximum; a hump on the top right there (a higher point than the top's edge)
+    must still be found: against a brute-force sample of the top plus the fillet's closed
+    form."""
+    fillet = fillet_arc()
+    top = trimmed_top(bumped_top(bump))
+    fs = FaceSet([Face(fillet, rectangle(fillet)), top])
+    rng = np.random.default_rng(29)
+    x = np.concatenate([rng.uniform(-0.6, 1.5, 50), rng.uniform(-0.05, 0.05, 30)])
+    y = 4.0 + rng.uniform(-0.6, 0.6, len(x))
+    xy = np.column_stack([x, y])
+    tip, _face, _u, _v, _ = fs.drop_ball(xy, R_BALL)
+    fillet_f = np.where(x >= 0.0, np.sqrt((RHO + R_BALL) ** 2 - np.maximum(x, 0) ** 2),
+                        RHO + np.sqrt(R_BALL ** 2 - np.minimum(x, 0) ** 2))
+    ref = np.maximum(fillet_f, [brute_top(top, q, R_BALL) for q in xy]) - R_BALL
+    # tip is f at a real surface point (never above the truth), the sample never above the
+    # truth either and within 1e-6 of it; a missed hump would leave tip up to 0.13 mm low
+    assert np.all(tip >= ref - CERTIFY - 1e-9)
+    assert np.all(tip <= ref + 1e-6)
+    if bump > 0.1:  # the hump holds the maximum for some of these queries
+        assert np.any(ref > fillet_f - R_BALL + 1e-3)

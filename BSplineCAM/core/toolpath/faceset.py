@@ -25,13 +25,17 @@ control nets, so rational patches split exactly), and the returned height is wit
   sub-patch size.  It is combined (the smaller wins) with the box bound
   z_max + sqrt(R^2 - dist(q, box_xy)^2), which also prunes sub-patches out of reach.
 * Lower bound: f at actual surface points inside the trim (the corner control points of a
-  Bezier patch lie on the surface; trim vertices are evaluated), so the answer never exceeds
-  the true height.
-* A local certificate around each query's best contact (:meth:`FaceSet._regions`): a box in
-  (u, v) on which f cannot exceed the contact's value, from the hemisphere's strong concavity
-  and Taylor bounds on the hodographs.  Sub-patches inside it are dropped at once, so the
-  halving no longer has to shrink the sub-patch holding the maximum (and its neighbours) down
-  to CERTIFY: about ten times fewer (query, sub-patch) pairs.
+  Bezier patch lie on the surface; trim vertices are evaluated; on shallow sub-patches also the
+  point at the control point nearest the query), so the answer never exceeds the true height.
+* Local certificates, one per face (:meth:`FaceSet._face_regions`): around each face's best
+  contact (Newton-polished, on a trim edge too) a box in (u, v) on which f cannot exceed the
+  contact's value plus a proved excess, from the hemisphere's strong concavity and Taylor
+  bounds on the hodographs; a contact on a domain side or a trim segment counts only the
+  directions into the material (the polygon of the material in the box).  Sub-patches of that
+  face inside the box are dropped once the bound is within ``CERTIFY`` of the query's best, and
+  a sub-patch overlapping the box is split along the box's side.  So neither the face holding
+  the maximum nor a tangent (G1) neighbour, whose own maximum lies on the shared edge nearly
+  tied with it (a fillet and a top), is halved down to CERTIFY there.
 * Level by level, every (query, sub-patch) pair whose upper bound exceeds its query's best lower
   bound by more than ``CERTIFY`` is halved along its longer side; the rest are dropped.  When
   none remain the best lower bound is certified.  Trim-edge contacts are the vertices on the
@@ -75,10 +79,19 @@ MAX_OPEN = 128
 #: Trim segments remembered per straddling sub-patch; with more, all of the face's are tested.
 MAX_SEGMENTS = 12
 #: Half-widths (fractions of the Bezier patch, largest first) of the boxes around a contact
-#: tried by the local certificate (:meth:`FaceSet._regions`).
+#: tried by the local certificate (:meth:`FaceSet._face_regions`).
 REGION_SIZES = (0.5, 0.25, 0.125, 0.0625, 0.03125)
-#: Most that f may exceed the contact's value inside a certified region (mm).
-REGION_SLACK = 1e-3 * CERTIFY
+#: After the last of POLISH_LEVELS, every this many levels the faces' contacts are polished
+#: again and their regions sought anew (a contact found late still gets its certificate).
+REGION_EVERY = 3
+#: Only a face whose best contact lies within this of the query's best (mm) seeks a region:
+#: a lower face's sub-patches are dropped by their bounds alone.
+REGION_TIE = 0.01
+#: A region's side splits a sub-patch only this far (fraction) from the sub-patch's sides.
+CUT_MARGIN = 0.02
+#: Sub-patches this shallow also offer the surface point below their control point nearest
+#: the query as a lower bound (see :meth:`FaceSet._bounds`).
+SEED_DEPTH = 3
 
 
 def _bernstein_grid(p: int, q: int) -> FloatArray:
@@ -482,12 +495,15 @@ class _FaceData:
             hit, _, _ = _clip(seg, box[rows])
             counts[rows] = hit.sum(axis=1)
             small = counts[rows] <= MAX_SEGMENTS
-            for r, h in zip(rows[small], hit[small]):
-                ids = np.flatnonzero(h)
-                segs[r, : len(ids)] = ids
+            if small.any():
+                # each row's hit segment ids, compacted to the front (-1 padding)
+                hs = hit[small]
+                order = np.argsort(~hs, axis=1, kind="stable")[:, :MAX_SEGMENTS]
+                ids = np.where(np.take_along_axis(hs, order, axis=1), order, -1)
+                segs[rows[small], : ids.shape[1]] = ids
             segs[rows[~small]] = -2
         rest = np.flatnonzero(~every)
-        if len(rest):
+        if len(rest) and E:
             ps = parent_segs[rest]
             valid = ps >= 0
             seg = np.where(valid[..., None], self.edges[np.maximum(ps, 0)], np.nan)
@@ -619,7 +635,7 @@ class FaceSet:
             best, face, bu, bv = self.walls.drop(q, R)
         R2 = R * R
         groups = []
-        for d in data:
+        for j, d in enumerate(data):
             roots = d.roots
             if len(roots) == 0:
                 continue
@@ -631,66 +647,156 @@ class FaceSet:
             if len(qi) == 0:
                 continue
             r = roots[ri]
-            groups.append((d, _Items(qi, d.nets[r], d.boxes[r], np.zeros(len(r), int),
-                                     d.root_status[r], d.root_segs[r])))
+            groups.append((j, d, _Items(qi, d.nets[r], d.boxes[r], np.zeros(len(r), int),
+                                        d.root_status[r], d.root_segs[r])))
+        # per face (rows follow ``data``): its best lower bound and contact, and the certified
+        # region around that contact (box in (u, v), the bound of f on it; inf: none)
+        nf = len(data)
+        fb = np.full((nf, m), -np.inf)
+        fu = np.zeros((nf, m))
+        fv = np.zeros((nf, m))
+        reg_box = np.zeros((nf, m, 4))
+        reg_val = np.full((nf, m), np.inf)
+        sought = np.full((nf, m), np.nan)  # fb when a region was last sought
         level = 0
-        reg_face = np.full(m, -1)
-        reg_box = np.zeros((m, 4))
         while groups:
             level += 1
             evaluated = []
-            for d, it in groups:
+            for j, d, it in groups:
                 ub, lb, lu, lv = self._bounds(d, it, q, R)
-                evaluated.append((d, it, ub))
-                # best lower bound per query, with its contact
+                evaluated.append((j, d, it, ub))
                 good = np.isfinite(lb)
                 if good.any():
                     gi = np.flatnonzero(good)
                     order = gi[np.argsort(lb[gi], kind="stable")]
                     qq = it.query[order]
-                    better = lb[order] > best[qq]
+                    better = lb[order] > fb[j, qq]
                     qq, order = qq[better], order[better]
                     # later (larger) assignments win
-                    best[qq] = lb[order]
-                    face[qq] = d.index
-                    bu[qq], bv[qq] = lu[order], lv[order]
-            if level in POLISH_LEVELS:
-                self._polish(q, R, best, face, bu, bv)
-                reg_face, reg_box = self._regions(q, R, best, face, bu, bv)
+                    fb[j, qq] = lb[order]
+                    fu[j, qq], fv[j, qq] = lu[order], lv[order]
+            self._merge(data, fb, fu, fv, best, face, bu, bv)
+            if level in POLISH_LEVELS[1:] or (level > POLISH_LEVELS[-1]
+                                              and level % REGION_EVERY == 0):
+                self._certify_faces(q, R, data, evaluated, fb, fu, fv, best, face, bu, bv,
+                                    certify, reg_box, reg_val, sought)
             groups = []
-            for d, it, ub in evaluated:
+            for j, d, it, ub in evaluated:
                 self.stats["pairs"] += len(it.query)
-                open_ = ub > best[it.query] + certify
-                rb = reg_box[it.query]
-                open_ &= ~((reg_face[it.query] == d.index) & (it.box[:, 0] >= rb[:, 0])
-                           & (it.box[:, 1] <= rb[:, 1]) & (it.box[:, 2] >= rb[:, 2])
-                           & (it.box[:, 3] <= rb[:, 3]))
+                qs = it.query
+                open_ = ub > best[qs] + certify
+                # sub-patches inside their face's certified region
+                rb = reg_box[j, qs]
+                inreg = reg_val[j, qs] <= best[qs] + certify
+                open_ &= ~(inreg & (it.box[:, 0] >= rb[:, 0]) & (it.box[:, 1] <= rb[:, 1])
+                           & (it.box[:, 2] >= rb[:, 2]) & (it.box[:, 3] <= rb[:, 3]))
                 deep = open_ & (it.depth >= MAX_DEPTH)
                 if deep.any():
-                    np.maximum.at(gap, it.query[deep], ub[deep] - best[it.query[deep]])
+                    np.maximum.at(gap, qs[deep], ub[deep] - best[qs[deep]])
                     self.stats["uncertified"] += int(deep.sum())
                 open_ &= ~deep
-                crowded = np.bincount(it.query[open_], minlength=len(q)) > MAX_OPEN
+                crowded = np.bincount(qs[open_], minlength=len(q)) > MAX_OPEN
                 if crowded.any():
                     # a query whose maximum is (nearly) tied along a curve: keep its MAX_OPEN
                     # best sub-patches; the rest's bounds are reported as its gap
-                    idx = np.flatnonzero(open_ & crowded[it.query])
-                    order = idx[np.lexsort((-ub[idx], it.query[idx]))]
-                    qs = it.query[order]
-                    first = np.searchsorted(qs, qs)
+                    idx = np.flatnonzero(open_ & crowded[qs])
+                    order = idx[np.lexsort((-ub[idx], qs[idx]))]
+                    qo = qs[order]
+                    first = np.searchsorted(qo, qo)
                     drop = order[np.arange(len(order)) - first >= MAX_OPEN]
-                    np.maximum.at(gap, it.query[drop], ub[drop] - best[it.query[drop]])
+                    np.maximum.at(gap, qs[drop], ub[drop] - best[qs[drop]])
                     self.stats["uncertified"] += len(drop)
                     open_[drop] = False
                 if open_.any():
-                    children = self._children(d, it, open_)
+                    children = self._children(d, it, open_,
+                                              self._region_cuts(it, open_, rb, inreg))
                     if len(children.query):
-                        groups.append((d, children))
+                        groups.append((j, d, children))
         self.stats["levels"] = max(self.stats["levels"], level)
         # a final polish: smooth maxima to machine precision, so that neighbouring heights are
         # consistent to far better than CERTIFY (the chord checks compare them)
         self._polish(q, R, best, face, bu, bv, steps=2 * POLISH_STEPS)
         return best, face, bu, bv, gap
+
+    @staticmethod
+    def _region_cuts(it: _Items, open_: np.ndarray, rb: FloatArray,
+                     inreg: np.ndarray) -> tuple[FloatArray, np.ndarray]:
+        """Where an open sub-patch overlaps its face's certified region, split it along a side
+        of the region instead of at its middle (the side cutting it most evenly, if it cuts it
+        between CUT_MARGIN and 1 - CUT_MARGIN), so that the piece inside the region is dropped
+        after a few splits instead of being halved down to the region's scale."""
+        b = it.box
+        over = (open_ & inreg & (b[:, 0] < rb[:, 1]) & (b[:, 1] > rb[:, 0])
+                & (b[:, 2] < rb[:, 3]) & (b[:, 3] > rb[:, 2]))
+        t = np.full(len(b), np.nan)
+        along_u = np.zeros(len(b), bool)
+        if not over.any():
+            return t, along_u
+        wu = b[:, 1] - b[:, 0]
+        wv = b[:, 3] - b[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cand = np.column_stack([(rb[:, 0] - b[:, 0]) / wu, (rb[:, 1] - b[:, 0]) / wu,
+                                    (rb[:, 2] - b[:, 2]) / wv, (rb[:, 3] - b[:, 2]) / wv])
+        ok = (cand > CUT_MARGIN) & (cand < 1.0 - CUT_MARGIN) & over[:, None]
+        score = np.where(ok, np.abs(cand - 0.5), np.inf)
+        k = np.argmin(score, axis=1)
+        rows = np.flatnonzero(np.isfinite(score[np.arange(len(b)), k]))
+        t[rows] = cand[rows, k[rows]]
+        along_u[rows] = k[rows] < 2
+        return t, along_u
+
+    @staticmethod
+    def _merge(data: list, fb: FloatArray, fu: FloatArray, fv: FloatArray, best: FloatArray,
+               face: np.ndarray, bu: FloatArray, bv: FloatArray) -> None:
+        """Raise each query's best (and its contact) to its faces' best lower bounds."""
+        if len(fb) == 0:
+            return
+        k = np.argmax(fb, axis=0)
+        cols = np.arange(fb.shape[1])
+        top = fb[k, cols]
+        up = np.flatnonzero(top > best)
+        if len(up):
+            best[up] = top[up]
+            face[up] = np.array([d.index for d in data])[k[up]]
+            bu[up], bv[up] = fu[k[up], up], fv[k[up], up]
+
+    def _certify_faces(self, q: FloatArray, R: float, data: list, evaluated: list,
+                       fb: FloatArray, fu: FloatArray, fv: FloatArray, best: FloatArray,
+                       face: np.ndarray, bu: FloatArray, bv: FloatArray, certify: float,
+                       reg_box: FloatArray, reg_val: FloatArray, sought: FloatArray) -> None:
+        """Polish each face's best contact of the queries with sub-patches of that face still
+        open, then seek a certified region around it (:meth:`_face_regions`).
+
+        A region of face F proves f <= reg_val on the material of F inside reg_box; F's
+        sub-patches inside it are dropped once reg_val <= best + certify.  So the face that
+        holds the maximum, and a tangent neighbour whose own maximum lies on the shared edge
+        (a trim or domain side of it, nearly tied with the first), both stop halving there."""
+        todo = []
+        for j, d, it, ub in evaluated:
+            qs = np.unique(it.query[ub > best[it.query] + certify])
+            if len(qs) == 0:
+                continue
+            # contacts whose value rose since the last attempt (a better contact: a tighter
+            # certificate, a larger region)
+            fj, sj = fb[j, qs], sought[j, qs]
+            qs = qs[np.isfinite(fj) & ~(fj <= sj) & (fj >= best[qs] - REGION_TIE)]
+            if len(qs) == 0:
+                continue
+            fcs = np.full(len(qs), d.index)
+            b, u, v = fb[j, qs].copy(), fu[j, qs].copy(), fv[j, qs].copy()
+            self._polish(q[qs], R, b, fcs, u, v, steps=2 * POLISH_STEPS)
+            fb[j, qs], fu[j, qs], fv[j, qs] = b, u, v
+            todo.append((j, d, qs))
+        if not todo:
+            return
+        self._merge(data, fb, fu, fv, best, face, bu, bv)
+        for j, d, qs in todo:
+            limit = best[qs] + certify - fb[j, qs]
+            found, box, excess = self._face_regions(d, q[qs], R, fu[j, qs], fv[j, qs], limit)
+            sought[j, qs] = fb[j, qs]
+            hit = qs[found]
+            reg_box[j, hit] = box[found]
+            reg_val[j, hit] = fb[j, hit] + excess[found]
 
     def _polish(self, q: FloatArray, R: float, best: FloatArray, face: np.ndarray,
                 bu: FloatArray, bv: FloatArray, steps: int = POLISH_STEPS) -> None:
@@ -707,22 +813,25 @@ class FaceSet:
             u, v = bu[idx].copy(), bv[idx].copy()
             qq = q[idx]
             fbest = best[idx].copy()
+            # a contact whose step was refused would take the same step again: only the
+            # contacts that moved go on
+            live = np.arange(len(idx))
             for _ in range(steps):
+                ul, vl, ql = u[live], v[live], qq[live]
                 with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-                    ok_, nu_, nv_ = self._newton_step(s, u, v, qq, R2)
+                    ok_, nu_, nv_ = self._newton_step(s, ul, vl, ql, R2)
                 nu_ = np.clip(nu_, u0, u1)
                 nv_ = np.clip(nv_, v0, v1)
                 p = s.evaluate(nu_, nv_)
-                pd = ((p[:, :2] - qq) ** 2).sum(axis=1)
+                pd = ((p[:, :2] - ql) ** 2).sum(axis=1)
                 fv = np.where(pd <= R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)), -np.inf)
-                good = (fv > fbest) & ok_ & (np.abs(nu_ - u) + np.abs(nv_ - v) > 0)
+                good = (fv > fbest[live]) & ok_ & (np.abs(nu_ - ul) + np.abs(nv_ - vl) > 0)
                 if good.any():
                     good[good] = d.inside(nu_[good], nv_[good])
-                u = np.where(good, nu_, u)
-                v = np.where(good, nv_, v)
-                fbest = np.where(good, fv, fbest)
                 if not good.any():
                     break
+                live = live[good]
+                u[live], v[live], fbest[live] = nu_[good], nv_[good], fv[good]
             best[idx], bu[idx], bv[idx] = fbest, u, v
             if len(d.edges):
                 self._edge_polish(d, q, R, idx, best, bu, bv)
@@ -772,10 +881,12 @@ class FaceSet:
         best[rows[up]] = ft[up]
         bu[rows[up]], bv[rows[up]] = uu[up], vv[up]
 
-    def _regions(self, q: FloatArray, R: float, best: FloatArray, face: np.ndarray,
-                 bu: FloatArray, bv: FloatArray) -> tuple[np.ndarray, FloatArray]:
-        """Boxes in (u, v) around each query's contact x* on which f <= f(x*) + REGION_SLACK is
-        proved (a local certificate; the box's face, -1 where none is found, and the box).
+    def _face_regions(self, d: _FaceData, qq: FloatArray, R: float, u: FloatArray,
+                      v: FloatArray, limit: FloatArray) -> tuple[np.ndarray, FloatArray,
+                                                                  FloatArray]:
+        """Boxes in (u, v) of face ``d`` around contacts x* = (u, v) of queries ``qq`` on whose
+        material f <= f(x*) + excess is proved, excess <= ``limit`` (a local certificate):
+        (found, box (n, 4), excess).
 
         f(p) = p_z + sqrt(R^2 - |p_xy - q|^2) is concave in p with the hemisphere's Hessian at
         most -I/R in xy, so for p0 = S(x*) and g = grad f(p0):
@@ -787,97 +898,148 @@ class FaceSet:
         polynomial patches vanishing at x*.  Taylor's theorem with the Bezier hulls of their
         second derivatives over the box (hodographs) bounds N <= n1 . d + lam |d|^2 / 2 and
         |E| >= (sigma - M2 rho / 2) |d|, d = x - x* (rho the box's largest |d|, sigma the least
-        singular value of E's Jacobian at x*, n1 = grad N(x*), zero at an interior maximum).
-        Where k = (sigma - M2 rho / 2)^2 / (2R) - lam w_max / 2 > 0, the bracket is at most
-        (w_max |n1|)^2 / (4 k), so f <= f(x*) + that / w_min^2 on the whole box: a sub-patch
-        inside it can be dropped without halving it down to CERTIFY.  On a face's own side only
-        the directions into the face count for n1 (a maximum on the boundary)."""
-        m = len(q)
-        reg_face = np.full(m, -1)
-        reg_box = np.zeros((m, 4))
+        singular value of E's Jacobian at x*, n1 = grad N(x*)), so with
+        k = (sigma - M2 rho / 2)^2 / (2R) - lam w_max / 2 > 0 the bracket is at most
+        w_max (n1 . d)+ - k |d|^2.  For any unit vector nu with alpha = n1 . nu >= 0 and
+        beta = |n1 x nu|, n1 . d <= alpha delta + beta |d| where delta = max nu . d over the
+        material in the box (a polygon: its largest value is at a vertex, the box corners in
+        the material and the trim segments' ends clipped to the box), hence
+
+            bracket <= w_max alpha delta + (w_max beta)^2 / (4 k).
+
+        nu = n1 / |n1| and the axes cover an interior maximum and one on a side of the domain;
+        the normals of the trim segments in the box cover a maximum on a trim edge (the
+        material lies on one side of a straight edge: delta = 0, and beta, the slope along
+        the edge, vanishes at the edge's maximum).  The least bound over these, divided by
+        w_min^2, is the excess.  Boxes are tried largest first (REGION_SIZES) and stay inside
+        the Bezier patch that holds x*."""
+        n = len(u)
+        found = np.zeros(n, bool)
+        out_box = np.zeros((n, 4))
+        out_ex = np.full(n, np.inf)
+        if n == 0:
+            return found, out_box, out_ex
         R2 = R * R
-        for d in self.data:
-            idx = np.flatnonzero(face == d.index)
-            if len(idx) == 0:
-                continue
-            s = d.face.surface
-            u, v = bu[idx], bv[idx]
-            iu = np.clip(np.searchsorted(d.u_ends, u, side="left"), 0, d.nu - 1)
-            iv = np.clip(np.searchsorted(d.v_ends, v, side="left"), 0, d.nv - 1)
-            root = iu * d.nv + iv
-            box = d.boxes[root]
-            wu, wv = box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]
-            cs = np.clip((u - box[:, 0]) / wu, 0.0, 1.0)
-            ct = np.clip((v - box[:, 2]) / wv, 0.0, 1.0)
-            j = s.derivatives(u, v)
-            p0 = j.point
-            D = p0[:, :2] - q[idx]
-            dd = (D * D).sum(axis=1)
-            valid = dd < R2 * (1.0 - 1e-9)
-            h0 = np.sqrt(np.maximum(R2 - dd, 1e-300))
-            g = np.column_stack([-D / h0[:, None], np.ones(len(idx))])
-            gp = (g * p0).sum(axis=1)
-            nets = d.nets[root]
-            if s.rational:
-                bs = _bernstein(d.p, cs)
-                bt = _bernstein(d.q, ct)
-                wstar = np.einsum("ni,nij,nj->n", bs, nets[:, 3], bt)
-            else:
-                wstar = np.ones(len(idx))
-            todo = valid.copy()
-            for rho in REGION_SIZES:
-                if not todo.any():
-                    break
-                k_ = np.flatnonzero(todo)
-                s0, s1 = np.maximum(cs[k_] - rho, 0.0), np.minimum(cs[k_] + rho, 1.0)
-                t0, t1 = np.maximum(ct[k_] - rho, 0.0), np.minimum(ct[k_] + rho, 1.0)
-                sub = _sub_net(nets[k_], s0, s1, t0, t1)
-                ls, lt = (cs[k_] - s0) / (s1 - s0), (ct[k_] - t0) / (t1 - t0)
-                du, dv = (s1 - s0) * wu[k_], (t1 - t0) * wv[k_]
-                gk, pk = g[k_], p0[k_]
-                hw = sub[:, 3]
-                N = np.einsum("nc,ncij->nij", gk, sub[:, :3]) - hw * gp[k_, None, None]
-                E = sub[:, :2] - hw[:, None] * pk[:, :2, None, None]
-                nss, nst, ntt = _second_differences(N, d.p, d.q)
-                lam = _quadratic_bound(nss.max(axis=(-2, -1)), np.abs(nst).max(axis=(-2, -1)),
-                                       ntt.max(axis=(-2, -1)))
-                ess, est, ett = _second_differences(E, d.p, d.q)
-                mc = _quadratic_bound(np.abs(ess).max(axis=(-2, -1)),
-                                      np.abs(est).max(axis=(-2, -1)),
-                                      np.abs(ett).max(axis=(-2, -1)))
-                m2 = np.hypot(mc[:, 0], mc[:, 1])
-                wmax, wmin = hw.max(axis=(1, 2)), hw.min(axis=(1, 2))
-                ws = wstar[k_]
-                js = j.su[k_] * du[:, None]
-                jt = j.sw[k_] * dv[:, None]
-                n1s = ws * (gk * js).sum(axis=1)
-                n1t = ws * (gk * jt).sum(axis=1)
-                a11, a12, a21, a22 = ws * js[:, 0], ws * jt[:, 0], ws * js[:, 1], ws * jt[:, 1]
-                fro = a11 * a11 + a12 * a12 + a21 * a21 + a22 * a22
-                det = np.abs(a11 * a22 - a12 * a21)
-                smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
-                sigma = np.where(smax > 0, det / np.where(smax > 0, smax, 1.0), 0.0)
-                rmax = np.hypot(np.maximum(ls, 1 - ls), np.maximum(lt, 1 - lt))
-                s_eff = sigma - 0.5 * m2 * rmax
-                es = np.where(ls <= 0, np.maximum(n1s, 0), np.where(ls >= 1, np.maximum(-n1s, 0),
-                                                                    np.abs(n1s)))
-                et = np.where(lt <= 0, np.maximum(n1t, 0), np.where(lt >= 1, np.maximum(-n1t, 0),
-                                                                    np.abs(n1t)))
-                A = wmax * np.hypot(es, et)
-                lam_w = np.where(lam >= 0, lam * wmax, lam * wmin)
-                kk = np.where(s_eff > 0, s_eff, 0.0) ** 2 / (2.0 * R) - 0.5 * lam_w
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    excess = A * A / (4.0 * kk * wmin * wmin)
-                ok = (s_eff > 0) & (kk > 0) & (wmin > 0) & (excess <= REGION_SLACK)
-                hit = k_[ok]
-                qi = idx[hit]
-                reg_face[qi] = d.index
-                b = box[hit]
-                reg_box[qi] = np.column_stack([
-                    b[:, 0] + s0[ok] * wu[hit], b[:, 0] + s1[ok] * wu[hit],
-                    b[:, 2] + t0[ok] * wv[hit], b[:, 2] + t1[ok] * wv[hit]])
-                todo[hit] = False
-        return reg_face, reg_box
+        s = d.face.surface
+        iu = np.clip(np.searchsorted(d.u_ends, u, side="left"), 0, d.nu - 1)
+        iv = np.clip(np.searchsorted(d.v_ends, v, side="left"), 0, d.nv - 1)
+        root = iu * d.nv + iv
+        box = d.boxes[root]
+        wu, wv = box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]
+        cs = np.clip((u - box[:, 0]) / wu, 0.0, 1.0)
+        ct = np.clip((v - box[:, 2]) / wv, 0.0, 1.0)
+        j = s.derivatives(u, v)
+        p0 = j.point
+        D = p0[:, :2] - qq
+        dd = (D * D).sum(axis=1)
+        valid = (dd < R2 * (1.0 - 1e-9)) & (limit > 0)
+        h0 = np.sqrt(np.maximum(R2 - dd, 1e-300))
+        g = np.column_stack([-D / h0[:, None], np.ones(n)])
+        gp = (g * p0).sum(axis=1)
+        nets = d.nets[root]
+        if s.rational:
+            bs = _bernstein(d.p, cs)
+            bt = _bernstein(d.q, ct)
+            wstar = np.einsum("ni,nij,nj->n", bs, nets[:, 3], bt)
+        else:
+            wstar = np.ones(n)
+        todo = valid.copy()
+        # trim segments crossing each box: those of the (nested) box tried before it
+        segs = d.root_segs[root]
+        stat = d.root_status[root]
+        for rho in REGION_SIZES:
+            if not todo.any():
+                break
+            k_ = np.flatnonzero(todo)
+            s0, s1 = np.maximum(cs[k_] - rho, 0.0), np.minimum(cs[k_] + rho, 1.0)
+            t0, t1 = np.maximum(ct[k_] - rho, 0.0), np.minimum(ct[k_] + rho, 1.0)
+            sub = _sub_net(nets[k_], s0, s1, t0, t1)
+            ls, lt = (cs[k_] - s0) / (s1 - s0), (ct[k_] - t0) / (t1 - t0)
+            du, dv = (s1 - s0) * wu[k_], (t1 - t0) * wv[k_]
+            gk, pk = g[k_], p0[k_]
+            hw = sub[:, 3]
+            N = np.einsum("nc,ncij->nij", gk, sub[:, :3]) - hw * gp[k_, None, None]
+            E = sub[:, :2] - hw[:, None] * pk[:, :2, None, None]
+            nss, nst, ntt = _second_differences(N, d.p, d.q)
+            lam = _quadratic_bound(nss.max(axis=(-2, -1)), np.abs(nst).max(axis=(-2, -1)),
+                                   ntt.max(axis=(-2, -1)))
+            ess, est, ett = _second_differences(E, d.p, d.q)
+            mc = _quadratic_bound(np.abs(ess).max(axis=(-2, -1)),
+                                  np.abs(est).max(axis=(-2, -1)),
+                                  np.abs(ett).max(axis=(-2, -1)))
+            m2 = np.hypot(mc[:, 0], mc[:, 1])
+            wmax, wmin = hw.max(axis=(1, 2)), hw.min(axis=(1, 2))
+            ws = wstar[k_]
+            js = j.su[k_] * du[:, None]
+            jt = j.sw[k_] * dv[:, None]
+            n1 = np.column_stack([ws * (gk * js).sum(axis=1), ws * (gk * jt).sum(axis=1)])
+            a11, a12, a21, a22 = ws * js[:, 0], ws * jt[:, 0], ws * js[:, 1], ws * jt[:, 1]
+            fro = a11 * a11 + a12 * a12 + a21 * a21 + a22 * a22
+            det = np.abs(a11 * a22 - a12 * a21)
+            smax = np.sqrt(0.5 * (fro + np.sqrt(np.maximum(fro * fro - 4 * det * det, 0.0))))
+            sigma = np.where(smax > 0, det / np.where(smax > 0, smax, 1.0), 0.0)
+            rmax = np.hypot(np.maximum(ls, 1 - ls), np.maximum(lt, 1 - lt))
+            s_eff = sigma - 0.5 * m2 * rmax
+            lam_w = np.where(lam >= 0, lam * wmax, lam * wmin)
+            kk = np.where(s_eff > 0, s_eff, 0.0) ** 2 / (2.0 * R) - 0.5 * lam_w
+            # the material's polygon in the box: its vertices in the box's local (s, t)
+            b = box[k_]
+            rbox = np.column_stack([b[:, 0] + s0 * wu[k_], b[:, 0] + s1 * wu[k_],
+                                    b[:, 2] + t0 * wv[k_], b[:, 2] + t1 * wv[k_]])
+            # inside a box wholly in the material (status 1) the nested box is too: the
+            # material is the box; the others are classified against their box's segments
+            status = np.ones(len(k_), np.int8)
+            segs_k = np.full((len(k_), MAX_SEGMENTS), -1, dtype=np.int64)
+            st = np.zeros((len(k_), 4 + 2 * MAX_SEGMENTS, 2))
+            st[:, :4] = CORNERS
+            okv = np.zeros((len(k_), 4 + 2 * MAX_SEGMENTS), bool)
+            okv[:, :4] = True
+            cut = np.flatnonzero(stat[k_] == 2)
+            if len(cut) and len(d.edges):
+                status[cut], segs_k[cut] = d.classify(rbox[cut], segs[k_[cut]])
+                segs[k_[cut]] = segs_k[cut]
+                stat[k_[cut]] = status[cut]
+                st[cut], okv[cut] = d.vertices(_Items(np.zeros(len(cut), int), sub[cut],
+                                                      rbox[cut], np.zeros(len(cut), int),
+                                                      status[cut], segs_k[cut]))
+            # too many segments to list: the whole box's corners bound the polygon
+            whole = (segs_k[:, 0] == -2) | ~okv.any(axis=1)
+            okv[whole] = False
+            okv[whole, :4] = True
+            rel = st - np.column_stack([ls, lt])[:, None, :]  # (n, V, 2): d of each vertex
+            # candidate directions nu (n, C, 2): n1's own, the axes, the segments' normals
+            n1n = np.hypot(n1[:, 0], n1[:, 1])
+            unit = n1 / np.where(n1n > 0, n1n, 1.0)[:, None]
+            eye = np.broadcast_to(np.eye(2), (len(k_), 2, 2))
+            valid_seg = segs_k >= 0
+            e = (d.edges if len(d.edges) else np.zeros((1, 4)))[np.maximum(segs_k, 0)]
+            tan = np.stack([(e[..., 2] - e[..., 0]) / du[:, None],
+                            (e[..., 3] - e[..., 1]) / dv[:, None]], axis=-1)
+            nrm = np.stack([-tan[..., 1], tan[..., 0]], axis=-1)
+            nl = np.hypot(nrm[..., 0], nrm[..., 1])
+            valid_seg &= nl > 0
+            nrm = nrm / np.where(nl > 0, nl, 1.0)[..., None]
+            nu = np.concatenate([unit[:, None], eye, nrm], axis=1)
+            cok = np.concatenate([np.ones((len(k_), 3), bool), valid_seg], axis=1)
+            alpha = np.einsum("nc,nkc->nk", n1, nu)
+            nu = nu * np.where(alpha < 0, -1.0, 1.0)[..., None]  # orient: alpha >= 0
+            alpha = np.abs(alpha)
+            beta = np.sqrt(np.maximum(n1n[:, None] ** 2 - alpha ** 2, 0.0))
+            proj = np.einsum("nkc,nvc->nkv", nu, rel)
+            delta = np.maximum(np.where(okv[:, None, :], proj, -np.inf).max(axis=2), 0.0)
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                cand = wmax[:, None] * alpha * delta + (wmax[:, None] * beta) ** 2 / (
+                    4.0 * kk[:, None])
+                cand = np.where(cok, cand, np.inf)
+                excess = cand.min(axis=1) / (wmin * wmin)
+            usable = (status > 0) | whole
+            ok = (s_eff > 0) & (kk > 0) & (wmin > 0) & usable & (excess <= limit[k_])
+            hit = k_[ok]
+            found[hit] = True
+            out_box[hit] = rbox[ok]
+            out_ex[hit] = excess[ok]
+            todo[hit] = False
+        return found, out_box, out_ex
 
     @staticmethod
     def _grad_hess(s, u: FloatArray, v: FloatArray, qq: FloatArray, R2: float):
@@ -993,13 +1155,37 @@ class FaceSet:
                 better = fv > lb[sel]
                 lb[sel[better]] = fv[better]
                 sloc[sel[better]] = loc[better]
+        # shallow sub-patches (their corners mostly out of the ball's reach): also the surface
+        # point at the Greville abscissae of the control point nearest the query in xy, about
+        # where the ball comes down, so that an early lower bound prunes the other faces
+        sel = np.flatnonzero((it.depth <= SEED_DEPTH) & reach)
+        if len(sel):
+            kn = np.argmin((px[sel] - qx[sel]) ** 2 + (py[sel] - qy[sel]) ** 2, axis=1)
+            loc = d.design[kn, 1:]
+            b = it.box[sel]
+            uu = b[:, 0] + loc[:, 0] * (b[:, 1] - b[:, 0])
+            vv = b[:, 2] + loc[:, 1] * (b[:, 3] - b[:, 2])
+            p = d.face.surface.evaluate(uu, vv)
+            pd = ((p[:, :2] - qq[sel]) ** 2).sum(axis=1)
+            fv = np.where(pd <= TOUCH * R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)),
+                          -np.inf)
+            strad_sel = it.status[sel] == 2
+            if strad_sel.any():
+                fv[strad_sel] = np.where(d.inside(uu[strad_sel], vv[strad_sel]),
+                                         fv[strad_sel], -np.inf)
+            better = fv > lb[sel]
+            lb[sel[better]] = fv[better]
+            sloc[sel[better]] = loc[better]
         b = it.box
         lu = b[:, 0] + sloc[:, 0] * (b[:, 1] - b[:, 0])
         lv = b[:, 2] + sloc[:, 1] * (b[:, 3] - b[:, 2])
         return ub, lb, lu, lv
 
-    def _children(self, d: _FaceData, it: _Items, mask: np.ndarray | None = None) -> _Items:
-        """Halve each sub-patch (those in ``mask``) along its longer side (corner distances)."""
+    def _children(self, d: _FaceData, it: _Items, mask: np.ndarray | None = None,
+                  cut: tuple | None = None) -> _Items:
+        """Halve each sub-patch (those in ``mask``) along its longer side (corner distances);
+        with ``cut`` = (t, along_u) (n,) each, a sub-patch whose t is finite is split at its
+        local parameter t along u (along_u) or v instead."""
         idx_all = np.arange(len(it.query)) if mask is None else np.flatnonzero(mask)
         net = it.net
         k2, k3 = net.shape[2] - 1, net.shape[3] - 1
@@ -1014,18 +1200,29 @@ class FaceSet:
         box = np.empty((n2, 4))
         parent = np.empty(n2, dtype=np.intp)
         pos = 0
-        for axis, sel in ((2, along_u), (3, ~along_u)):
+        free = np.ones(len(idx_all), bool)
+        if cut is not None:
+            t_all = cut[0][idx_all]
+            free = ~np.isfinite(t_all)
+            along_u = np.where(free, along_u, cut[1][idx_all])
+        for axis, sel, at in ((2, along_u & free, False), (3, ~along_u & free, False),
+                              (2, along_u & ~free, True), (3, ~along_u & ~free, True)):
             idx = idx_all[sel]
             m = len(idx)
             if m == 0:
                 continue
-            left, right = out[pos:pos + m], out[pos + m:pos + 2 * m]
-            _split_into(net[idx], axis, left, right)
             b = it.box[idx]
+            lo, hi = (0, 1) if axis == 2 else (2, 3)
+            if at:
+                t = t_all[sel]
+                out[pos:pos + m] = _split_at(net[idx], axis, t, True)
+                out[pos + m:pos + 2 * m] = _split_at(net[idx], axis, t, False)
+                mid = b[:, lo] + t * (b[:, hi] - b[:, lo])
+            else:
+                _split_into(net[idx], axis, out[pos:pos + m], out[pos + m:pos + 2 * m])
+                mid = 0.5 * (b[:, lo] + b[:, hi])
             box[pos:pos + m] = b
             box[pos + m:pos + 2 * m] = b
-            lo, hi = (0, 1) if axis == 2 else (2, 3)
-            mid = 0.5 * (b[:, lo] + b[:, hi])
             box[pos:pos + m, hi] = mid
             box[pos + m:pos + 2 * m, lo] = mid
             parent[pos:pos + m] = idx
