@@ -8,6 +8,12 @@ Surface op by the flat stepover 2 sqrt(2Rh - h^2) (see :mod:`BSplineCAM.app.surf
 Each op's first recompute is timed; each is posted alone with linuxcnc, checked by rs274 and
 simulated from its G-code text with :func:`BSplineCAM.core.verify.verify`.
 
+The flat stepover leaves a larger scallop than requested on steep walls, so with
+``--match-scallop`` the 3D Surface op is recomputed at other StepOvers (a power-law secant on
+the measured scallop, kept inside the bracket of passing and failing trials) until the
+simulation measures its largest scallop at most our op's measured one (``--match-target ours``)
+or the requested one (``requested``): its moves and time at that stepover make a third column.
+
 Needs a FreeCAD with OpenCAMLib (0.20 with the PyPI wheel, 1.0 and 1.1 with Debian's
 python3-opencamlib); run inside freecadcmd (for 1.0 or 1.1: tools/freecad11.sh freecadcmd -c ...):
 
@@ -134,6 +140,85 @@ SURFACES = {
 }
 
 
+#: Keys of a matching trial kept in the figures.
+TRIAL_KEYS = ("seconds", "moves", "scallop_max_mm", "scallop_p99_mm", "gouge_max_mm", "coverage")
+
+
+def next_stepover(trials: list[dict], target: float, aim: float) -> float:
+    """The next stepover (mm) to try so that the measured scallop comes to ``aim * target``.
+
+    The scallop is modelled as c * stepover^p, p fitted through the last two trials (2, the
+    flat's exponent, with one trial; clamped to [0.5, 4]); the step stays inside the bracket of
+    the largest stepover that met ``target`` and the smallest that did not (geometric
+    bisection when the model steps out of it)."""
+    last = trials[-1]
+    power = 2.0
+    if len(trials) > 1:
+        a, b = trials[-2], trials[-1]
+        ds = np.log(b["stepover_mm"] / a["stepover_mm"])
+        dh = np.log(b["scallop_max_mm"] / a["scallop_max_mm"])
+        if abs(ds) > 1e-9 and dh / ds > 0:
+            power = float(np.clip(dh / ds, 0.5, 4.0))
+    step = last["stepover_mm"] * (aim * target / last["scallop_max_mm"]) ** (1.0 / power)
+    passing = [t["stepover_mm"] for t in trials if t["scallop_max_mm"] <= target]
+    failing = [t["stepover_mm"] for t in trials if t["scallop_max_mm"] > target]
+    low = max(passing, default=0.0)
+    high = min(failing, default=np.inf)
+    if not low < step < high:
+        if low > 0 and np.isfinite(high):
+            step = np.sqrt(low * high)
+        else:
+            step = 0.7 * high if np.isfinite(high) else 1.3 * low
+    return float(step)
+
+
+def match_scallop(job, op, doc, surface, args, out: Path, first: dict, target: float) -> dict:
+    """Reduce FreeCAD's StepOver until its measured largest scallop is <= ``target`` (mm).
+
+    ``first`` is the op's measured run at its flat stepover.  Each trial recomputes the op
+    (timed), posts it alone and simulates it as the first run was.  Stops at the first trial
+    within [(1 - args.match_rtol) target, target] or after ``args.match_steps`` new trials; the
+    result is the matching trial with the largest stepover (``matched`` false when none met
+    the target), with the list of all trials."""
+    diameter = args.diameter
+    flat = op.StepOver
+    results = [{**first, "stepover_mm": diameter * flat / 100.0}]
+    trials = [{k: results[0][k] for k in ("stepover_mm", *TRIAL_KEYS)}]
+    try:
+        trials_loop(job, op, doc, surface, args, out, target, results, trials)
+    finally:
+        op.StepOver = flat  # the op's properties in the figures are those of its first run
+    passing = [r for r in results if r["scallop_max_mm"] <= target]
+    if not passing:
+        return {"matched": False, "target_scallop_mm": target, "trials": trials}
+    best = max(passing, key=lambda r: r["stepover_mm"])
+    return {**best, "matched": True, "target_scallop_mm": target, "trials": trials}
+
+
+def trials_loop(job, op, doc, surface, args, out: Path, target: float, results: list,
+                trials: list) -> None:
+    """:func:`match_scallop`'s reruns, appended to ``results`` (measured runs) and ``trials``."""
+    diameter = args.diameter
+    for index in range(1, args.match_steps + 1):
+        last = trials[-1]["scallop_max_mm"]
+        if (1.0 - args.match_rtol) * target <= last <= target:
+            break
+        op.StepOver = 100.0 * next_stepover(trials, target, 1.0 - args.match_rtol / 2.0) / diameter
+        stepover = diameter * op.StepOver / 100.0  # as the property stored it
+        seconds = timed_recompute(doc, op)
+        path = out / f"freecad_3d_surface-match{index}.ngc"
+        text = post_alone(job, op, path)
+        result = {"seconds": seconds, **measure(surface, text, path, diameter, args.cell)}
+        result.update(program=str(path), stepover_mm=stepover)
+        results.append(result)
+        trials.append({k: result[k] for k in ("stepover_mm", *TRIAL_KEYS)})
+        print(
+            f"match {index}: stepover {stepover:.4f} mm, scallop {result['scallop_max_mm']:.4f}"
+            f" mm (target {target:.4f}), {result['moves']} moves, {seconds:.1f} s",
+            flush=True,
+        )
+
+
 def run(args: argparse.Namespace) -> dict:
     if not compat.opencamlib_available():
         raise SystemExit(f"this benchmark: {compat.opencamlib_missing_message()}")
@@ -166,6 +251,15 @@ def run(args: argparse.Namespace) -> dict:
             text = post_alone(job, op, path)
             results[key].update(measure(surface, text, path, args.diameter, args.cell))
             results[key]["program"] = str(path)
+        if args.match_scallop:
+            target = (
+                results["bsplinecam"]["scallop_max_mm"]
+                if args.match_target == "ours"
+                else args.scallop
+            )
+            results["freecad_matched"] = match_scallop(
+                job, theirs, doc, surface, args, out, results["freecad_3d_surface"], target
+            )
         return {
             "surface": args.surface,
             "freecad": ".".join(map(str, compat.freecad_version())),
@@ -195,15 +289,44 @@ def run(args: argparse.Namespace) -> dict:
 
 def table(figures: dict) -> str:
     ours, theirs = figures["bsplinecam"], figures["freecad_3d_surface"]
+    matched = figures.get("freecad_matched")
+    columns = [ours, theirs]
+    header = f"{'':24}{'BSplineCAM raster':>20}{'FreeCAD 3D Surface':>20}{'FC/ours':>10}"
+    if matched and matched["matched"]:
+        columns.append(matched)
+        header += f"{'FC matched':>14}{'FCm/ours':>10}"
     lines = [
         f"{figures['surface']}, {figures['tool_diameter_mm']:g} mm ball, scallop "
         f"{figures['scallop_mm']:g} mm, FreeCAD {figures['freecad']}",
-        f"{'':24}{'BSplineCAM raster':>20}{'FreeCAD 3D Surface':>20}{'FC/ours':>10}",
+        header,
     ]
-    for label, key, fmt in ROWS:
-        a, b = ours[key], theirs[key]
-        ratio = f"{b / a:.2f}" if key in RATIOS and a else ""
-        lines.append(f"{label:24}{fmt.format(a):>20}{fmt.format(b):>20}{ratio:>10}")
+    rows = ROWS
+    if matched:
+        rows = (("stepover (mm)", "stepover_mm", "{:.4f}"), *ROWS)
+        theirs = {**theirs, "stepover_mm": figures["freecad_op"]["stepover_mm"]}
+        columns[1] = theirs
+        ours = {**ours, "stepover_mm": float("nan")}
+        columns[0] = ours
+    for label, key, fmt in rows:
+        line = f"{label:24}"
+        for index, column in enumerate(columns):
+            value = column[key]
+            width = 20 if index < 2 else 14
+            line += f"{fmt.format(value) if value == value else 'curvature':>{width}}"
+            if index and key in RATIOS and ours[key]:
+                line += f"{value / ours[key]:>10.2f}"
+            elif index:
+                line += f"{'':>10}"
+        lines.append(line.rstrip())
+    if matched:
+        lines.append(
+            f"matching FreeCAD's largest scallop to {matched['target_scallop_mm']:.4f} mm: "
+            + ("" if matched["matched"] else "NOT reached; ")
+            + "; ".join(
+                f"{t['stepover_mm']:.4f} mm -> {t['scallop_max_mm']:.4f} mm, {t['moves']} moves"
+                for t in matched["trials"]
+            )
+        )
     return "\n".join(lines)
 
 
@@ -227,9 +350,30 @@ def main(argv: list[str] | None = None) -> None:
         default=None,
         help="the 3D Surface op's SampleInterval (mm; default sqrt(8 R tol))",
     )
+    parser.add_argument(
+        "--match-scallop",
+        action="store_true",
+        help="also rerun the 3D Surface op at smaller (or larger) StepOver until its measured "
+        "largest scallop is at most the target (--match-target), each run simulated",
+    )
+    parser.add_argument(
+        "--match-target",
+        choices=("ours", "requested"),
+        default="ours",
+        help="the scallop to match: our op's measured largest scallop or --scallop",
+    )
+    parser.add_argument("--match-steps", type=int, default=5,
+                        help="most reruns of the 3D Surface op with --match-scallop")
+    parser.add_argument("--match-rtol", type=float, default=0.1,
+                        help="stop once the measured scallop is within this fraction below "
+                        "the target")
     parser.add_argument("--out", help="folder for the two programs (default: a temporary one)")
     parser.add_argument("--json", help="write the figures to this JSON file")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if args.match_steps < 1:
+        parser.error(f"--match-steps must be at least 1, got {args.match_steps}")
+    if not 0.0 < args.match_rtol < 1.0:
+        parser.error(f"--match-rtol must be in (0, 1), got {args.match_rtol}")
     figures = run(args)
     print(table(figures))
     if args.json:
