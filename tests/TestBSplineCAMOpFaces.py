@@ -3,14 +3,18 @@
 
 Parts are made here with Part (small, so the certified drop-cutter takes seconds): a 30 x 20 x
 10 mm box whose long top edge at y = 0 is rounded by a 4 mm fillet (a cylinder, converted to a
-rational NURBS), and a 30 x 20 mm block whose top is a B-spline face.  Every program is posted
-by FreeCAD's linuxcnc post, checked by LinuxCNC's ``rs274`` and simulated from its text on a
-Z-map; the reference is the exact part: the fillet box's closed form, and
-``FaceSet.height`` (a point probe, not the generator's drop-cutter) over ALL faces of the part.
+rational NURBS), a 30 x 20 mm block whose top is a B-spline face, and a half cylinder (radius
+10 mm, 20 mm long) for waterline passes.  Every program is posted by FreeCAD's linuxcnc post,
+checked by LinuxCNC's ``rs274`` and simulated from its text on a Z-map; the reference is the
+exact part: the closed forms of the fillet box and the half cylinder, and ``FaceSet.height`` (a
+point probe, not the generator's drop-cutter) over ALL faces of the part.  User errors print
+one console line and no traceback; a document saved and reopened recomputes the same path.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import json
 import os
 import sys
@@ -82,6 +86,36 @@ def bspline_block() -> Part.Shape:
     return prism.common(Part.makeBox(30, 20, 30, V(0, 0, -5))).Solids[0]
 
 
+def flush_all() -> None:
+    """Python's streams and C's stdio buffers (FreeCAD's console writes there)."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    with contextlib.suppress(Exception):
+        ctypes.CDLL(None).fflush(None)
+
+
+@contextlib.contextmanager
+def console_text(out: list):
+    """What is written on descriptors 1 and 2 (FreeCAD's console, the tracebacks a failed
+    recompute prints) while the block runs, appended to ``out`` as one string."""
+    flush_all()
+    saved = (os.dup(1), os.dup(2))
+    with tempfile.TemporaryFile() as log:
+        os.dup2(log.fileno(), 1)
+        os.dup2(log.fileno(), 2)
+        try:
+            yield
+        finally:
+            flush_all()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            log.seek(0)
+            out.append(log.read().decode("utf-8", "replace"))
+
+
 def face_number(shape: Part.Shape, test) -> int:
     """1-based number of the first face of ``shape`` for which ``test(face)`` holds."""
     return next(i for i, f in enumerate(shape.Faces, 1) if test(f))
@@ -103,6 +137,7 @@ class PartJob(unittest.TestCase):
 
     shape_maker = staticmethod(fillet_box)
     base: list | None = None  # face names for Base; None: the default ("up")
+    strategy = "raster"
 
     @classmethod
     def setUpClass(cls):
@@ -111,7 +146,7 @@ class PartJob(unittest.TestCase):
         cls.part.Shape = cls.shape_maker()
         cls.doc.recompute()
         params = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=SCALLOP,
-                                              tolerance=TOLERANCE)
+                                              tolerance=TOLERANCE, strategy=cls.strategy)
         cls.job, cls.op = pipeline.build_faces_job(cls.part, params, faces=cls.base)
         cls.doc.recompute()
         cls.model = cls.job.Model.Group[0]
@@ -274,11 +309,14 @@ class TestFilletFace(PartJob):
         self.assertIn(self.model.Label, str(caught.exception))
 
     def test_other_strategies_are_named(self):
+        """steep_shallow needs a net (raster, waterline and isoparametric run on faces)."""
         before = [c.toGCode() for c in self.op.Path.Commands]
-        self.op.Strategy = "waterline"
+        self.op.Strategy = "steep_shallow"
         try:
             self.doc.recompute()
-            self.assertIn("not available on faces", self.report().get("error", ""))
+            error = self.report().get("error", "")
+            self.assertIn("Strategy 'steep_shallow' is not available on faces", error)
+            self.assertIn("waterline", error)
             self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
         finally:
             self.op.Strategy = "raster"
@@ -325,7 +363,71 @@ class TestNoFaceFromAbove(unittest.TestCase):
             FreeCAD.closeDocument(doc.Name)
 
 
-class TestDefaultUpFaces(PartJob):
+class UserErrorsAndReopen:
+    """Mixed into a PartJob: the console on user errors and bugs; save, reopen, recompute."""
+
+    def test_user_error_prints_one_line_and_no_traceback(self):
+        """A bad Base is the op's own error, one line on the console; the path is kept."""
+        before = [c.toGCode() for c in self.op.Path.Commands]
+        out: list = []
+        self.op.Base = [(self.model, ["Edge1"])]
+        try:
+            with console_text(out):
+                self.doc.recompute()
+            error = self.report().get("error", "")
+        finally:
+            self.op.Base = []
+            self.doc.recompute()
+        self.assertIn("Edge1 is not a face", error)
+        self.assertNotIn("Traceback", out[0])
+        lines = [line for line in out[0].splitlines() if "Edge1" in line]
+        self.assertEqual(len(lines), 1, out[0])
+        self.assertIn(f"{self.op.Label}: Base {self.model.Label}.Edge1 is not a face", lines[0])
+        self.assertEqual(lines[0].count(self.op.Label), 1)
+        self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
+        self.assertNotIn("error", self.report())
+
+    def test_bugs_still_raise_with_their_traceback(self):
+        """Only user errors (BSplineCAMError) are reported in one line: a bug in the code
+        (here a TypeError) still fails the recompute, traceback and all."""
+        out: list = []
+
+        def broken(*_args, **_kwargs):
+            raise TypeError("a bug planted by the test")
+
+        with mock.patch.object(finishing_op, "faces_toolpath", broken):
+            self.op.touch()
+            with console_text(out):
+                self.doc.recompute()
+            self.assertFalse(self.op.isValid())
+        self.op.touch()
+        self.doc.recompute()
+        self.assertTrue(self.op.isValid())
+        self.assertIn("a bug planted by the test", out[0])
+        self.assertIn("Traceback", out[0])
+
+    def test_saved_and_reopened_document_recomputes_the_same_path(self):
+        """The document saved, reopened (the op's proxy restored from its class alone) and
+        its op recomputed from an empty path: the same program, command for command."""
+        before = [c.toGCode() for c in self.op.Path.Commands]
+        self.assertGreater(len(before), 20)
+        saved = Path(self.tmp.name) / "saved.FCStd"
+        self.doc.saveCopy(str(saved))
+        doc = FreeCAD.openDocument(str(saved))
+        try:
+            op = doc.getObject(self.op.Name)
+            self.assertEqual([c.toGCode() for c in op.Path.Commands], before)
+            op.Path = freecad_path().Path()
+            op.touch()
+            doc.recompute()
+            self.assertNotIn("error", json.loads(op.Report or "{}"))
+            self.assertTrue(op.isValid())
+            self.assertEqual([c.toGCode() for c in op.Path.Commands], before)
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+
+
+class TestDefaultUpFaces(UserErrorsAndReopen, PartJob):
     """Base empty on a model that is no BSplineCAM surface: every upward face."""
 
     shape_maker = staticmethod(bspline_block)
@@ -357,6 +459,44 @@ class TestDefaultUpFaces(PartJob):
         self.assertAlmostEqual(self.op.OpFinalDepth.Value, min(zs), delta=2e-3)
         self.assertLessEqual(self.op.OpFinalDepth.Value, min(zs) + 1e-9)
         self.assertGreaterEqual(self.op.OpStartDepth.Value, max(zs) - 1e-9)
+
+
+class TestBSplineTopIso(PartJob):
+    """Iso-parametric passes on the block's trimmed B-spline top (Base empty: the one face
+    facing up; the walls and bottom are no check surface a ball reaches first)."""
+
+    shape_maker = staticmethod(bspline_block)
+    strategy = "isoparametric"
+
+    def test_report(self):
+        report = self.report()
+        self.assertNotIn("error", report)
+        self.assertEqual(report["strategy"], "isoparametric")
+        self.assertEqual(len(report["faces"]), 1)
+        self.assertGreater(report["passes"], 5)
+
+    def test_program_passes_rs274(self):
+        self.assert_rs274()
+
+    def test_never_below_the_part_and_within_the_scallop(self):
+        _program, sim = self.simulate()
+        self.assertLessEqual(self.gouge(sim), GOUGE)
+        # away from the block's edges (one tool radius), the top is finished to the scallop
+        x, y = np.meshgrid(*sim.grid.centres())
+        xy = np.column_stack([np.ravel(x), np.ravel(y)])
+        z = all_faces(self.part.Shape).height(xy)[0].reshape(sim.height.shape)
+        r = TOOL / 2
+        inner = np.isfinite(z) & (x > r) & (x < 30 - r) & (y > r) & (y < 20 - r)
+        self.assertGreater(inner.sum(), 10000)
+        excess = sim.height[inner] - z[inner]
+        self.assertLessEqual(float(excess.max()), SCALLOP + TOLERANCE + 1e-3)
+
+
+def freecad_path():
+    """FreeCAD's Path module (the tests' ``Path`` is pathlib's)."""
+    import Path as freecad_path
+
+    return freecad_path
 
 
 @unittest.skipUnless(FreeCAD.GuiUp, "needs the GUI (tools/run_gui_test.sh TestBSplineCAMOpFaces)")

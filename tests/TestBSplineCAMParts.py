@@ -139,6 +139,12 @@ def run_main(capsys, *argv: str) -> tuple[int, str, str]:
       "--out", "OUT"], ["--faces", "'x'"]),
     (["toolpath", str(EXAMPLE), "--faces", "all", "--tool-diameter", "6", "--scallop", "0.01",
       "--out", "OUT"], ["--faces all"]),
+    (["toolpath", str(EXAMPLE), "--strategy", "steep_shallow", "--tool-diameter", "6",
+      "--scallop", "0.01", "--out", "OUT"],
+     ["--strategy steep_shallow", "raster, waterline, isoparametric"]),
+    (["toolpath", str(EXAMPLE), "--strategy", "isoparametric", "--direction", "oneway",
+      "--tool-diameter", "6", "--scallop", "0.01", "--out", "OUT"],
+     ["--direction oneway", "zigzag"]),
     (["verify", str(CASE_STUDY), "p.ngc", "--faces", "up", "--tool-diameter", "6", "--out",
       "OUT"], ["--faces applies to parts"]),
     (["verify", str(EXAMPLE), "p.ngc", "--faces", "", "--tool-diameter", "6", "--out", "OUT"],
@@ -497,3 +503,59 @@ def test_post_toolpath_of_a_part(tmp_path):
     assert set(np.round(program.feed[program.kind == MoveKind.LINE], 6)) == {900.0, 300.0}
     if rs274.available():
         assert rs274.check(ngc, {1: 6.0}).ok
+
+
+#: A 30 x 20 mm block whose top is one trimmed B-spline face (TestBSplineCAMOpFaces), as STEP.
+BLOCK = """
+import sys
+sys.path[:0] = [{root!r}, {tests!r}]
+from TestBSplineCAMOpFaces import bspline_block
+bspline_block().exportStep({step!r})
+"""
+
+
+@needs_freecad
+@pytest.mark.parametrize("strategy", ["isoparametric"])
+def test_toolpath_part_strategy(tmp_path, strategy):
+    """``toolpath PART --strategy isoparametric`` on a block with a B-spline top: the program
+    passes rs274 and, simulated from its text, never cuts below the exact faces (FaceSet.height
+    of every face of the part) by more than 1 um, and leaves the scallop inside the top."""
+    from BSplineCAM.core.gcode import read_gcode
+    from BSplineCAM.core.simulate import Grid, Tool, simulate_program
+    from BSplineCAM.core.toolpath.faceset import FaceSet
+    from BSplineCAM.orchestration import rs274
+
+    step = tmp_path / "block.step"
+    script = tmp_path / "block.py"
+    script.write_text(BLOCK.format(root=str(ROOT), tests=str(ROOT / "tests"), step=str(step)))
+    cmd = os.environ.get("BSPLINECAM_FREECADCMD", "freecadcmd").split()
+    subprocess.run([*cmd, str(script)], capture_output=True, text=True, timeout=300,
+                   check=False)
+    assert step.is_file()
+    out = tmp_path / "out"
+    tool, scallop, tolerance = 6.0, 0.05, 0.01
+    proc = run_bin("toolpath", str(step), "--strategy", strategy, "--tool-diameter",
+                   str(tool), "--scallop", str(scallop), "--tolerance", str(tolerance),
+                   "--out", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = json.loads(proc.stdout)
+    assert report["strategy"] == strategy and report["passes"] > 5
+    assert report["parameters"]["strategy"] == strategy
+    ngc = out / "block.ngc"
+    if rs274.available():
+        assert rs274.check(ngc, {1: tool}).ok
+    elif REQUIRE_ALL:
+        pytest.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
+    program = read_gcode(ngc.read_text(), "block.ngc")
+    grid = Grid.covering(-4.0, 34.0, -4.0, 24.0, 0.1)
+    top = report["clearance_height_mm"] - 0.5
+    sim = simulate_program(program, Tool(tool), grid, top, 1e-5)
+    faces = FaceSet(parts.load_faces(step, "up"))
+    x, y = np.meshgrid(*grid.centres())
+    z = faces.height(np.column_stack([x.ravel(), y.ravel()]))[0].reshape(sim.height.shape)
+    on = np.isfinite(z)
+    assert on.sum() > 0.3 * on.size
+    assert float(np.max(z[on] - sim.height[on])) <= 1e-3
+    r = tool / 2
+    inner = on & (x > r) & (x < 30 - r) & (y > r) & (y < 20 - r)
+    assert float(np.max(sim.height[inner] - z[inner])) <= scallop + tolerance + 1e-3

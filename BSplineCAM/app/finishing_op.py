@@ -27,6 +27,7 @@ import re
 import numpy as np
 
 from ..core import Surface
+from ..core.errors import BSplineCAMError
 from ..core.toolpath import common as toolpath_common
 from . import compat
 from .proxy import add_missing_properties
@@ -64,6 +65,16 @@ PROPERTIES = (
     ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)", 0, None),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
 )
+
+
+class OpError(BSplineCAMError):
+    """A user error of the op (its input cannot be machined as set); reported in one line."""
+
+
+def _labelled(obj, exc: Exception) -> str:
+    """The error's text, prefixed by the op's label unless it already names the op."""
+    text = str(exc)
+    return text if text.startswith(f"{obj.Label}:") else f"{obj.Label}: {text}"
 
 
 class ObjectSurfaceFinish(OpBase.ObjectOp):
@@ -146,7 +157,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         job = self.job_of(obj)
         source = obj.Surface or find_surface_object(job)
         if source is None:
-            raise ValueError(f"{obj.Label}: the job has no BSplineCAM surface to machine")
+            raise OpError(f"{obj.Label}: the job has no BSplineCAM surface to machine")
         return cam.surface_in_job(source, _model_clone_of(job, source))
 
     def rest_toolpath(self, obj, cl_height, toolpath):
@@ -211,12 +222,27 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         _set_length(obj, "OpStartDepth", top)
 
     def opExecute(self, obj):  # noqa: N802 - FreeCAD API
-        """Record a failure in ``Report`` (for headless callers) before FreeCAD marks the op."""
+        """Record a failure in ``Report`` (for headless callers and the panel).
+
+        A user error (:class:`~BSplineCAM.core.errors.BSplineCAMError`: a bad Base, a face no
+        tool reaches, a parameter out of range) is reported as CAM's own ops report theirs
+        (``Path.Log.error`` and return, e.g. "No Tool Controller is selected"): one line on
+        the console naming the op and the face or property, the previous path kept.  Raising
+        it would make FreeCAD print the whole traceback (PathUtils.waiting_effects re-raises,
+        FeaturePython reports the Python stack).  Anything else is a bug: it is recorded and
+        raised, traceback and all.
+        """
         try:
             self._execute(obj)
+        except BSplineCAMError as exc:
+            from .progress import previous_commands
+
+            self.commandlist[:] = previous_commands(obj)
+            obj.Report = json.dumps({"error": str(exc)})
+            FreeCAD.Console.PrintError(f"{_labelled(obj, exc)}\n")
         except (ValueError, RuntimeError) as exc:
             obj.Report = json.dumps({"error": str(exc)})
-            FreeCAD.Console.PrintError(f"{obj.Label}: {exc}\n")
+            FreeCAD.Console.PrintError(f"{_labelled(obj, exc)}\n")
             raise
 
     def _execute(self, obj) -> None:
@@ -230,7 +256,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             names=(f"{tc}: HorizFeed", f"{tc}: VertFeed", f"{tc}: SpindleSpeed", "rapid"))
         shape_name = compat.tool_shape_name(self.tool)
         if "ball" not in shape_name.lower():
-            raise ValueError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
+            raise OpError(f"{obj.Label}: a ball-end tool is required, the tool controller holds {shape_name!r}")
         if self.uses_faces(obj):
             self._execute_faces(obj)
             return
@@ -255,7 +281,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             report_cancelled(obj, exc)
             return
         if not toolpath.passes:
-            raise ValueError(f"{obj.Label}: the strategy produced no pass")
+            raise OpError(f"{obj.Label}: the strategy produced no pass")
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
         from ..core.toolpath import program_moves
@@ -279,22 +305,16 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
 
     def _execute_faces(self, obj) -> None:
-        """Raster finishing of the op's faces (:func:`job_faces`) by the certified drop-cutter
-        over all of the job's faces; the other strategies are not available on faces yet."""
-        from ..core.toolpath import program_moves
-        from ..core.toolpath.faces_raster import generate_faces_raster
-
-        if obj.Strategy != toolpath_common.Strategy.RASTER.value:
-            raise ValueError(f"{obj.Label}: Strategy {obj.Strategy!r} is not available on faces "
-                             "yet: use raster (or a BSplineCAM surface)")
-        if obj.Direction != toolpath_common.Direction.ZIGZAG.value:
-            raise ValueError(f"{obj.Label}: Direction {obj.Direction!r} is not available on faces "
-                             "yet: use zigzag")
+        """Finishing of the op's faces (:func:`job_faces`) by raster, waterline or
+        iso-parametric passes (:func:`faces_toolpath`), heights from the certified
+        drop-cutter over all of the job's faces."""
         faceset = self.faceset(obj)
         try:
-            toolpath = generate_faces_raster(
-                faceset, 2.0 * self.radius, obj.ScallopHeight.Value, obj.Tolerance.Value,
-                obj.Angle.Value, progress_reporter(obj))
+            toolpath = faces_toolpath(
+                faceset, obj.Strategy, 2.0 * self.radius, obj.ScallopHeight.Value,
+                obj.Tolerance.Value, angle=obj.Angle.Value, direction=obj.Direction,
+                iso_direction=obj.IsoDirection, progress=progress_reporter(obj),
+                where=obj.Label)
         except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
             from .progress import previous_commands, report_cancelled
 
@@ -302,19 +322,21 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             report_cancelled(obj, exc)
             return
         if not toolpath.passes:
-            raise ValueError(f"{obj.Label}: the raster produced no pass on the selected faces")
+            raise OpError(f"{obj.Label}: the {obj.Strategy} strategy produced no pass on the "
+                          "selected faces" + _no_pass_hint(toolpath))
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
         from ..core.toolpath.rest import faceset_cl_height
 
         rest = self.rest_toolpath(obj, faceset_cl_height(faceset), toolpath)
+        arcs = bool(getattr(obj, "Arcs", False))
         moves = []
         if rest is not None:
             lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
-            moves = program_moves(rest, clearance, max(obj.SafeHeight.Value, lowest),
-                                  arcs=bool(getattr(obj, "Arcs", False)))
-        moves += program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
-                               arcs=bool(getattr(obj, "Arcs", False)))
+            moves = faces_program_moves(rest, faceset, clearance,
+                                        max(obj.SafeHeight.Value, lowest), arcs)
+        moves += faces_program_moves(toolpath, faceset, clearance,
+                                     max(obj.SafeHeight.Value, lowest), arcs)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         out = report(toolpath, commands)
@@ -323,6 +345,73 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         out["faces"] = [f.name for f in faceset.faces if f.selected]
         out["check_faces"] = sum(not f.selected for f in faceset.faces)
         obj.Report = json.dumps(out, sort_keys=True)
+        for region in toolpath.unreachable:
+            FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
+
+
+#: Strategies on faces (raster, waterline, isoparametric); steep_shallow needs nets.
+FACE_STRATEGIES = (toolpath_common.Strategy.RASTER.value,
+                   toolpath_common.Strategy.WATERLINE.value,
+                   toolpath_common.Strategy.ISOPARAMETRIC.value)
+
+
+def faces_toolpath(faceset, strategy: str, tool_diameter: float, scallop: float,
+                   tolerance: float, angle: float = 0.0, direction: str = "zigzag",
+                   iso_direction: str = "u", progress=None, where: str = "op",
+                   names: tuple[str, str] = ("Strategy", "Direction")):
+    """The toolpath of the selected faces of ``faceset`` (a core FaceSet) by ``strategy``:
+    raster (:func:`~BSplineCAM.core.toolpath.faces_raster.generate_faces_raster`, zigzag at
+    ``angle`` degrees), waterline (:mod:`~BSplineCAM.core.toolpath.faces_waterline`, levels
+    from the scallop on walls over 30 degrees) or isoparametric
+    (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``).
+    tool_diameter, scallop and tolerance in mm.  A strategy or direction faces do not have
+    raises :class:`OpError` naming ``where`` and the property or option (``names``)."""
+    strategy_name, direction_name = names
+    if strategy not in FACE_STRATEGIES:
+        raise OpError(f"{where}: {strategy_name} {strategy!r} is not available on faces: use "
+                      f"{', '.join(FACE_STRATEGIES)} (or a BSplineCAM surface)")
+    if strategy != toolpath_common.Strategy.WATERLINE.value and \
+            direction != toolpath_common.Direction.ZIGZAG.value:
+        raise OpError(f"{where}: {direction_name} {direction!r} is not available on faces "
+                      f"with {strategy}: use zigzag")
+    if strategy == toolpath_common.Strategy.WATERLINE.value:
+        from ..core.toolpath.faces_waterline import generate_faces_waterline
+
+        return generate_faces_waterline(faceset, tool_diameter, scallop, tolerance, progress)
+    if strategy == toolpath_common.Strategy.ISOPARAMETRIC.value:
+        from ..core.toolpath.faces_iso import generate_faces_iso
+
+        return generate_faces_iso(faceset, tool_diameter, scallop, tolerance, iso_direction,
+                                  progress)
+    from ..core.toolpath.faces_raster import generate_faces_raster
+
+    return generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle, progress)
+
+
+def _no_pass_hint(toolpath) -> str:
+    """Why a faces toolpath has no pass, from its notes (waterline: no steep wall)."""
+    if toolpath.strategy == toolpath_common.Strategy.WATERLINE.value:
+        return (f" ({'; '.join(toolpath.stats.notes)})" if toolpath.stats.notes else "")
+    return ""
+
+
+def faces_program_moves(toolpath, faceset, clearance_height: float,
+                        safe_height: float | None = None, arcs: bool = False) -> list:
+    """Program moves (:func:`BSplineCAM.core.toolpath.to_moves`) of a toolpath on faces; with
+    ``arcs``, fitted by one-sided G2/G3 arcs within half the toolpath's tolerance, as for
+    nets (:func:`BSplineCAM.core.toolpath.program_moves`): waterline contours in G17, their
+    free side told by the certified drop-cutter over all of ``faceset``'s faces."""
+    from ..core.toolpath import to_moves
+    from ..core.toolpath.arcs import contour_side, fit_arcs
+
+    moves = to_moves(toolpath, clearance_height, safe_height)
+    if not arcs:
+        return moves
+    side17 = None
+    if toolpath.strategy == toolpath_common.Strategy.WATERLINE.value:
+        radius = 0.5 * float(toolpath.parameters["tool_diameter"])
+        side17 = contour_side(lambda xy: faceset.drop_ball(xy, radius)[0])
+    return fit_arcs(moves, 0.5 * float(toolpath.parameters["tolerance"]), side17)
 
 
 def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,

@@ -150,7 +150,8 @@ def faces_raster_available() -> bool:
 
 
 def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameters) -> int:
-    """``toolpath PART --faces up|3,8,20``: the faces' raster by the multi-face drop-cutter."""
+    """``toolpath PART --faces up|3,8,20``: the faces' raster, waterline or isoparametric
+    passes over the multi-face drop-cutter."""
     from . import parts
 
     if args.knots is not None:
@@ -160,9 +161,13 @@ def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameter
         raise ParameterError(f"{args.net}: toolpaths on parts need the multi-face raster "
                              f"({FACES_RASTER}), which this build does not have yet; "
                              "machine a control net (.json, .csv, .dat) instead")
-    if args.strategy != Strategy.RASTER.value:
-        raise ParameterError(f"--strategy {args.strategy}: parts are machined by raster only "
-                             "(for now)")
+    if args.strategy not in parts.PART_STRATEGIES:
+        raise ParameterError(f"--strategy {args.strategy}: parts are machined by "
+                             f"{', '.join(parts.PART_STRATEGIES)} (steep_shallow needs a "
+                             "control net)")
+    if args.strategy != Strategy.WATERLINE.value and args.direction != Direction.ZIGZAG.value:
+        raise ParameterError(f"--direction {args.direction}: {args.strategy} on parts runs "
+                             "zigzag only")
     tool = ToolParameters.validate(args.tool_diameter, args.scallop, args.tolerance,
                                    TOOL_OPTIONS[:3])
     from ..core.toolpath.common import check_angle

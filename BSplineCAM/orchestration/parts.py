@@ -40,6 +40,9 @@ PART_SAMPLES = 31
 #: Worker request kinds handled here (``worker.handle`` passes them on).
 REQUESTS = ("part_faces", "part_check", "evaluate_faces")
 
+#: ``--strategy`` values for parts (as ``app.finishing_op.FACE_STRATEGIES``).
+PART_STRATEGIES = ("raster", "waterline", "isoparametric")
+
 #: What ``--faces`` may hold: "up", "all" (check only), or 1-based face numbers.
 FacesArg = Union[str, list]
 
@@ -317,10 +320,11 @@ def check_part(path: str, faces: str | None, samples: int = PART_SAMPLES,
 
 def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolParameters,
                   angle: float, cutting_params: CuttingParameters) -> int:
-    """``toolpath PART``: the selected faces' raster (multi-face certified drop-cutter, the
-    unselected faces as check surfaces), posted by FreeCAD from a job whose model is the part;
-    writes --out/NAME.ngc, toolpath.json and NAME-job.FCStd, all or nothing."""
-    from ..core.toolpath.faces_raster import generate_faces_raster
+    """``toolpath PART``: the selected faces' raster, waterline or isoparametric passes
+    (``args.strategy``; multi-face certified drop-cutter, the unselected faces as check
+    surfaces), posted by FreeCAD from a job whose model is the part, with one-sided arcs as
+    for nets if ``--arcs on``; writes --out/NAME.ngc, toolpath.json and NAME-job.FCStd, all
+    or nothing."""
     from ..core.toolpath.faceset import FaceSet
     from . import rs274
     from .cli import (
@@ -342,11 +346,19 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         compat.post_module(args.post)
     except ValueError as exc:
         raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
-    toolpath = generate_faces_raster(FaceSet(faces), 2.0 * tool.radius, tool.scallop,
-                                     tool.tolerance, angle)
+    from ..app.finishing_op import faces_toolpath
+
+    faceset = FaceSet(faces)
+    strategy = getattr(args, "strategy", "raster")
+    toolpath = faces_toolpath(faceset, strategy, 2.0 * tool.radius, tool.scallop,
+                              tool.tolerance, angle, getattr(args, "direction", "zigzag"),
+                              getattr(args, "iso_direction", "u"), where=str(args.net),
+                              names=("--strategy", "--direction"))
     check_interrupted()
     if not toolpath.passes:
-        raise FaceError(f"{args.net}: the selected faces gave no toolpath")
+        notes = "; ".join(toolpath.stats.notes)
+        raise FaceError(f"{args.net}: --strategy {strategy}: the selected faces gave no "
+                        f"toolpath" + (f" ({notes})" if notes else ""))
     cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
                           cutting_params.spindle, cutting_params.rapid)
     name = _safe_name(Path(args.net).stem)
@@ -357,7 +369,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         with captured_console():
             commands = post_toolpath(args.net, toolpath, 2.0 * tool.radius, cutting, args.post,
                                      program, stage / f"{name}-job.FCStd",
-                                     arcs=getattr(args, "arcs", "off") == "on")
+                                     arcs=getattr(args, "arcs", "off") == "on",
+                                     faceset=faceset)
         check_interrupted()
         text = program.read_text()
         stats = toolpath.stats
@@ -371,6 +384,9 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
             "clearance_height_mm": toolpath.clearance_height, "post": args.post,
             "program": program.name,
             "parameters": {"strategy": toolpath.strategy, "angle_deg": angle,
+                           "direction": getattr(args, "direction", "zigzag"),
+                           "iso_direction": getattr(args, "iso_direction", "u"),
+                           "arcs": getattr(args, "arcs", "off"),
                            "tool_diameter_mm": 2.0 * tool.radius, "scallop_mm": tool.scallop,
                            "tolerance_mm": tool.tolerance}}
         report["cutting_length_mm"], report["machining_time_s"] = (
@@ -389,17 +405,18 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
 
 def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: Any,
                   post: str, program: Path, document: Path | None = None,
-                  arcs: bool = False) -> int:
+                  arcs: bool = False, faceset: Any = None) -> int:
     """In FreeCAD: a document with the part (Part::Feature), a job around it with a ball-end
     tool controller, the toolpath as a path operation of that controller; posted by ``post``
-    to ``program`` (and saved to ``document``), with one-sided arcs if ``arcs``.  Returns the
-    number of path commands."""
+    to ``program`` (and saved to ``document``), with one-sided arcs if ``arcs`` (waterline
+    contours in G17 only with ``faceset``, the core FaceSet whose drop-cutter tells their free
+    side).  Returns the number of path commands."""
     import FreeCAD
     import Path as FreeCADPath
 
     from ..app import cam
     from ..app import faces as app_faces
-    from ..app.finishing_op import moves_to_commands
+    from ..app.finishing_op import faces_program_moves, moves_to_commands
     from ..core.toolpath import program_moves
 
     shape = app_faces.read_part(path)
@@ -411,15 +428,18 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
         doc.recompute()
         job = cam.make_job(model, tool_diameter, cutting, post=post)
         tc = job.Tools.Group[0]
-        op = doc.addObject("Path::Feature", "FacesRaster")
-        op.Label = "Faces raster"
+        op = doc.addObject("Path::Feature", "Faces")
+        op.Label = f"Faces {toolpath.strategy}"
         op.addProperty("App::PropertyLink", "ToolController", "Path", "tool controller")
         op.addProperty("App::PropertyBool", "Active", "Path", "posted when true")
         op.ToolController = tc
         op.Active = True
         clearance = toolpath.clearance_height
         # rapids stop 1 mm above each pass start; passes in a coordinate plane as G2/G3 arcs
-        moves = program_moves(toolpath, clearance, arcs=arcs)
+        if faceset is not None:
+            moves = faces_program_moves(toolpath, faceset, clearance, arcs=arcs)
+        else:
+            moves = program_moves(toolpath, clearance, arcs=arcs)
         commands = moves_to_commands(moves, tc.HorizFeed.Value, tc.VertFeed.Value, clearance)
         op.Path = FreeCADPath.Path(commands)
         job.Operations.addObject(op)
