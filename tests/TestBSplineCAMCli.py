@@ -464,3 +464,18 @@ def test_job_options_refused(capsys, tmp_path, extra, fragments):
     assert_refused(status, err, *fragments)
     assert stdout == ""
     assert not out.exists()
+
+
+@pytest.mark.parametrize("extra, fragments", [
+    (["--strategy", "steep_shallow"], ["--strategy", "steep_shallow", "control net"]),
+    (["--knots", "uniform"], ["--knots", "control nets"]),
+])
+def test_job_on_a_part_refuses_what_parts_lack(capsys, tmp_path, extra, fragments):
+    """Parts are finished by raster, waterline or iso-parametric passes; the refusal comes
+    before the part is read or FreeCAD loaded."""
+    out = tmp_path / "out"
+    status, stdout, err = run_main(capsys, "job", str(ROOT / "examples" / "part.step"), *extra,
+                                   "--out", str(out))
+    assert_refused(status, err, *fragments)
+    assert stdout == ""
+    assert not out.exists()

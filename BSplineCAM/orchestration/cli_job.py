@@ -152,15 +152,16 @@ def cmd_job(args: argparse.Namespace) -> int:
     if parts.is_part(args.net):
         if args.knots is not None:
             raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
-        if args.strategy != Strategy.RASTER.value:
-            raise ParameterError(f"--strategy {args.strategy}: parts are finished by raster "
-                                 "only (for now)")
+        if args.strategy not in parts.PART_STRATEGIES:
+            raise ParameterError(f"--strategy {args.strategy}: parts are finished by "
+                                 f"{', '.join(parts.PART_STRATEGIES)} (steep_shallow needs a "
+                                 "control net)")
         from ..core.toolpath.common import ToolParameters, check_angle
 
         tool = ToolParameters.validate(finish_tool.diameter, args.scallop, args.tolerance,
                                        names[:3])
         angle = check_angle(args.angle, names[3])
-        strategy = Strategy.RASTER
+        strategy = Strategy(args.strategy)
         selection = parts.parse_faces(args.faces)
         model = parts.load_faces(args.net, parts._selection_text(selection))
         name = _safe_name(Path(args.net).stem)
