@@ -232,11 +232,14 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         FeaturePython reports the Python stack).  Anything else is a bug: it is recorded and
         raised, traceback and all.
         """
+        from .progress import previous_commands, report_cancelled
+
         try:
             self._execute(obj)
+        except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
+            self.commandlist[:] = previous_commands(obj)
+            report_cancelled(obj, exc)
         except BSplineCAMError as exc:
-            from .progress import previous_commands
-
             self.commandlist[:] = previous_commands(obj)
             obj.Report = json.dumps({"error": str(exc)})
             FreeCAD.Console.PrintError(f"{_labelled(obj, exc)}\n")
@@ -261,25 +264,18 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             self._execute_faces(obj)
             return
         surface = self.surface(obj)
-        try:
-            toolpath = generate(
-                surface,
-                strategy=obj.Strategy,
-                tool_diameter=2.0 * self.radius,
-                scallop=obj.ScallopHeight.Value,
-                tolerance=obj.Tolerance.Value,
-                angle=obj.Angle.Value,
-                direction=obj.Direction,
-                iso_direction=obj.IsoDirection,
-                clearance_height=obj.ClearanceHeight.Value,
-                progress=progress_reporter(obj),
-            )
-        except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
-            from .progress import previous_commands, report_cancelled
-
-            self.commandlist[:] = previous_commands(obj)
-            report_cancelled(obj, exc)
-            return
+        toolpath = generate(
+            surface,
+            strategy=obj.Strategy,
+            tool_diameter=2.0 * self.radius,
+            scallop=obj.ScallopHeight.Value,
+            tolerance=obj.Tolerance.Value,
+            angle=obj.Angle.Value,
+            direction=obj.Direction,
+            iso_direction=obj.IsoDirection,
+            clearance_height=obj.ClearanceHeight.Value,
+            progress=progress_reporter(obj),
+        )
         if not toolpath.passes:
             raise OpError(f"{obj.Label}: the strategy produced no pass")
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
@@ -309,18 +305,11 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         iso-parametric passes (:func:`faces_toolpath`), heights from the certified
         drop-cutter over all of the job's faces."""
         faceset = self.faceset(obj)
-        try:
-            toolpath = faces_toolpath(
-                faceset, obj.Strategy, 2.0 * self.radius, obj.ScallopHeight.Value,
-                obj.Tolerance.Value, angle=obj.Angle.Value, direction=obj.Direction,
-                iso_direction=obj.IsoDirection, progress=progress_reporter(obj),
-                where=obj.Label)
-        except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
-            from .progress import previous_commands, report_cancelled
-
-            self.commandlist[:] = previous_commands(obj)
-            report_cancelled(obj, exc)
-            return
+        toolpath = faces_toolpath(
+            faceset, obj.Strategy, 2.0 * self.radius, obj.ScallopHeight.Value,
+            obj.Tolerance.Value, angle=obj.Angle.Value, direction=obj.Direction,
+            iso_direction=obj.IsoDirection, progress=progress_reporter(obj),
+            where=obj.Label)
         if not toolpath.passes:
             raise OpError(f"{obj.Label}: the {obj.Strategy} strategy produced no pass on the "
                           "selected faces" + _no_pass_hint(toolpath))

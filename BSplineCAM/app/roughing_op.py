@@ -16,11 +16,11 @@ import json
 
 import numpy as np
 
-from ..core.toolpath import common as toolpath_common
 from . import compat
 from .finishing_op import (
     FreeCAD,
     ObjectSurfaceFinish,
+    OpError,
     moves_to_commands,
     progress_reporter,
 )
@@ -82,7 +82,7 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         job = self.job_of(obj)
         stock = getattr(job, "Stock", None) if job is not None else None
         if stock is None or stock.Shape.isNull():
-            raise ValueError(f"{obj.Label}: the job has no stock to rough from")
+            raise OpError(f"{obj.Label}: the job has no stock to rough from")
         box = stock.Shape.BoundBox
         return Stock(box.XMin, box.XMax, box.YMin, box.YMax, box.ZMin, box.ZMax)
 
@@ -124,31 +124,24 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         try:
             tool = self.tool_of(obj)
         except ValueError as exc:
-            raise ValueError(f"{obj.Label}: {exc}") from None
+            raise OpError(f"{obj.Label}: {exc}") from None
         edge = getattr(self.tool, "CuttingEdgeHeight", None)
         edge = float(getattr(edge, "Value", edge)) if edge is not None else None
         if edge is not None and edge > 0 and obj.StepDown.Value > edge:
-            raise ValueError(f"{obj.Label}: StepDown {obj.StepDown.Value:g} mm is deeper than "
+            raise OpError(f"{obj.Label}: StepDown {obj.StepDown.Value:g} mm is deeper than "
                              f"the tool's cutting edge ({edge:g} mm, {tc})")
         stepover = 0.01 * int(obj.StepOver) * tool.diameter
         if not stepover > 0:
-            raise ValueError(f"{obj.Label}: StepOver must be above 0 % of the tool diameter")
+            raise OpError(f"{obj.Label}: StepOver must be above 0 % of the tool diameter")
         clearance = obj.ClearanceHeight.Value
-        try:
-            rough = generate_roughing(
-                self.height_function(obj), self.stock_block(obj), tool, obj.StepDown.Value, stepover,
-                radial_allowance=obj.RadialAllowance.Value,
-                axial_allowance=obj.AxialAllowance.Value,
-                cell=obj.Cell.Value or None, clearance_height=clearance,
-                flat_levels=bool(obj.FlatLevels), progress=progress_reporter(obj))
-        except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
-            from .progress import previous_commands, report_cancelled
-
-            self.commandlist[:] = previous_commands(obj)
-            report_cancelled(obj, exc)
-            return
+        rough = generate_roughing(
+            self.height_function(obj), self.stock_block(obj), tool, obj.StepDown.Value, stepover,
+            radial_allowance=obj.RadialAllowance.Value,
+            axial_allowance=obj.AxialAllowance.Value,
+            cell=obj.Cell.Value or None, clearance_height=clearance,
+            flat_levels=bool(obj.FlatLevels), progress=progress_reporter(obj))
         if not rough.moves:
-            raise ValueError(f"{obj.Label}: there is no stock to remove above the part")
+            raise OpError(f"{obj.Label}: there is no stock to remove above the part")
         from ..core.toolpath.arcs import fit_arcs
 
         # helical entries become G17 helices; level contours stay lines (no surface to tell
