@@ -301,6 +301,38 @@ def test_large_grid_normals_on_collapsed_nets_in_threads(threads, collapsed, mon
                                atol=1e-12)
 
 
+@pytest.mark.parametrize("edge", ["u1", "w1"])
+def test_normals_on_an_edge_collapsed_to_a_point_follow_the_inside(edge):
+    """Where the u = 1 (or w = 1) edge of the net is one point, Su x Sw there is rounding
+    noise (1e-14 of the longest, pointing anywhere, even down): those normals count as
+    degenerate and come from just inside, on the grid and at scattered points, for the
+    cubic Surface and the general NurbsSurface alike.  The reference is the normal 1e-4 in."""
+    from BSplineCAM.core.nurbs import NurbsSurface
+
+    x, y = np.meshgrid(np.linspace(0, 60, 6), np.linspace(0, 50, 5), indexing="ij")
+    net = np.stack([x, y, 5 * np.sin(x / 20) + 3 * np.cos(y / 15)], -1)
+    if edge == "u1":
+        net[-1, :, :] = net[-1, 2, :]
+    else:
+        net[:, -1, :] = net[2, -1, :]
+    surface = Surface(net, "clamped")
+    t = np.linspace(0, 1, 151)
+    one, inside = np.ones_like(t), np.full_like(t, 1 - 1e-4)
+    u, w = (one, t) if edge == "u1" else (t, one)
+    ui, wi = (inside, t) if edge == "u1" else (t, inside)
+    reference = surface.normals(ui, wi)
+    assert reference[:, 2].min() > 0.5  # the surface faces up everywhere near that edge
+    grid = surface.normals(t, t, grid=True)
+    on_edge = grid[-1] if edge == "u1" else grid[:, -1]
+    np.testing.assert_allclose(on_edge, reference, atol=1e-3)
+    np.testing.assert_allclose(surface.normals(u, w), reference, atol=1e-3)
+    nurbs = NurbsSurface.from_surface(surface)
+    np.testing.assert_allclose(nurbs.normals(u, w), reference, atol=1e-3)
+    nurbs_grid = nurbs.normals(t, t, grid=True)
+    np.testing.assert_allclose(nurbs_grid[-1] if edge == "u1" else nurbs_grid[:, -1], reference,
+                               atol=1e-3)
+
+
 # --- properties (hypothesis) ------------------------------------------------------------------
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 params = st.floats(0.0, 1.0, allow_nan=False)

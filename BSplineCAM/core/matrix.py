@@ -188,6 +188,13 @@ def evaluate_grid(
     return grid_planes(net, layout, u, w, du, dw).transpose(2, 0, 1)
 
 
+#: Normals shorter than this fraction of the grid's longest count as degenerate (replaced by
+#: the caller from a nearby interior parameter).  Where an edge of the net collapses to a
+#: point, rounding leaves normals about 1e-14 of the longest there, pointing anywhere (even
+#: downwards); legitimate ones that short lie within about 1e-11 of the edge in parameter,
+#: where the nudged normal is the same to that order.
+DEGENERATE_NORMAL = 1e-11
+
 #: Rows of w per block in :func:`grid_normals`: small enough that a block's tangents stay in cache.
 NORMAL_BLOCK_ROWS = 16
 
@@ -236,7 +243,7 @@ def grid_normals(
         lengths[lengths == 0] = np.inf
         block /= lengths[:, None, :]
         start = stop
-    degenerate = length <= 1e-14 * max(1.0, float(length.max(initial=0.0)))
+    degenerate = length <= DEGENERATE_NORMAL * max(1.0, float(length.max(initial=0.0)))
     out.transpose(0, 2, 1)[degenerate] = 0.0
     return out.transpose(2, 0, 1), degenerate.T
 
@@ -544,8 +551,8 @@ def grid_unit_normals(
     normals = out.transpose(2, 1, 0)
     degenerate = np.zeros((nu, nw), dtype=bool)
     longest = float(np.sqrt(high.max(initial=0.0)))
-    # every normal that may be degenerate (length <= 1e-14 of the longest) is a suspect too
-    limit = max(NORMAL_GUARD * longest, 1e-14 * max(1.0, longest))
+    # every normal that may be degenerate (DEGENERATE_NORMAL of the longest) is a suspect too
+    limit = max(NORMAL_GUARD * longest, DEGENERATE_NORMAL * max(1.0, longest))
     suspect_runs = np.flatnonzero(~(low > limit * limit))  # short, zero or not finite
     if len(suspect_runs) == 0:
         return normals, degenerate
@@ -562,7 +569,7 @@ def grid_unit_normals(
     exact = np.cross(tu, tw)
     exact_length = np.sqrt(np.einsum("mc,mc->m", exact, exact))
     exact /= np.where(exact_length > 0, exact_length, 1.0)[:, None]
-    zero = exact_length <= 1e-14 * max(1.0, longest)
+    zero = exact_length <= DEGENERATE_NORMAL * max(1.0, longest)
     exact[zero] = 0.0
     normals[suspect_u, suspect_w] = exact
     degenerate[suspect_u, suspect_w] = zero

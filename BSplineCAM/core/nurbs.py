@@ -37,6 +37,7 @@ from math import comb, factorial
 import numpy as np
 
 from .errors import NetError, ParameterError
+from .matrix import DEGENERATE_NORMAL
 from .typing import ArrayLike, FloatArray, IntArray
 
 #: Degrees accepted in each direction.
@@ -662,7 +663,10 @@ class NurbsSurface:
     def _scattered_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
         from .surface import unit_normals
 
-        return unit_normals(*self._tangent_pair(u, w), lambda: self._nudged_normals(u, w))
+        (u0, u1), (w0, w1) = self._u.domain, self._v.domain
+        scale = self.size() ** 2 / ((u1 - u0) * (w1 - w0))  # |Su x Sw| of a surface this size
+        return unit_normals(*self._tangent_pair(u, w), lambda: self._nudged_normals(u, w),
+                            scale)
 
     def _nudged_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
         from .surface import unit_normals
@@ -709,7 +713,7 @@ class NurbsSurface:
         if not np.array_equal(order, np.arange(len(w))):
             out[order] = out.copy()
             length[order] = length.copy()
-        degenerate = length <= 1e-14 * max(1.0, float(length.max(initial=0.0)))
+        degenerate = length <= DEGENERATE_NORMAL * max(1.0, float(length.max(initial=0.0)))
         normals = out.transpose(2, 0, 1)
         if np.any(degenerate):
             jw, iu = np.nonzero(degenerate)

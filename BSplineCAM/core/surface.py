@@ -16,6 +16,7 @@ import numpy as np
 from . import matrix, netio
 from .basis import DEGREE, KnotLayout, knot_vector, unique_knots
 from .errors import ParameterError
+from .matrix import DEGENERATE_NORMAL
 from .typing import ArrayLike, FloatArray
 
 #: Partial derivatives (du, dw) in the order of :class:`Derivatives`' fields.
@@ -115,6 +116,13 @@ class Surface:
         return np.clip(u, 0.0, 1.0), np.clip(w, 0.0, 1.0)
 
     @cached_property
+    def normal_scale(self) -> float:
+        """|Su x Sw| of a surface this size (mm^2 per unit parameter^2): the reference for
+        degenerate normals at scattered points."""
+        spans = np.subtract(self.control_points.shape[:2], DEGREE)
+        return self.size() ** 2 * float(spans[0] * spans[1])
+
+    @cached_property
     def patch_form(self) -> matrix.PatchCoefficients:
         """Power-basis coefficients of every patch (:func:`matrix.patch_form`), built once."""
         return matrix.patch_form(self.control_points, self.knots)
@@ -168,7 +176,7 @@ class Surface:
             return normal
         cu, cw = self._check_params(u, w)
         su, sw = matrix.evaluate_patch_orders(self.patch_form, cu, cw, ((1, 0), (0, 1)))
-        return unit_normals(su, sw, fallback)
+        return unit_normals(su, sw, fallback, self.normal_scale)
 
     def _nudged_normals(self, u: ArrayLike, w: ArrayLike, grid: bool) -> FloatArray:
         u, w = self._check_params(u, w)
@@ -185,11 +193,13 @@ class Surface:
         return self.evaluate_grid(u, w), self.normals(u, w, grid=True)
 
 
-def unit_normals(su: FloatArray, sw: FloatArray, fallback) -> FloatArray:
-    """Normalised cross product; degenerate entries replaced by ``fallback()``."""
+def unit_normals(su: FloatArray, sw: FloatArray, fallback, scale: float = 0.0) -> FloatArray:
+    """Normalised cross product; degenerate entries (length at most DEGENERATE_NORMAL of the
+    longest, or of ``scale``: the surface's, so that a batch of points all on a collapsed
+    edge is seen as such) replaced by ``fallback()``."""
     normal = np.cross(su, sw)
     length = np.sqrt(np.einsum("...c,...c->...", normal, normal))
-    degenerate = length <= 1e-14 * max(1.0, float(length.max(initial=0.0)))
+    degenerate = length <= DEGENERATE_NORMAL * max(1.0, float(length.max(initial=0.0)), scale)
     np.divide(normal, np.where(degenerate, 1.0, length)[..., None], out=normal)
     if np.any(degenerate):
         if fallback is None:
