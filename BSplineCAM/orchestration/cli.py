@@ -205,7 +205,7 @@ def json_text(value: Any) -> str:
     return json.dumps(strict(value), indent=1, allow_nan=False) + "\n"
 
 
-def _flush_all() -> None:
+def flush_all() -> None:
     """Flush Python's streams and C's stdio buffers (FreeCAD's C++ console writes there)."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
@@ -221,7 +221,7 @@ def captured_console() -> Iterator[None]:
     """Hold what FreeCAD writes on descriptors 1 and 2 (its console, tracebacks of a refused
     recompute) while the block runs; pass it on to stderr only if the block succeeds, so a
     refusal prints the command's one line and nothing else."""
-    _flush_all()
+    flush_all()
     saved = (os.dup(1), os.dup(2))
     ok = False
     with tempfile.TemporaryFile() as log:
@@ -231,7 +231,7 @@ def captured_console() -> Iterator[None]:
             yield
             ok = True
         finally:
-            _flush_all()
+            flush_all()
             os.dup2(saved[0], 1)
             os.dup2(saved[1], 2)
             for fd in saved:
