@@ -350,3 +350,23 @@ def test_hump_next_to_a_tangent_joint_is_kept(bump):
     assert np.all(tip <= ref + 1e-6)
     if bump > 0.1:  # the hump holds the maximum for some of these queries
         assert np.any(ref > fillet_f - R_BALL + 1e-3)
+
+
+def test_height_probe_on_near_vertical_fillet_matches_faces_height():
+    """On examples/part.step the fillet along y = 60 turns vertical (y 59 to 60): the point probe
+    finds it there, as the Z-map heights of verification (core/faces_height.py, seeded from a
+    dense raster) do, instead of the bottom face below."""
+    pytest.importorskip("OCP")
+    from BSplineCAM.core.faces_height import FacesHeight
+    from BSplineCAM.ocp import faces as ocp
+
+    faces = ocp.faces_from_shape(ocp.read_part(ROOT / "examples" / "part.step"), "up",
+                                 tolerance=0.01)
+    fs = FaceSet(faces)
+    xs, ys = np.meshgrid(np.linspace(0.6, 79.4, 120), np.linspace(58.6, 59.98, 24))
+    x, y = xs.ravel(), ys.ravel()
+    z, face, _, _, found = fs.height(np.column_stack([x, y]))
+    ref = FacesHeight(faces, 0.05).points(x, y)
+    assert found.all()
+    np.testing.assert_array_equal(face, ref.face)
+    np.testing.assert_allclose(z, ref.z, atol=1e-6)

@@ -92,6 +92,11 @@ CUT_MARGIN = 0.02
 #: Sub-patches this shallow also offer the surface point below their control point nearest
 #: the query as a lower bound (see :meth:`FaceSet._bounds`).
 SEED_DEPTH = 3
+#: The point probe (:meth:`FaceSet.height`): samples per side of each Bezier patch, the
+#: nearest of them in xy that start Newton's method, and its most steps.
+HEIGHT_GRID = 9
+HEIGHT_SEEDS = 4
+HEIGHT_STEPS = 60
 
 
 def _bernstein_grid(p: int, q: int) -> FloatArray:
@@ -1241,9 +1246,10 @@ class FaceSet:
     def height(self, xy, selected_only: bool = False):
         """Top-most face point above each xy (a point probe): (z, face, u, v, inside).
 
-        Per face, the xy map S_xy(u, v) = q is inverted by Newton's method from the best of a
-        5 x 5 sample of every patch whose box holds q; a root counts when it lies in the
-        patch's domain (to 1e-9) within the trim and reproduces q to 1e-9 of the set's size.
+        Per face, the xy map S_xy(u, v) = q is inverted by Newton's method from the
+        HEIGHT_SEEDS nearest (in xy) of a HEIGHT_GRID x HEIGHT_GRID sample of every patch whose
+        box holds q (several: near a vertical bit the map folds); a root counts when it lies in
+        the patch's domain (to 1e-9) within the trim and reproduces q to 1e-9 of the set's size.
         z is NaN and ``inside`` False where no face lies above.
         """
         q = np.asarray(xy, dtype=float).reshape(-1, 2)
@@ -1253,7 +1259,7 @@ class FaceSet:
         uo = np.zeros(m)
         vo = np.zeros(m)
         tol = 1e-9 * max(self.size, 1.0)
-        grid = np.linspace(0.0, 1.0, 5)
+        grid = np.linspace(0.0, 1.0, HEIGHT_GRID)
         for d in self.data:
             if selected_only and not d.selected:
                 continue
@@ -1269,15 +1275,18 @@ class FaceSet:
             box = d.boxes[roots[ri]]
             su = box[:, :1] + grid[None] * (box[:, 1:2] - box[:, :1])
             sv = box[:, 2:3] + grid[None] * (box[:, 3:4] - box[:, 2:3])
-            uu = np.repeat(su, 5, axis=1)
-            vv = np.tile(sv, (1, 5))
+            uu = np.repeat(su, HEIGHT_GRID, axis=1)
+            vv = np.tile(sv, (1, HEIGHT_GRID))
             pts = s.evaluate(uu, vv)
             dist = ((pts[..., :2] - q[qi, None]) ** 2).sum(axis=-1)
-            k = np.argmin(dist, axis=1)
-            rows = np.arange(len(qi))
-            u, v = uu[rows, k], vv[rows, k]
+            # several seeds: where the face turns vertical the xy map folds, and the nearest
+            # sample may lie on the far side of the fold from the root
+            k = np.argsort(dist, axis=1)[:, :HEIGHT_SEEDS]
+            rows = np.repeat(np.arange(len(qi)), k.shape[1])
+            u, v = uu[rows, k.ravel()], vv[rows, k.ravel()]
+            qi, box = qi[rows], box[rows]
             (u0, u1), (v0, v1) = s.domain
-            for _ in range(30):
+            for _ in range(HEIGHT_STEPS):
                 p = s.evaluate(u, v)
                 su_ = s.evaluate(u, v, du=1)
                 sv_ = s.evaluate(u, v, dw=1)
