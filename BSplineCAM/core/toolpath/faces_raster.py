@@ -40,6 +40,11 @@ from .raster import cross_section_stepover
 REFINE_ROUNDS = 5
 #: Longest stay-down link between passes, in tool radii.
 STAY_DOWN_LINK = 2.0
+#: Steepest slope (degrees) of a selected face whose contact sets how far passes reach beyond
+#: the faces' XY box: the centre lies R sin(slope) beyond its contact.  Steeper (up to a
+#: vertical tangent joint) the ball's lower side nears the joint's edge, where the certified
+#: drop-cutter's near-ties make it slow; the part of the face steeper than this is left.
+STEEPEST_REACHED = 75.0
 
 
 class FaceQuery:
@@ -76,10 +81,13 @@ class FaceQuery:
 
 
 def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
-                    across: FloatArray) -> tuple[FloatArray, FloatArray]:
+                    across: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Across-coordinate of the ball centre and the allowed XY stepover (mm) at samples of the
-    selected faces, sorted by the former (as :meth:`RasterPlanner.stepover_field`)."""
-    offs, allowed = [], []
+    selected faces, sorted by the former (as :meth:`RasterPlanner.stepover_field`), and the
+    (along, across) extent of the centres that touch them (mm, [[a0, b0], [a1, b1]]): the
+    centre's XY offset from its contact, R sin slope, capped at R sin :data:`STEEPEST_REACHED`,
+    and none where a centre over the contact leaves no more than the tolerance."""
+    offs, allowed, reach = [], [], []
     for f in faceset.faces:
         if not f.selected:
             continue
@@ -95,12 +103,25 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
         t = np.column_stack([np.full(len(tz), across[0]), np.full(len(tz), across[1]), tz])
         kappa = normal_curvature(jet, t)
         xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, across, along)
-        allowed.append(np.maximum(xy, 0.02 * tool.flat_stepover))
-        offs.append((d.point[:, :2] + tool.radius * n[:, :2]) @ across)
+        sin_slope = np.hypot(n[:, 0], n[:, 1])
+        cap = math.sin(math.radians(STEEPEST_REACHED))
+        # steeper samples are not reached by the passes: their allowance does not count
+        kept = sin_slope <= cap
+        allowed.append(np.maximum(xy, 0.02 * tool.flat_stepover)[kept])
+        offs.append(((d.point[:, :2] + tool.radius * n[:, :2]) @ across)[kept])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(kept, 1.0, cap / sin_slope)
+            # a ball centred over a contact this gentle leaves at most the tolerance (its
+            # height above the face there, R (1 / cos slope - 1)): no reach beyond it
+            gentle = tool.radius * (1.0 / np.abs(n[:, 2]) - 1.0) <= tool.tolerance
+        scale[gentle] = 0.0
+        centre = d.point[:, :2] + tool.radius * scale[:, None] * n[:, :2]
+        reach.append(centre @ np.column_stack([along, across]))
     b = np.concatenate(offs)
     a = np.concatenate(allowed)
     order = np.argsort(b)
-    return b[order], a[order]
+    ab = np.concatenate(reach)
+    return b[order], a[order], np.array([ab.min(axis=0), ab.max(axis=0)])
 
 
 def _line_offsets(b_off: FloatArray, allowed: FloatArray, b0: float, b1: float,
@@ -143,10 +164,13 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     lo, hi = faceset.bounds(selected_only=True)
     corners = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [lo[0], hi[1]], [hi[0], hi[1]]])
     # ball centres over the selected faces' extent, as the net raster keeps them over the
-    # surface's: further out the ball only grazes a border with its equator
-    a0, a1 = float((corners @ along).min()), float((corners @ along).max())
-    b0, b1 = float((corners @ across).min()), float((corners @ across).max())
-    b_off, allowed = _stepover_field(faceset, tool, along, across)
+    # surface's (further out the ball only grazes a flat border with its equator), and beyond
+    # it as far as the centres touching a steep border lie (R sin slope past the contact)
+    b_off, allowed, reach = _stepover_field(faceset, tool, along, across)
+    a0 = min(float((corners @ along).min()), float(reach[0, 0]))
+    a1 = max(float((corners @ along).max()), float(reach[1, 0]))
+    b0 = min(float((corners @ across).min()), float(reach[0, 1]))
+    b1 = max(float((corners @ across).max()), float(reach[1, 1]))
     offsets = _line_offsets(b_off, allowed, b0, b1, tool, 0.5 * tool.flat_stepover)
     step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
     n = max(2, math.ceil((a1 - a0) / step) + 1)
