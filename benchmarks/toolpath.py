@@ -14,6 +14,14 @@ the measured scallop, kept inside the bracket of passing and failing trials) unt
 simulation measures its largest scallop at most our op's measured one (``--match-target ours``)
 or the requested one (``requested``): its moves and time at that stepover make a third column.
 
+With ``--part PART.step [--faces up|3,8]`` the model is a part instead of a net: our op
+machines the selected faces (default: every face a 3-axis tool reaches from above, as
+``bsplinecam part`` picks them), the 3D Surface op gets the same faces as its Base, and both
+programs are simulated against the part's exact faces (gouge over the whole model, scallop and
+coverage on the selected faces away from their borders, as ``bsplinecam verify PART PROGRAM
+--faces ...``; see :func:`BSplineCAM.core.verify.verify_faces`).  Our op on parts is slow
+(drop-cutter queries at tangent joints): pass a scallop it finishes in (say 0.1 mm).
+
 Needs a FreeCAD with OpenCAMLib (0.20 with the PyPI wheel, 1.0 and 1.1 with Debian's
 python3-opencamlib); run inside freecadcmd (for 1.0 or 1.1: tools/freecad11.sh freecadcmd -c ...):
 
@@ -40,8 +48,8 @@ from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline, surface3d  # noqa: E402
 from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
 from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.verify import verify  # noqa: E402
-from BSplineCAM.orchestration import rs274  # noqa: E402
+from BSplineCAM.core.verify import verify, verify_faces  # noqa: E402
+from BSplineCAM.orchestration import parts, rs274  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"
@@ -86,8 +94,9 @@ def post_alone(job, op, path: Path) -> str:
             other.Active = state
 
 
-def measure(surface: Surface, text: str, path: Path, diameter: float, cell: float) -> dict:
-    """rs274's verdict and the simulation's metrics of one posted program."""
+def measure(design, text: str, path: Path, diameter: float, cell: float) -> dict:
+    """rs274's verdict and the simulation's metrics of one posted program against ``design``:
+    a Surface, or a part's faces (a list of core Faces, the machined ones ``selected``)."""
     result = {}
     if rs274.available():
         check = rs274.check(path, {1: diameter})
@@ -95,7 +104,8 @@ def measure(surface: Surface, text: str, path: Path, diameter: float, cell: floa
     else:
         result["rs274"] = "not installed"
     program = read_gcode(text)
-    metrics = verify(surface, program, Tool(diameter), cell=cell).metrics
+    check = verify if isinstance(design, Surface) else verify_faces
+    metrics = check(design, program, Tool(diameter), cell=cell).metrics
     keys = (
         "gouge_max_mm",
         "gouge_cells",
@@ -219,10 +229,26 @@ def trials_loop(job, op, doc, surface, args, out: Path, target: float, results: 
         )
 
 
+def part_job(args: argparse.Namespace, params, doc):
+    """The part's faces (core Faces, the selection ``selected``) and (job, our op) on its
+    model, the op's Base those faces."""
+    from BSplineCAM.app.faces import read_part
+
+    faces = parts.load_faces(args.part, args.faces)
+    chosen = [f.index for f in faces if f.selected]
+    if not chosen:
+        raise SystemExit(f"--faces {args.faces}: no face of {args.part} selected")
+    model = doc.addObject("Part::Feature", "Part")
+    model.Shape = read_part(args.part)
+    model.Label = Path(args.part).stem
+    doc.recompute()
+    job, ours = pipeline.build_faces_job(model, params, cam.Cutting(), chosen)
+    return faces, job, ours
+
+
 def run(args: argparse.Namespace) -> dict:
     if not compat.opencamlib_available():
         raise SystemExit(f"this benchmark: {compat.opencamlib_missing_message()}")
-    surface = benchmark_surface(args.surface)
     params = pipeline.FinishingParameters(
         tool_diameter=args.diameter,
         scallop=args.scallop,
@@ -233,7 +259,11 @@ def run(args: argparse.Namespace) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     doc = FreeCAD.newDocument("BSplineCAMBenchmark")
     try:
-        _, job, ours = pipeline.build_job(surface, params, cam.Cutting(), doc)
+        if args.part:
+            surface, job, ours = part_job(args, params, doc)
+        else:
+            surface = benchmark_surface(args.surface)
+            _, job, ours = pipeline.build_job(surface, params, cam.Cutting(), doc)
         results = {"bsplinecam": {"seconds": timed_recompute(doc, ours)}}
         theirs = surface3d.add_freecad_surface_op(
             job,
@@ -243,6 +273,8 @@ def run(args: argparse.Namespace) -> dict:
             pattern=args.pattern,
             sample_interval=args.sample_interval,
         )
+        if args.part:  # the same faces as ours (the helper picks the net's one face)
+            theirs.Base = [(job.Model.Group[0], list(ours.Base[0][1]))]
         results["freecad_3d_surface"] = {"seconds": timed_recompute(doc, theirs)}
         if json.loads(ours.Report or "{}").get("error"):
             raise RuntimeError(ours.Report)
@@ -261,7 +293,8 @@ def run(args: argparse.Namespace) -> dict:
                 job, theirs, doc, surface, args, out, results["freecad_3d_surface"], target
             )
         return {
-            "surface": args.surface,
+            "surface": f"{args.part} faces {args.faces or 'up'} "
+                       f"({', '.join(ours.Base[0][1])})" if args.part else args.surface,
             "freecad": ".".join(map(str, compat.freecad_version())),
             "tool_diameter_mm": args.diameter,
             "scallop_mm": args.scallop,
@@ -334,6 +367,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--surface", default="case-study",
                         help="case-study, dome, saddle, waves, or a control-net file")
+    parser.add_argument("--part", help="machine this part (.step, .brep, .FCStd) instead of "
+                        "a net")
+    parser.add_argument("--faces", help="with --part: up (default) or face numbers such as 3,8")
     parser.add_argument("--diameter", type=float, default=6.0, help="ball diameter (mm)")
     parser.add_argument("--scallop", type=float, default=0.01, help="scallop height (mm)")
     parser.add_argument("--tolerance", type=float, default=0.002, help="chordal tolerance (mm)")
@@ -374,6 +410,10 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--match-steps must be at least 1, got {args.match_steps}")
     if not 0.0 < args.match_rtol < 1.0:
         parser.error(f"--match-rtol must be in (0, 1), got {args.match_rtol}")
+    if args.faces is not None and not args.part:
+        parser.error("--faces applies to --part")
+    if args.part and not Path(args.part).is_file():
+        parser.error(f"--part {args.part}: no such file")
     figures = run(args)
     print(table(figures))
     if args.json:
