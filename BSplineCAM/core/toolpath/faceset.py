@@ -1142,6 +1142,24 @@ class FaceSet:
         rows = np.arange(n)
         lb = fc[rows, k]
         sloc = CORNERS[k]
+
+        def ball_at(sel, loc):
+            """(u, v) of the points at local ``loc`` of sub-patches ``sel`` and the tip height
+            of the ball resting on each (-inf out of its reach)."""
+            b = it.box[sel]
+            uu = b[:, 0] + loc[:, 0] * (b[:, 1] - b[:, 0])
+            vv = b[:, 2] + loc[:, 1] * (b[:, 3] - b[:, 2])
+            p = d.face.surface.evaluate(uu, vv)
+            pd = ((p[:, :2] - qq[sel]) ** 2).sum(axis=1)
+            fv = np.where(pd <= TOUCH * R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)),
+                          -np.inf)
+            return uu, vv, fv
+
+        def raise_bound(sel, loc, fv) -> None:
+            better = fv > lb[sel]
+            lb[sel[better]] = fv[better]
+            sloc[sel[better]] = loc[better]
+
         # straddling sub-patches: the best trim vertex, evaluated on the surface
         if len(strad):
             tv = np.where(ok[:, 4:], aval[:, 4:], -np.inf)
@@ -1150,16 +1168,7 @@ class FaceSet:
             sel, kk = strad[has], kk[has]
             if len(sel):
                 loc = st[np.flatnonzero(has), 4 + kk]
-                b = it.box[sel]
-                uu = b[:, 0] + loc[:, 0] * (b[:, 1] - b[:, 0])
-                vv = b[:, 2] + loc[:, 1] * (b[:, 3] - b[:, 2])
-                p = d.face.surface.evaluate(uu, vv)
-                pd = ((p[:, :2] - qq[sel]) ** 2).sum(axis=1)
-                fv = np.where(pd <= TOUCH * R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)),
-                              -np.inf)
-                better = fv > lb[sel]
-                lb[sel[better]] = fv[better]
-                sloc[sel[better]] = loc[better]
+                raise_bound(sel, loc, ball_at(sel, loc)[2])
         # shallow sub-patches (their corners mostly out of the ball's reach): also the surface
         # point at the Greville abscissae of the control point nearest the query in xy, about
         # where the ball comes down, so that an early lower bound prunes the other faces
@@ -1167,20 +1176,12 @@ class FaceSet:
         if len(sel):
             kn = np.argmin((px[sel] - qx[sel]) ** 2 + (py[sel] - qy[sel]) ** 2, axis=1)
             loc = d.design[kn, 1:]
-            b = it.box[sel]
-            uu = b[:, 0] + loc[:, 0] * (b[:, 1] - b[:, 0])
-            vv = b[:, 2] + loc[:, 1] * (b[:, 3] - b[:, 2])
-            p = d.face.surface.evaluate(uu, vv)
-            pd = ((p[:, :2] - qq[sel]) ** 2).sum(axis=1)
-            fv = np.where(pd <= TOUCH * R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)),
-                          -np.inf)
+            uu, vv, fv = ball_at(sel, loc)
             strad_sel = it.status[sel] == 2
             if strad_sel.any():
                 fv[strad_sel] = np.where(d.inside(uu[strad_sel], vv[strad_sel]),
                                          fv[strad_sel], -np.inf)
-            better = fv > lb[sel]
-            lb[sel[better]] = fv[better]
-            sloc[sel[better]] = loc[better]
+            raise_bound(sel, loc, fv)
         b = it.box
         lu = b[:, 0] + sloc[:, 0] * (b[:, 1] - b[:, 0])
         lv = b[:, 2] + sloc[:, 1] * (b[:, 3] - b[:, 2])
