@@ -30,6 +30,7 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM.app import cam, compat, finishing_op, pipeline  # noqa: E402
 from BSplineCAM.app import faces as app_faces  # noqa: E402
+from BSplineCAM.core import toolpath as core_toolpath  # noqa: E402
 from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
 from BSplineCAM.core.simulate import Grid, Tool, simulate_program  # noqa: E402
 from BSplineCAM.core.toolpath.common import ToolpathCancelled  # noqa: E402
@@ -386,7 +387,7 @@ class UserErrorsAndReopen:
         def broken(*_args, **_kwargs):
             raise TypeError("a bug planted by the test")
 
-        with mock.patch.object(finishing_op, "faces_toolpath", broken):
+        with mock.patch.object(core_toolpath, "generate_faces", broken):
             self.op.touch()
             with console_text(out):
                 self.doc.recompute()

@@ -302,17 +302,19 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
 
     def _execute_faces(self, obj) -> None:
         """Finishing of the op's faces (:func:`job_faces`) by raster, waterline or
-        iso-parametric passes (:func:`faces_toolpath`), heights from the certified
-        drop-cutter over all of the job's faces."""
+        iso-parametric passes (:func:`BSplineCAM.core.toolpath.generate_faces`), heights from
+        the certified drop-cutter over all of the job's faces."""
+        from ..core.toolpath import faces_program_moves, generate_faces, no_pass_hint
+
         faceset = self.faceset(obj)
-        toolpath = faces_toolpath(
+        toolpath = generate_faces(
             faceset, obj.Strategy, 2.0 * self.radius, obj.ScallopHeight.Value,
             obj.Tolerance.Value, angle=obj.Angle.Value, direction=obj.Direction,
             iso_direction=obj.IsoDirection, progress=progress_reporter(obj),
             where=obj.Label)
         if not toolpath.passes:
             raise OpError(f"{obj.Label}: the {obj.Strategy} strategy produced no pass on the "
-                          "selected faces" + _no_pass_hint(toolpath))
+                          "selected faces" + no_pass_hint(toolpath))
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
         from ..core.toolpath.rest import faceset_cl_height
@@ -336,71 +338,6 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         obj.Report = json.dumps(out, sort_keys=True)
         for region in toolpath.unreachable:
             FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
-
-
-#: Strategies on faces (raster, waterline, isoparametric); steep_shallow needs nets.
-FACE_STRATEGIES = (toolpath_common.Strategy.RASTER.value,
-                   toolpath_common.Strategy.WATERLINE.value,
-                   toolpath_common.Strategy.ISOPARAMETRIC.value)
-
-
-def faces_toolpath(faceset, strategy: str, tool_diameter: float, scallop: float,
-                   tolerance: float, angle: float = 0.0, direction: str = "zigzag",
-                   iso_direction: str = "u", progress=None, where: str = "op",
-                   names: tuple[str, str] = ("Strategy", "Direction")):
-    """The toolpath of the selected faces of ``faceset`` (a core FaceSet) by ``strategy``:
-    raster (:func:`~BSplineCAM.core.toolpath.faces_raster.generate_faces_raster`, zigzag at
-    ``angle`` degrees), waterline (:mod:`~BSplineCAM.core.toolpath.faces_waterline`, levels
-    from the scallop on walls over 30 degrees) or isoparametric
-    (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``).
-    tool_diameter, scallop and tolerance in mm.  A strategy or direction faces do not have
-    raises :class:`OpError` naming ``where`` and the property or option (``names``)."""
-    strategy_name, direction_name = names
-    if strategy not in FACE_STRATEGIES:
-        raise OpError(f"{where}: {strategy_name} {strategy!r} is not available on faces: use "
-                      f"{', '.join(FACE_STRATEGIES)} (or a BSplineCAM surface)")
-    if strategy != toolpath_common.Strategy.WATERLINE.value and \
-            direction != toolpath_common.Direction.ZIGZAG.value:
-        raise OpError(f"{where}: {direction_name} {direction!r} is not available on faces "
-                      f"with {strategy}: use zigzag")
-    if strategy == toolpath_common.Strategy.WATERLINE.value:
-        from ..core.toolpath.faces_waterline import generate_faces_waterline
-
-        return generate_faces_waterline(faceset, tool_diameter, scallop, tolerance, progress)
-    if strategy == toolpath_common.Strategy.ISOPARAMETRIC.value:
-        from ..core.toolpath.faces_iso import generate_faces_iso
-
-        return generate_faces_iso(faceset, tool_diameter, scallop, tolerance, iso_direction,
-                                  progress)
-    from ..core.toolpath.faces_raster import generate_faces_raster
-
-    return generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle, progress)
-
-
-def _no_pass_hint(toolpath) -> str:
-    """Why a faces toolpath has no pass, from its notes (waterline: no steep wall)."""
-    if toolpath.strategy == toolpath_common.Strategy.WATERLINE.value:
-        return (f" ({'; '.join(toolpath.stats.notes)})" if toolpath.stats.notes else "")
-    return ""
-
-
-def faces_program_moves(toolpath, faceset, clearance_height: float,
-                        safe_height: float | None = None, arcs: bool = False) -> list:
-    """Program moves (:func:`BSplineCAM.core.toolpath.to_moves`) of a toolpath on faces; with
-    ``arcs``, fitted by one-sided G2/G3 arcs within half the toolpath's tolerance, as for
-    nets (:func:`BSplineCAM.core.toolpath.program_moves`): waterline contours in G17, their
-    free side told by the certified drop-cutter over all of ``faceset``'s faces."""
-    from ..core.toolpath import to_moves
-    from ..core.toolpath.arcs import contour_side, fit_arcs
-
-    moves = to_moves(toolpath, clearance_height, safe_height)
-    if not arcs:
-        return moves
-    side17 = None
-    if toolpath.strategy == toolpath_common.Strategy.WATERLINE.value:
-        radius = 0.5 * float(toolpath.parameters["tool_diameter"])
-        side17 = contour_side(lambda xy: faceset.drop_ball(xy, radius)[0])
-    return fit_arcs(moves, 0.5 * float(toolpath.parameters["tolerance"]), side17)
 
 
 def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,

@@ -23,6 +23,7 @@ import numpy as np
 from ..core import faces as core_faces
 from ..core.errors import BSplineCAMError, ParameterError
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
+from ..core.toolpath import FACE_STRATEGIES
 from . import runtime
 
 if TYPE_CHECKING:
@@ -40,8 +41,8 @@ PART_SAMPLES = 31
 #: Worker request kinds handled here (``worker.handle`` passes them on).
 REQUESTS = ("part_faces", "part_check", "evaluate_faces")
 
-#: ``--strategy`` values for parts (as ``app.finishing_op.FACE_STRATEGIES``).
-PART_STRATEGIES = ("raster", "waterline", "isoparametric")
+#: ``--strategy`` values for parts.
+PART_STRATEGIES = FACE_STRATEGIES
 
 #: What ``--faces`` may hold: "up", "all" (check only), or 1-based face numbers.
 FacesArg = Union[str, list]
@@ -346,11 +347,11 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         compat.post_module(args.post)
     except ValueError as exc:
         raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
-    from ..app.finishing_op import faces_toolpath
+    from ..core.toolpath import generate_faces
 
     faceset = FaceSet(faces)
     strategy = getattr(args, "strategy", "raster")
-    toolpath = faces_toolpath(faceset, strategy, 2.0 * tool.radius, tool.scallop,
+    toolpath = generate_faces(faceset, strategy, 2.0 * tool.radius, tool.scallop,
                               tool.tolerance, angle, getattr(args, "direction", "zigzag"),
                               getattr(args, "iso_direction", "u"), where=str(args.net),
                               names=("--strategy", "--direction"))
@@ -416,8 +417,8 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
 
     from ..app import cam
     from ..app import faces as app_faces
-    from ..app.finishing_op import faces_program_moves, moves_to_commands
-    from ..core.toolpath import program_moves
+    from ..app.finishing_op import moves_to_commands
+    from ..core.toolpath import faces_program_moves, program_moves
 
     shape = app_faces.read_part(path)
     doc = FreeCAD.newDocument("BSplineCAMPart")

@@ -216,3 +216,67 @@ __all__ = [
     "curved_stepover", "estimated_cutter_locations", "flat_stepover", "generate", "program_moves",
     "to_moves",
 ]
+
+
+#: Strategies on faces (raster, waterline, isoparametric); steep_shallow needs nets.
+FACE_STRATEGIES = (Strategy.RASTER.value,
+                   Strategy.WATERLINE.value,
+                   Strategy.ISOPARAMETRIC.value)
+
+
+def generate_faces(faceset, strategy: str, tool_diameter: float, scallop: float,
+                   tolerance: float, angle: float = 0.0, direction: str = "zigzag",
+                   iso_direction: str = "u", progress=None, where: str = "op",
+                   names: tuple[str, str] = ("Strategy", "Direction")):
+    """The toolpath of the selected faces of ``faceset`` (a core FaceSet) by ``strategy``:
+    raster (:func:`~BSplineCAM.core.toolpath.faces_raster.generate_faces_raster`, zigzag at
+    ``angle`` degrees), waterline (:mod:`~BSplineCAM.core.toolpath.faces_waterline`, levels
+    from the scallop on walls over 30 degrees) or isoparametric
+    (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``).
+    tool_diameter, scallop and tolerance in mm.  A strategy or direction faces do not have
+    raises :class:`~BSplineCAM.core.errors.ParameterError` naming ``where`` and the property or option (``names``)."""
+    strategy_name, direction_name = names
+    if strategy not in FACE_STRATEGIES:
+        raise ParameterError(f"{where}: {strategy_name} {strategy!r} is not available on faces: use "
+                      f"{', '.join(FACE_STRATEGIES)} (or a BSplineCAM surface)")
+    if strategy != Strategy.WATERLINE.value and \
+            direction != Direction.ZIGZAG.value:
+        raise ParameterError(f"{where}: {direction_name} {direction!r} is not available on faces "
+                      f"with {strategy}: use zigzag")
+    if strategy == Strategy.WATERLINE.value:
+        from .faces_waterline import generate_faces_waterline
+
+        return generate_faces_waterline(faceset, tool_diameter, scallop, tolerance, progress)
+    if strategy == Strategy.ISOPARAMETRIC.value:
+        from .faces_iso import generate_faces_iso
+
+        return generate_faces_iso(faceset, tool_diameter, scallop, tolerance, iso_direction,
+                                  progress)
+    from .faces_raster import generate_faces_raster
+
+    return generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle, progress)
+
+
+def no_pass_hint(toolpath) -> str:
+    """Why a faces toolpath has no pass, from its notes (waterline: no steep wall)."""
+    if toolpath.strategy == Strategy.WATERLINE.value:
+        return (f" ({'; '.join(toolpath.stats.notes)})" if toolpath.stats.notes else "")
+    return ""
+
+
+def faces_program_moves(toolpath, faceset, clearance_height: float,
+                        safe_height: float | None = None, arcs: bool = False) -> list:
+    """Program moves (:func:`to_moves`) of a toolpath on faces; with
+    ``arcs``, fitted by one-sided G2/G3 arcs within half the toolpath's tolerance, as for
+    nets (:func:`program_moves`): waterline contours in G17, their
+    free side told by the certified drop-cutter over all of ``faceset``'s faces."""
+    from .arcs import contour_side, fit_arcs
+
+    moves = to_moves(toolpath, clearance_height, safe_height)
+    if not arcs:
+        return moves
+    side17 = None
+    if toolpath.strategy == Strategy.WATERLINE.value:
+        radius = 0.5 * float(toolpath.parameters["tool_diameter"])
+        side17 = contour_side(lambda xy: faceset.drop_ball(xy, radius)[0])
+    return fit_arcs(moves, 0.5 * float(toolpath.parameters["tolerance"]), side17)
