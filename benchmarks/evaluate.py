@@ -7,7 +7,8 @@ evaluation through cadquery's OCP (``Geom_BSplineSurface::D0``/``D1`` on a subse
 Also the cost of unit normals against points alone, for each evaluator: "points+normals /
 points" is the time of the points plus that of the unit normals over the time of the points
 (ours timed in turns with the points, so a slow spell of the machine hits both alike).
-Set OPENBLAS_NUM_THREADS=1 and BSPLINECAM_NORMAL_THREADS=1 for single-core figures.
+Set OPENBLAS_NUM_THREADS=1 and BSPLINECAM_GRID_THREADS=1 for single-core figures (our grid
+products are shared among our own threads, ``matrix.GRID_THREADS``).
 Run with the project venv:  .venv/bin/python benchmarks/evaluate.py
 """
 
@@ -66,8 +67,8 @@ def main() -> None:
     parser.add_argument("--json", help="also write the figures to this file")
     args = parser.parse_args()
 
-    if os.environ.get("BSPLINECAM_NORMAL_THREADS"):
-        matrix.NORMAL_THREADS = max(1, int(os.environ["BSPLINECAM_NORMAL_THREADS"]))
+    if os.environ.get("BSPLINECAM_GRID_THREADS"):
+        matrix.GRID_THREADS = max(1, int(os.environ["BSPLINECAM_GRID_THREADS"]))
     net = make_net()
     surface = Surface(net, "uniform", "bench")
     t = np.linspace(0.0, 1.0, args.n)
@@ -102,6 +103,8 @@ def main() -> None:
     figures["ours_points_s"] = ours_points
     figures["ours_points_and_normals_s"] = ours_points + best["ours_normals"]
     figures["ours_normals_over_points"] = figures["ours_points_and_normals_s"] / ours_points
+    figures["ours_normals_s"] = best["ours_normals"]
+    figures["ours_normals_alone_over_points"] = best["ours_normals"] / ours_points
     figures["fitpack_points_s"] = best["fitpack_points"]
     figures["fitpack_points_and_normals_s"] = best["fitpack_points"] + normals["fitpack_normals"]
     figures["fitpack_normals_over_points"] = (figures["fitpack_points_and_normals_s"]
@@ -165,7 +168,7 @@ def main() -> None:
         "occt_per_point_points_and_normals": figures.get("occt_points_and_normals_s", float("nan")) / figures["ours_points_and_normals_s"],
     }
     print(f"grid {args.n} x {args.n} on a 16 x 16 net, best of {args.repeat}; numpy {np.__version__}, {platform.python_version()}; "
-          f"normals in {matrix.NORMAL_THREADS} thread(s)")
+          f"normals in {matrix.GRID_THREADS} thread(s)")
     print(f"  ours      points {ours_points * 1e3:9.1f} ms   points+normals {figures['ours_points_and_normals_s'] * 1e3:9.1f} ms")
     print(f"  FITPACK   points {figures['fitpack_points_s'] * 1e3:9.1f} ms   points+normals {figures['fitpack_points_and_normals_s'] * 1e3:9.1f} ms")
     print(f"  geomdl    points {figures['geomdl_points_s'] * 1e3:9.1f} ms   (extrapolated from {args.geomdl_points} points)")
@@ -176,6 +179,8 @@ def main() -> None:
                      for name, key in (("ours", "ours"), ("FITPACK", "fitpack"),
                                        ("geomdl", "geomdl"), ("OCCT", "occt")))
     print(f"  points+normals / points: {cost}")
+    print(f"  ours: unit normals alone {best['ours_normals'] * 1e3:.1f} ms = "
+          f"{figures['ours_normals_alone_over_points']:.2f}x the points (target: at most 3x)")
     print(f"  max |unit normal ours - FITPACK| = {figures['max_normal_diff_vs_fitpack']:.2e}")
     print(f"  max |ours - FITPACK| = {figures['max_diff_vs_fitpack_mm']:.2e} mm, max |ours - geomdl| = {figures.get('max_diff_vs_geomdl_mm', float('nan')):.2e} mm")
     if args.json:

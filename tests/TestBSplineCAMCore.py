@@ -239,10 +239,10 @@ def test_grid_normals_equal_cox_de_boor_and_the_tangent_path(layout, make, rng):
 @pytest.mark.parametrize("threads", [1, 2])
 def test_large_grid_normals_in_threads_equal_the_tangent_path(threads, monkeypatch):
     """A grid large enough to be shared among threads gives the same normals."""
-    monkeypatch.setattr(matrix, "NORMAL_THREADS", threads)
+    monkeypatch.setattr(matrix, "GRID_THREADS", threads)
     surface = Surface.from_json(CASE_STUDY)
     u, w = np.linspace(0, 1, 540), np.linspace(0, 1, 500)
-    assert len(u) * len(w) >= 2 * matrix.NORMAL_THREAD_POINTS  # enough for two threads
+    assert len(u) * len(w) >= 2 * matrix.GRID_THREAD_POINTS  # enough for two threads
     slow, _ = matrix.grid_normals(surface.control_points, surface.knots, u, w)
     np.testing.assert_allclose(surface.normals(u, w, grid=True), slow, atol=1e-12)
 
@@ -281,11 +281,11 @@ def test_large_grid_normals_on_collapsed_nets_in_threads(threads, collapsed, mon
     point (the normals along them vanish), or the whole net (all vanish, exactly).  They are
     flagged like the blocked tangent path flags them, without a floating-point warning in any
     thread, the rest agree with that path within 1e-12, and the surface's normals are unit."""
-    monkeypatch.setattr(matrix, "NORMAL_THREADS", threads)
+    monkeypatch.setattr(matrix, "GRID_THREADS", threads)
     net = _collapsed_corner_net() if collapsed == "corner" else np.full((6, 5, 3), 7.0)
     surface = Surface(net, "clamped")
     u, w = np.linspace(0, 1, 540), np.linspace(0, 1, 500)
-    assert len(u) * len(w) >= 2 * matrix.NORMAL_THREAD_POINTS  # enough for two threads
+    assert len(u) * len(w) >= 2 * matrix.GRID_THREAD_POINTS  # enough for two threads
     form = surface.patch_form
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -392,6 +392,47 @@ def test_convex_hull(net, layout, u, w):
     tol = 1e-9 * max(1, np.abs(net).max())
     assert (point >= block.reshape(-1, 3).min(0) - tol).all()
     assert (point <= block.reshape(-1, 3).max(0) + tol).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(nets(), st.sampled_from(LAYOUTS))
+def test_normal_bounds_hold_on_every_patch(net, layout):
+    """The per-patch bounds of |Su x Sw| that spare the grid normals their length check: on a
+    7 x 7 sample of every patch the tangents' cross product (the blocked tangent path, not the
+    normal polynomial) is no shorter than ``least`` and no longer than ``greatest``."""
+    surface = Surface(net, layout)
+    nform = matrix.normal_form(surface.patch_form)
+    pu, pw = nform.spans
+    local = np.linspace(0, 1, 7)
+    u = np.concatenate([(i + local) / pu for i in range(pu)])
+    w = np.concatenate([(j + local) / pw for j in range(pw)])
+    su, sw = matrix.evaluate_patch_orders(surface.patch_form, *np.meshgrid(u, w, indexing="ij"),
+                                          ((1, 0), (0, 1)))
+    length = np.linalg.norm(np.cross(su, sw), axis=-1).reshape(pu, 7, pw, 7)
+    tangent = 3.0 * max(pu, pw) * max(1.0, float(np.abs(net).max()))  # rounding's scale
+    tol = 1e-12 * tangent * tangent
+    assert (length.min(axis=(1, 3)) >= nform.least - tol).all()
+    assert (length.max(axis=(1, 3)) <= nform.greatest + tol).all()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_grid_normals_where_one_patch_turns_right_round(threads, monkeypatch):
+    """A 4 x 4 net folded into a tube: the normal of its one patch turns through more than
+    180 degrees, so its bounds certify nothing and every block is searched for short normals;
+    none is degenerate, and they agree with the tangent path."""
+    monkeypatch.setattr(matrix, "GRID_THREADS", threads)
+    angle = np.linspace(0, 1.6 * np.pi, 4)
+    x, y = np.meshgrid(20 * np.cos(angle), np.linspace(0, 30, 4), indexing="ij")
+    z = np.meshgrid(20 * np.sin(angle), np.zeros(4), indexing="ij")[0]
+    net = np.stack([x, y, z], -1)
+    form = Surface(net, "clamped").patch_form
+    nform = matrix.normal_form(form)
+    assert not nform.least[0, 0] > 0  # the bound proves nothing here
+    u, w = np.linspace(0, 1, 520), np.linspace(0, 1, 510)
+    fast, degenerate = matrix.grid_unit_normals(form, nform, u, w)
+    slow, slow_degenerate = matrix.grid_normals(net, "clamped", u, w)
+    assert not degenerate.any() and not slow_degenerate.any()
+    np.testing.assert_allclose(fast, slow, atol=1e-12)
 
 
 # --- parameters ------------------------------------------------------------------------------

@@ -137,6 +137,50 @@ def _contract_rows(index: IntArray, weights: FloatArray, net: FloatArray) -> Flo
     return out
 
 
+#: Threads that share the products of a large grid (:func:`grid_planes`,
+#: :func:`grid_unit_normals`; numpy and BLAS release the GIL), and the grid points per thread
+#: below which one thread does it all.
+GRID_THREADS = max(1, min(2, os.cpu_count() or 1))
+GRID_THREAD_POINTS = 1 << 17
+
+#: Multiply-adds of one BLAS product below which OpenBLAS computes it in the calling thread
+#: (65536 x 4: its interface/gemm.c).  Our grid products stay below it and our threads share
+#: them: a product OpenBLAS threads itself leaves its workers spinning for a while after it
+#: returns, and they then take the cores from the next threaded stage (measured: the normals
+#: took 9.6 ms instead of 5.6 ms right after BLAS-threaded points).
+BLAS_ONE_THREAD_MACS = 65536 * 4
+
+
+def _grid_threads(points: int, blocks: int) -> int:
+    """Threads for a grid of ``points`` cut into ``blocks`` blocks."""
+    return max(1, min(GRID_THREADS, points // GRID_THREAD_POINTS, blocks))
+
+
+def _shared_stages(stages: Sequence, threads: int) -> None:
+    """Run each stage in ``threads`` threads at once, one stage after the other.
+
+    A stage takes its blocks from a shared counter (``next()`` on an ``itertools.count`` holds
+    the GIL), so a thread the machine holds back takes fewer."""
+    if threads <= 1:
+        for stage in stages:
+            stage()
+        return
+    with ThreadPoolExecutor(threads - 1) as pool:
+        for stage in stages:
+            others = [pool.submit(stage) for _ in range(1, threads)]
+            stage()
+            for other in others:
+                other.result()
+
+
+def _blocks(order: Iterator[int], total: int) -> Iterator[int]:
+    """Block numbers from the shared counter ``order`` until ``total`` are handed out."""
+    for k in order:
+        if k >= total:
+            return
+        yield k
+
+
 def grid_planes(
     net: FloatArray,
     layout: str | KnotLayout,
@@ -151,7 +195,8 @@ def grid_planes(
     Stage 2 applies ([W][M_j])^T patch column by patch column: the samples of w-span j need only
     net columns j..j+3, so each span is one small BLAS product writing a contiguous block of
     output rows.  That is a quarter of the work of a dense product and no temporary as large
-    as the result.
+    as the result.  The products are cut into blocks of rows below ``BLAS_ONE_THREAD_MACS``,
+    shared among ``GRID_THREADS`` threads on large grids.
     """
     net = np.asarray(net, dtype=float)
     n_u, n_w = net.shape[:2]
@@ -165,11 +210,15 @@ def grid_planes(
     if len(w) > 1 and np.any(np.diff(iw) < 0):  # unsorted w: one dense product
         np.matmul(basis_rows(w, n_w, layout, dw), stage1, out=out)
     else:
-        bounds = np.searchsorted(iw, np.arange(n_w - DEGREE + 1))
-        for j in range(n_w - DEGREE):
-            lo, hi = bounds[j], bounds[j + 1]
-            if hi > lo:
+        runs = _runs(iw, max(1, BLAS_ONE_THREAD_MACS // (4 * stage1.shape[1] + 1)))
+        order = count()
+
+        def products() -> None:
+            for k in _blocks(order, len(runs)):
+                lo, hi, j = runs[k]
                 np.matmul(ww[lo:hi], stage1[j : j + 4], out=out[lo:hi])
+
+        _shared_stages([products], _grid_threads(out.size // 3, len(runs)))
     return out.reshape(len(w), 3, len(u))
 
 
@@ -348,16 +397,10 @@ def evaluate_curve(
 
 
 # -- normals as one polynomial per patch ------------------------------------------------------
-#: Threads that evaluate the blocks of :func:`grid_unit_normals` (numpy and BLAS release the
-#: GIL), and the grid points per thread below which one thread does it all.
-NORMAL_THREADS = max(1, min(2, os.cpu_count() or 1))
-NORMAL_THREAD_POINTS = 1 << 17
-
 #: Grid points per block of w-rows in :func:`grid_unit_normals`: a block's coordinate planes
 #: stay in cache between the product that makes them and their normalisation, each numpy call
 #: works on enough points that its fixed cost does not show, and each product (6 multiply-adds
-#: per point and coordinate: 196608) stays below the 65536 x 4 from which OpenBLAS threads a
-#: product by default (its interface/gemm.c), so our threads do not queue for BLAS's.
+#: per point and coordinate: 196608) stays below ``BLAS_ONE_THREAD_MACS``.
 NORMAL_BLOCK_POINTS = 1 << 15
 
 #: Normals shorter than this fraction of the grid's longest are recomputed from the tangents
@@ -380,6 +423,18 @@ class NormalCoefficients:
 
     coef: FloatArray
     counts: tuple[int, int]
+    #: Per patch (spans_u, spans_w): a lower bound of |Su x Sw| over the patch (the least
+    #: projection of its coefficients on their mean direction, since the normal is a convex
+    #: combination of them; zero where that proves nothing) and an upper bound (the longest
+    #: coefficient).  NaN where a coefficient is not finite.
+    least: FloatArray
+    greatest: FloatArray
+    #: Per patch (spans_u, spans_w): a lower bound of |Su x Sw| over the patch (the least
+    #: projection of its coefficients on their mean direction, since the normal is a convex
+    #: combination of them; zero where that proves nothing) and an upper bound (the longest
+    #: coefficient).  NaN where a coefficient is not finite.
+    least: FloatArray
+    greatest: FloatArray
 
     @property
     def spans(self) -> tuple[int, int]:
@@ -419,10 +474,21 @@ def normal_form(form: PatchCoefficients) -> NormalCoefficients:
                 su[:, :, None, None, i1, j1], sw)
     five = np.array([comb(5, k) for k in range(6)], dtype=float)
     out /= five[:, None, None] * five[None, :, None]
+    points = out.reshape(pu, pw, 36, 3)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        mean = points.sum(axis=2)
+        mean /= np.linalg.norm(mean, axis=-1, keepdims=True)
+        least = np.einsum("ijkc,ijc->ijk", points, mean).min(axis=2)
+        greatest = np.linalg.norm(points, axis=-1).max(axis=2)
+    finite = np.isfinite(points).all(axis=(2, 3))
+    least = np.where(finite, np.where(least > 0, least, 0.0), np.nan)  # zero mean: nothing
+    greatest = np.where(finite, greatest, np.nan)
+    for bound in (least, greatest):
+        bound.setflags(write=False)
     # (i, j, k, l, c) -> (i, k, j, c, l)
     coef = np.ascontiguousarray(out.transpose(0, 2, 1, 4, 3)).reshape(pu, 6, pw * 18)
     coef.setflags(write=False)
-    return NormalCoefficients(coef, form.counts)
+    return NormalCoefficients(coef, form.counts, least, greatest)
 
 
 def _bernstein_rows(s: FloatArray, degree: int) -> FloatArray:
@@ -449,40 +515,27 @@ def _runs(index: IntArray, limit: int) -> list[tuple[int, int, int]]:
     return runs
 
 
-def _square_lengths(block: FloatArray, out: FloatArray, scratch: FloatArray) -> FloatArray:
+def _square_lengths(block: FloatArray, out: FloatArray) -> FloatArray:
     """x^2 + y^2 + z^2 of the coordinate planes ``block`` (3, m, n), written to ``out``."""
-    np.multiply(block[0], block[0], out=out)
-    np.multiply(block[1], block[1], out=scratch)
-    out += scratch
-    np.multiply(block[2], block[2], out=scratch)
-    out += scratch
-    return out
+    return np.einsum("cij,cij->ij", block, block, out=out)
 
 
 def _normalised_blocks(runs: list[tuple[int, int, int]], basis_w: FloatArray,
-                       stage1: FloatArray, out: FloatArray, low: FloatArray,
-                       high: FloatArray, order: Iterator[int]) -> None:
+                       stage1: FloatArray, out: FloatArray, order: Iterator[int]) -> None:
     """Stage 2 of :func:`grid_unit_normals` for the blocks of w-rows whose numbers ``order``
     (shared among threads) hands out: each block's three coordinate planes are made by BLAS
     in ``out`` (3, len(w), len(u)) and normalised there while in cache, one 1/sqrt per point
-    multiplied into the planes.  ``low[k]`` and ``high[k]`` receive the least and greatest
-    squared length of block k, for the guard."""
+    multiplied into the planes: five numpy calls per block."""
     nu = out.shape[2]
     rows = max((hi - lo for lo, hi, _ in runs), default=0)
     square = np.empty((rows, nu))
-    scratch = np.empty((rows, nu))
     with np.errstate(divide="ignore", invalid="ignore"):  # per thread: zeros are redone
         for k in order:
-            if k >= len(runs):
-                break
             lo, hi, j = runs[k]
-            m = hi - lo
             block = out[:, lo:hi]
-            q = square[:m]
+            q = square[: hi - lo]
             np.matmul(basis_w[lo:hi], stage1[j], out=block)
-            _square_lengths(block, q, scratch[:m])
-            low[k] = np.minimum.reduce(q, axis=None, initial=np.inf)
-            high[k] = np.maximum.reduce(q, axis=None, initial=0.0)
+            _square_lengths(block, q)
             np.sqrt(q, out=q)
             np.divide(1.0, q, out=q)
             block *= q
@@ -497,14 +550,15 @@ def grid_unit_normals(
     :func:`grid_planes`: stage 1 applies the quintic Bernstein rows [B_0(s) ... B_5(s)] along
     u, stage 2 BLAS products with [B_0(t) ... B_5(t)] per block of a few w-rows, written as
     coordinate planes (3, len(w), len(u)) and normalised while in cache (on large grids each
-    stage is shared among ``NORMAL_THREADS`` threads).  No tangent is formed and no cross
+    stage is shared among ``GRID_THREADS`` threads).  No tangent is formed and no cross
     product taken per point: the work per point is 18 multiply-adds (the points' 12), 5 flops
     for the squared length, one square root, one division and 3 multiplies.  The planes
     layout keeps every elementwise step on contiguous memory.
     Normals shorter than ``NORMAL_GUARD`` of the longest (near a collapsed edge, where the
     product's rounding could show) are recomputed from Su and Sw
     (:func:`evaluate_patch_orders`), so the result agrees with :func:`grid_normals` within
-    1e-12; blocks with no such normal are found from their least length alone.  Shapes:
+    1e-12; only the blocks of w-rows whose patches' coefficients allow such a normal
+    (:class:`NormalCoefficients` bounds) are searched for them.  Shapes:
     (len(u), len(w), 3), a view of the planes, and (len(u), len(w)); degenerate normals are
     zero.
     """
@@ -519,51 +573,42 @@ def grid_unit_normals(
     stage1 = np.empty((nform.coef.shape[2], nu))  # rows (w-span j, coordinate c, index l)
     out = np.empty((3, nw, nu))
     runs = _runs(iw, max(1, NORMAL_BLOCK_POINTS // max(nu, 1)))
-    low = np.empty(len(runs))
-    high = np.empty(len(runs))
-    threads = max(1, min(NORMAL_THREADS, nw * nu // NORMAL_THREAD_POINTS, len(runs)))
+    threads = _grid_threads(nw * nu, len(runs))
     runs_u = _runs(iu, max(1, -(-nu // (4 * threads))))
-    # blocks handed out one at a time (next() on a count holds the GIL), so that a thread
-    # the machine holds back takes fewer
     order_u, order_w = count(), count()
 
     def first() -> None:  # stage 1 of bands of u
-        for k in order_u:
-            if k >= len(runs_u):
-                break
+        for k in _blocks(order_u, len(runs_u)):
             lo, hi, i = runs_u[k]
             np.matmul(nform.coef[i].T, basis_u[lo:hi].T, out=stage1[:, lo:hi])
 
     def second() -> None:  # stage 2 of blocks of w-rows
-        _normalised_blocks(runs, basis_w, stage1.reshape(-1, 3, 6, nu), out, low, high, order_w)
+        _normalised_blocks(runs, basis_w, stage1.reshape(-1, 3, 6, nu), out,
+                           _blocks(order_w, len(runs)))
 
-    if threads > 1:  # numpy and BLAS release the GIL: each stage runs on all cores
-        with ThreadPoolExecutor(threads - 1) as pool:
-            for stage in (first, second):
-                others = [pool.submit(stage) for _ in range(1, threads)]
-                stage()
-                for other in others:
-                    other.result()
-    else:
-        first()
-        second()
+    _shared_stages([first, second], threads)
     stage1 = stage1.reshape(-1, 3, 6, nu)
     normals = out.transpose(2, 1, 0)
     degenerate = np.zeros((nu, nw), dtype=bool)
-    longest = float(np.sqrt(high.max(initial=0.0)))
+    # the patches the grid touches bound its normals' lengths from their coefficients
+    spans_u = np.unique(iu)
+    least = nform.least[spans_u].min(axis=0, initial=np.inf)  # per w-span
+    longest = float(nform.greatest[spans_u][:, np.unique(iw)].max(initial=0.0))
     # every normal that may be degenerate (DEGENERATE_NORMAL of the longest) is a suspect too
     limit = max(NORMAL_GUARD * longest, DEGENERATE_NORMAL * max(1.0, longest))
-    suspect_runs = np.flatnonzero(~(low > limit * limit))  # short, zero or not finite
-    if len(suspect_runs) == 0:
+    suspect_runs = [k for k, (_, _, j) in enumerate(runs) if not least[j] > limit]
+    if not suspect_runs:  # no short, zero or non-finite normal is possible
         return normals, degenerate
     picks_u, picks_w = [], []
-    for k in suspect_runs.tolist():  # the block's lengths again, to find its suspects
+    for k in suspect_runs:  # the block's lengths again, to find its suspects
         lo, hi, j = runs[k]
         block = np.matmul(basis_w[lo:hi], stage1[j])
-        q = _square_lengths(block, np.empty((hi - lo, nu)), np.empty((hi - lo, nu)))
+        q = _square_lengths(block, np.empty((hi - lo, nu)))
         rows, cols = np.nonzero(~(q > limit * limit))
         picks_w.append(rows + lo)
         picks_u.append(cols)
+    if not any(len(pick) for pick in picks_u):
+        return normals, degenerate
     suspect_u, suspect_w = np.concatenate(picks_u), np.concatenate(picks_w)
     tu, tw = evaluate_patch_orders(form, u[suspect_u], w[suspect_w], ((1, 0), (0, 1)))
     exact = np.cross(tu, tw)
