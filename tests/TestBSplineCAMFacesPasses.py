@@ -279,3 +279,69 @@ def test_waterline_plane_has_no_contour():
     tp = generate_faces_waterline(fs, D, H, TOL)
     assert tp.passes == []
     assert any("no waterline" in n for n in tp.stats.notes)
+
+
+# -- steep / shallow ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def ridge_face():
+    """The ridge z = 14 - K (x - 20)^2 of the net tests (slope 45 degrees at |x - 20| = 12.5,
+    58 at its long borders) as one trimmed face, machined by steep_shallow through the faces
+    dispatch (threshold 45 degrees)."""
+    from TestBSplineCAMRest import bezier_net, ridge_z
+
+    from BSplineCAM.core.toolpath import generate_faces
+
+    ns = NurbsSurface.from_surface(Surface(bezier_net(ridge_z, 40.0), knots="clamped"))
+    fs = FaceSet([Face(ns, rectangle(ns))])
+    tp = generate_faces(fs, "steep_shallow", D, H, TOL, threshold=45.0)
+    return fs, tp, ridge_z
+
+
+def test_faces_steep_shallow_split_matches_the_closed_form(ridge_face):
+    """The contact slope on the faces' split grid (edge or surface contact of the certified
+    drop-cutter) matches the closed form inside the face; the masks split at 45 degrees."""
+    from TestBSplineCAMRest import ridge_contact_slope
+
+    _fs, tp, _z = ridge_face
+    split = tp.extra["split"]
+    assert split.threshold_deg == 45.0
+    X, Y = np.meshgrid(*split.grid.centres())
+    inner = (X > 4.0) & (X < 36.0) & (Y > R) & (Y < 40.0 - R)
+    ref = ridge_contact_slope(X[inner])
+    assert np.abs(split.slope_deg[inner] - ref).max() < 1e-3
+    sure = np.abs(ref - 45.0) > 1e-3
+    assert np.all(split.shallow[inner][sure] == (ref[sure] < 45.0))
+    assert np.all(split.steep[inner][sure] == (ref[sure] >= 45.0))
+
+
+def test_faces_steep_shallow_passes_and_simulation(ridge_face):
+    """Raster pieces stay on the shallow zone and contours (constant Z) on the steep one, each
+    grown by the overlap; every cutter location is at or above the certified drop height; the
+    simulated program text gouges nothing and leaves at most scallop + tolerance away from the
+    face's borders: no seam between the two."""
+    fs, tp, ridge_z = ridge_face
+    nr, nw = tp.extra["raster_passes"], tp.extra["waterline_passes"]
+    assert tp.strategy == "steep_shallow" and nr > 0 and nw > 0
+    assert len(tp.passes) == nr + nw == len(tp.links) + 1
+    edge = 12.5 + R * math.sin(math.radians(45.0))  # tip |x - 20| where the contact is at 45
+    grow = tp.parameters["overlap"] + 2 * tp.extra["split"].grid.cell
+    assert max(np.abs(p[:, 0] - 20.0).max() for p in tp.passes[:nr]) <= edge + grow
+    assert min(np.abs(p[:, 0] - 20.0).min() for p in tp.passes[nr:]) >= edge - grow
+    assert all(np.ptp(p[:, 2]) == 0.0 for p in tp.passes[nr:])
+    assert_above_drop(fs, tp)
+    sim, design, _f, found, X, Y = simulated(fs, tp, (-4.0, 44.0, -4.0, 44.0))
+    np.testing.assert_allclose(design[found], ridge_z(X[found], Y[found]), atol=1e-9)
+    assert_no_gouge(sim, design, found)
+    inner = found & (np.abs(X - 20.0) < 16.0) & (Y > R) & (Y < 40.0 - R)
+    assert inner.sum() > 50000
+    assert (sim - design)[inner].max() <= H + TOL, (sim - design)[inner].max()
+
+
+def test_faces_steep_shallow_bad_threshold():
+    from BSplineCAM.core.toolpath import generate_faces
+
+    ns = plane(0.0, 10.0, 0.0, 10.0, 0.0)
+    for bad in (0.0, 90.0, float("nan")):
+        with pytest.raises(ParameterError, match="threshold_deg"):
+            generate_faces(FaceSet([Face(ns, rectangle(ns))]), "steep_shallow", D, H, TOL,
+                           threshold=bad)

@@ -300,18 +300,22 @@ class TestFilletFace(PartJob):
         self.assertIn("selection is empty", str(caught.exception))
         self.assertIn(self.model.Label, str(caught.exception))
 
-    def test_other_strategies_are_named(self):
-        """steep_shallow needs a net (raster, waterline and isoparametric run on faces)."""
+    def test_other_directions_are_named(self):
+        """Every strategy runs on faces, steep_shallow too, but its raster only zigzag: a
+        oneway one is refused by name and the previous path is kept."""
         before = [c.toGCode() for c in self.op.Path.Commands]
         self.op.Strategy = "steep_shallow"
+        self.op.Direction = "oneway"
         try:
             self.doc.recompute()
             error = self.report().get("error", "")
-            self.assertIn("Strategy 'steep_shallow' is not available on faces", error)
-            self.assertIn("waterline", error)
+            self.assertIn("Direction 'oneway' is not available on faces with steep_shallow",
+                          error)
+            self.assertIn("zigzag", error)
             self.assertEqual([c.toGCode() for c in self.op.Path.Commands], before)
         finally:
             self.op.Strategy = "raster"
+            self.op.Direction = "zigzag"
             self.doc.recompute()
         self.assertNotIn("error", self.report())
 

@@ -218,21 +218,24 @@ __all__ = [
 ]
 
 
-#: Strategies on faces (raster, waterline, isoparametric); steep_shallow needs nets.
+#: Strategies on faces (every one nets have).
 FACE_STRATEGIES = (Strategy.RASTER.value,
                    Strategy.WATERLINE.value,
-                   Strategy.ISOPARAMETRIC.value)
+                   Strategy.ISOPARAMETRIC.value,
+                   Strategy.STEEP_SHALLOW.value)
 
 
 def generate_faces(faceset, strategy: str, tool_diameter: float, scallop: float,
                    tolerance: float, angle: float = 0.0, direction: str = "zigzag",
                    iso_direction: str = "u", progress=None, where: str = "op",
-                   names: tuple[str, str] = ("Strategy", "Direction")):
+                   names: tuple[str, str] = ("Strategy", "Direction"), threshold: float = 45.0):
     """The toolpath of the selected faces of ``faceset`` (a core FaceSet) by ``strategy``:
     raster (:func:`~BSplineCAM.core.toolpath.faces_raster.generate_faces_raster`, zigzag at
     ``angle`` degrees), waterline (:mod:`~BSplineCAM.core.toolpath.faces_waterline`, levels
-    from the scallop on walls over 30 degrees) or isoparametric
-    (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``).
+    from the scallop on walls over 30 degrees), isoparametric
+    (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``) or
+    steep_shallow (:func:`~BSplineCAM.core.toolpath.rest.generate_faces_steep_shallow`:
+    contours on walls steeper than ``threshold`` degrees, raster at ``angle`` on the rest).
     tool_diameter, scallop and tolerance in mm.  A strategy or direction faces do not have
     raises :class:`~BSplineCAM.core.errors.ParameterError` naming ``where`` and the property or option (``names``)."""
     strategy_name, direction_name = names
@@ -243,6 +246,11 @@ def generate_faces(faceset, strategy: str, tool_diameter: float, scallop: float,
             direction != Direction.ZIGZAG.value:
         raise ParameterError(f"{where}: {direction_name} {direction!r} is not available on faces "
                       f"with {strategy}: use zigzag")
+    if strategy == Strategy.STEEP_SHALLOW.value:
+        from .rest import generate_faces_steep_shallow
+
+        return generate_faces_steep_shallow(faceset, tool_diameter, scallop, tolerance,
+                                            threshold, angle, progress=progress)
     if strategy == Strategy.WATERLINE.value:
         from .faces_waterline import generate_faces_waterline
 

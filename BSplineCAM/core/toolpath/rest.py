@@ -661,6 +661,69 @@ def clip_polylines(polylines: list, grid: Any, mask: np.ndarray, step: float) ->
     return out
 
 
+def split_faces_by_slope(faceset: Any, threshold_deg: float, tool_diameter: float,
+                         cell: float | None = None) -> SlopeSplit:
+    """:func:`split_by_slope` for the trimmed faces of a FaceSet: the slope at each cell is
+    that of the contact normal (c - p) / R of the certified drop-cutter over every face (check
+    faces included, a trim edge too: there the ball rests on the edge and the normal is the
+    edge contact's), so a position is classified by what the ball really touches.  ``cell``
+    (mm, default R/4) spans the selected faces' extent grown by the tool radius."""
+    from ..simulate import Grid
+
+    threshold = _check_threshold(threshold_deg)
+    R = _tool_radius(tool_diameter)
+    cell = 0.25 * R if cell is None else check_positive(cell, "cell", "mm")
+    lo, hi = faceset.bounds(selected_only=True)
+    grid = Grid.covering(lo[0] - R, hi[0] + R, lo[1] - R, hi[1] + R, cell)
+    xs, ys = grid.centres()
+    X, Y = np.meshgrid(xs, ys)
+    q = np.column_stack([X.ravel(), Y.ravel()])
+    tip, face, u, v, _ = faceset.drop_ball(q, R)
+    slope = np.full(len(q), np.nan)
+    for k, f in enumerate(faceset.faces):
+        idx = np.flatnonzero((face == k) & np.isfinite(tip))
+        if len(idx) == 0:
+            continue
+        p = f.surface.evaluate(u[idx], v[idx])
+        rise = tip[idx] + R - p[:, 2]  # the contact normal's vertical part, times R
+        slope[idx] = np.degrees(np.arccos(np.clip(rise / R, 0.0, 1.0)))
+    slope = slope.reshape(X.shape)
+    with np.errstate(invalid="ignore"):
+        shallow = slope < threshold
+        steep = slope >= threshold
+    return SlopeSplit(grid, slope, shallow, steep, threshold)
+
+
+def _steep_shallow(raster: Toolpath, water: Toolpath, split: SlopeSplit, query: Any,
+                   overlap: float, wall: float, max_link: float, started: float,
+                   clearance_height: float | None) -> Toolpath:
+    """Raster passes kept on the shallow zone and contours on the steep one, each grown by
+    ``overlap`` mm; raster pieces linked by stay-down feeds up to ``max_link`` mm over the
+    exact heights of ``query`` (a DropCutter or FaceQuery), contours retract."""
+    from .links import stay_down_links
+
+    step = 0.5 * split.grid.cell
+    shallow = clip_polylines(raster.passes, split.grid, split.zone("shallow", overlap), step)
+    steep = clip_polylines(water.passes, split.grid, split.zone("steep", overlap), step)
+    tol = float(raster.parameters["tolerance"])
+    links = stay_down_links(query, shallow, max_link, tol) if shallow else []
+    if shallow and steep:
+        links.append(None)
+    links.extend([None] * max(len(steep) - 1, 0))
+    parameters = dict(raster.parameters)
+    parameters.update({"strategy": "steep_shallow", "threshold_deg": split.threshold_deg,
+                       "overlap": overlap, "waterline_min_slope": wall})
+    extra = {"split": split, "raster_passes": len(shallow), "waterline_passes": len(steep)}
+    toolpath = Toolpath("steep_shallow", shallow + steep, parameters,
+                        list(raster.unreachable), ToolpathStats(notes=[]), extra=extra,
+                        links=links)
+    return toolpath.finish(started, clearance_height)
+
+
+def _overlap(overlap: float | None, R: float) -> float:
+    return 0.5 * R if overlap is None else check_positive(overlap, "overlap", "mm")
+
+
 def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
                            tolerance: float, threshold_deg: float = 45.0, angle: float = 0.0,
                            overlap: float | None = None, cell: float | None = None,
@@ -675,12 +738,11 @@ def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
     from . import STAY_DOWN_LINK as RASTER_LINK
     from . import generate
     from .dropcutter import DropCutter
-    from .links import stay_down_links
 
     started = time.perf_counter()
     threshold = _check_threshold(threshold_deg)
     R = _tool_radius(tool_diameter)
-    overlap = 0.5 * R if overlap is None else check_positive(overlap, "overlap", "mm")
+    overlap = _overlap(overlap, R)
     monitor = Monitor(progress, cancel, "steep/shallow")
     monitor(0.0)
     raster = generate(surface, "raster", tool_diameter, scallop, tolerance, angle,
@@ -691,25 +753,45 @@ def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
                      clearance_height=clearance_height, min_slope=wall)
     monitor(0.8)
     split = split_by_slope(surface, threshold, tool_diameter, cell)
-    step = 0.5 * split.grid.cell
-    shallow = clip_polylines(raster.passes, split.grid, split.zone("shallow", overlap), step)
-    steep = clip_polylines(water.passes, split.grid, split.zone("steep", overlap), step)
-    dc = DropCutter(surface, R)
-    tol = float(raster.parameters["tolerance"])
-    links = stay_down_links(dc, shallow, RASTER_LINK * R, tol) if shallow else []
-    if shallow and steep:
-        links.append(None)
-    links.extend([None] * max(len(steep) - 1, 0))
+    toolpath = _steep_shallow(raster, water, split, DropCutter(surface, R), overlap, wall,
+                              RASTER_LINK * R, started, clearance_height)
     monitor(1.0)
-    parameters = dict(raster.parameters)
-    parameters.update({"strategy": "steep_shallow", "threshold_deg": threshold,
-                       "overlap": overlap, "waterline_min_slope": wall})
-    extra = {"split": split, "raster_passes": len(shallow), "waterline_passes": len(steep)}
-    toolpath = Toolpath("steep_shallow", shallow + steep, parameters,
-                        list(raster.unreachable), ToolpathStats(notes=[]), extra=extra,
-                        links=links)
-    return toolpath.finish(started, clearance_height)
+    return toolpath
+
+
+def generate_faces_steep_shallow(faceset: Any, tool_diameter: float, scallop: float,
+                                 tolerance: float, threshold_deg: float = 45.0,
+                                 angle: float = 0.0, overlap: float | None = None,
+                                 cell: float | None = None, progress: ProgressFn = None,
+                                 cancel: CancelFn = None) -> Toolpath:
+    """:func:`generate_steep_shallow` on the selected faces of a FaceSet: raster passes
+    (:func:`.faces_raster.generate_faces_raster`) on the shallow zone, waterline contours
+    (:func:`.faces_waterline.generate_faces_waterline`, levels from the scallop on walls
+    over ``threshold_deg`` - 10 degrees) on the steep one, split by
+    :func:`split_faces_by_slope`; every height the certified drop-cutter over all faces."""
+    from .faces_raster import STAY_DOWN_LINK as FACES_LINK
+    from .faces_raster import FaceQuery, generate_faces_raster
+    from .faces_waterline import generate_faces_waterline
+
+    started = time.perf_counter()
+    threshold = _check_threshold(threshold_deg)
+    R = _tool_radius(tool_diameter)
+    overlap = _overlap(overlap, R)
+    monitor = Monitor(progress, cancel, "steep/shallow")
+    monitor(0.0)
+    raster = generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle,
+                                   lambda f: monitor(0.3 * f))
+    wall = max(threshold - 10.0, 1.0)
+    water = generate_faces_waterline(faceset, tool_diameter, scallop, tolerance,
+                                     lambda f: monitor(0.3 + 0.55 * f), min_slope=wall)
+    split = split_faces_by_slope(faceset, threshold, tool_diameter, cell)
+    monitor(0.95)
+    toolpath = _steep_shallow(raster, water, split, FaceQuery(faceset, R), overlap, wall,
+                              FACES_LINK * R, started, None)
+    monitor(1.0)
+    return toolpath
 
 
 __all__ = ["OffsetHeights", "SlopeSplit", "clip_polylines", "faceset_cl_height",
-           "generate_rest", "generate_steep_shallow", "net_cl_height", "split_by_slope"]
+           "generate_faces_steep_shallow", "generate_rest", "generate_steep_shallow",
+           "net_cl_height", "split_by_slope", "split_faces_by_slope"]
