@@ -181,6 +181,13 @@ def _blocks(order: Iterator[int], total: int) -> Iterator[int]:
         yield k
 
 
+def _stage1(net: FloatArray, layout: str | KnotLayout, u: FloatArray, du: int) -> FloatArray:
+    """[U][M_i] applied along u: shape (n_w, 3·len(u)), coordinate-major within a row."""
+    iu, wu = local_weights(u, net.shape[0], layout, du)
+    stage1 = _contract_rows(iu, wu, net)  # (len(u), n_w, 3)
+    return np.ascontiguousarray(stage1.transpose(1, 2, 0)).reshape(net.shape[1], 3 * len(u))
+
+
 def grid_planes(
     net: FloatArray,
     layout: str | KnotLayout,
@@ -199,12 +206,10 @@ def grid_planes(
     shared among ``GRID_THREADS`` threads on large grids.
     """
     net = np.asarray(net, dtype=float)
-    n_u, n_w = net.shape[:2]
+    n_w = net.shape[1]
     u = np.atleast_1d(np.asarray(u, dtype=float))
     w = np.atleast_1d(np.asarray(w, dtype=float))
-    iu, wu = local_weights(u, n_u, layout, du)
-    stage1 = _contract_rows(iu, wu, net)  # (len(u), n_w, 3)
-    stage1 = np.ascontiguousarray(stage1.transpose(1, 2, 0)).reshape(n_w, 3 * len(u))
+    stage1 = _stage1(net, layout, u, du)
     iw, ww = local_weights(w, n_w, layout, dw)
     out = np.empty((len(w), 3 * len(u)))
     if len(w) > 1 and np.any(np.diff(iw) < 0):  # unsorted w: one dense product
@@ -246,13 +251,6 @@ DEGENERATE_NORMAL = 1e-11
 
 #: Rows of w per block in :func:`grid_normals`: small enough that a block's tangents stay in cache.
 NORMAL_BLOCK_ROWS = 16
-
-
-def _stage1(net: FloatArray, layout: str | KnotLayout, u: FloatArray, du: int) -> FloatArray:
-    """[U][M_i] applied along u: shape (n_w, 3·len(u)), coordinate-major within a row."""
-    iu, wu = local_weights(u, net.shape[0], layout, du)
-    stage1 = _contract_rows(iu, wu, net)  # (len(u), n_w, 3)
-    return np.ascontiguousarray(stage1.transpose(1, 2, 0)).reshape(net.shape[1], 3 * len(u))
 
 
 def grid_normals(
