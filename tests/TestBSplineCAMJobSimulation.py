@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Whole-program simulation with tool changes: engagement, volumes and collisions against
-closed forms (slot, stepover, ramp, face + ball groove), and the one-tool simulator."""
+closed forms (slot, stepover, ramp, face + ball groove, a slot through a cylinder stock), and
+the one-tool simulator."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import pytest
 
 from BSplineCAM.core.errors import ParameterError
 from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.job_simulation import simulate_job
+from BSplineCAM.core.job_simulation import check_stock_form, simulate_job
 from BSplineCAM.core.simulate import Grid, Tool, simulate_program
+from BSplineCAM.core.stock import CylinderStock, Stock
 
 CELL = 0.2
 FLAT10 = Tool(10.0, "flat")
@@ -335,3 +337,67 @@ def test_helix_closing_turn_is_part_of_the_entry() -> None:
     # the pass out cuts a slot beside the helix's hole: at most the diameter, and it is the
     # only non-entry cutting move
     assert report.radial_engagement_max_mm <= 10.0 + CELL
+
+
+# -- a cylinder stock (CAM's "CreateCylinder") ------------------------------------------------
+CYLINDER = CylinderStock(25.0, 0.0, 20.0, -10.0, 0.0)
+
+
+def test_slot_through_a_cylinder() -> None:
+    """A 10 mm slot 2 mm deep right through a cylinder stock (r 20 mm): the volume is the
+    strip |y| <= 5 of the disk times the depth, 2 (a sqrt(r^2 - a^2) + r^2 asin(a/r)) * 2 with
+    a = 5, within half a cell round the two rim arcs inside the strip (the box would give
+    10 x 40 x 2); the cells outside the circle keep the bottom and are never counted."""
+    text = program("T1 M6", *slot_lines(0.0, -2.0))
+    job = simulate_job(read_gcode(text), {1: FLAT10}, grid_for(-20, 70, -30, 30), CYLINDER)
+    r, a, depth = CYLINDER.radius, 5.0, 2.0
+    strip = 2 * (a * math.sqrt(r * r - a * a) + r * r * math.asin(a / r))
+    arcs = 4 * r * math.asin(a / r)  # rim length inside the strip, both ends
+    removed = job.tools[1].removed_volume_mm3
+    print(f"slot through the cylinder: removed {removed:.2f} mm^3, expected "
+          f"{strip * depth:.2f} mm^3")
+    assert removed == pytest.approx(strip * depth, abs=arcs * CELL / 2 * depth)
+    xs, ys = job.grid.centres()
+    circle = np.hypot(xs[None, :] - CYLINDER.x, ys[:, None] - CYLINDER.y) <= r
+    assert np.array_equal(job.in_stock, circle)
+    assert np.all(job.height[~circle] == CYLINDER.z_min)
+    slot = (np.abs(ys[:, None]) <= 5.0) & circle
+    assert np.allclose(job.height[slot], -2.0, atol=1e-5)
+    assert np.all(job.height[circle & ~slot] == CYLINDER.z_max)
+    assert job.cylinder == CYLINDER and job.stock == CYLINDER.bounds
+    assert job.collisions == ()
+
+
+def test_rapid_past_a_cylinder_and_through_it() -> None:
+    """A rapid 1 mm below the top that passes the corner of the cylinder's box (3.5 mm from
+    the corner, 31.8 mm from the axis) cuts nothing from the cylinder but collides with the
+    box; one across the axis collides, 1 mm deep, inside the circle."""
+    past = program("T1 M6", "G0 X-10 Y10 Z5", "G0 Z-1", "G0 X10 Y30", "G0 Z5")
+    grid = grid_for(-20, 70, -30, 40)
+    job = simulate_job(read_gcode(past), {1: FLAT10}, grid, CYLINDER)
+    assert job.collisions == () and job.removed_volume() == 0.0
+    boxed = simulate_job(read_gcode(past), {1: FLAT10}, grid, CYLINDER.bounds)
+    assert len(boxed.collisions) == 1
+    through = program("T1 M6", "G0 X-10 Y0 Z5", "G0 Z-1", "G0 X60", "G0 Z5")
+    job = simulate_job(read_gcode(through), {1: FLAT10}, grid, CYLINDER)
+    (hit,) = job.collisions
+    assert hit.line == 6 and hit.depth_mm == pytest.approx(1.0, abs=1e-5)
+    assert math.hypot(hit.x - CYLINDER.x, hit.y - CYLINDER.y) <= CYLINDER.radius
+
+
+def test_stock_forms() -> None:
+    """Six numbers, a Stock block and a CylinderStock: the block forms give the same Z-map;
+    a cylinder beyond the machine's reach is refused naming the stock and mm."""
+    box = (0, 50, -20, 20, -10, 0)
+    assert check_stock_form(box) == tuple(float(v) for v in box)
+    assert check_stock_form(Stock(*box)) == tuple(float(v) for v in box)
+    assert check_stock_form(CYLINDER) is CYLINDER
+    text = read_gcode(program("T1 M6", *slot_lines(0.0, -2.0)))
+    a = simulate_job(text, {1: FLAT10}, grid_for(-20, 70, -20, 20), box)
+    b = simulate_job(text, {1: FLAT10}, grid_for(-20, 70, -20, 20), Stock(*box))
+    assert np.array_equal(a.height, b.height) and b.cylinder is None
+    with pytest.raises(ParameterError, match="stock") as info:
+        check_stock_form(CylinderStock(2e6, 0.0, 5.0, 0.0, 1.0))
+    assert "mm" in str(info.value)
+    with pytest.raises(ParameterError, match="stock"):
+        check_stock_form("cylinder")

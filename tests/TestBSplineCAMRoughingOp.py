@@ -212,6 +212,95 @@ class TestRoughingBadInput(RoughingFixture):
         self.assertNotIn("error", json.loads(self.rough.Report))
 
 
+class TestCylinderStock(unittest.TestCase):
+    """A job whose stock is CAM's cylinder (``CreateCylinder``, r 37 mm round the bump's
+    middle): the op roughs from the cylinder, not from its box, and its program, simulated
+    from the cylinder, cuts nothing with its rapids and clears nothing out in the box's
+    corners (up to 52 mm from the axis, where the cylinder holds no material)."""
+
+    RADIUS = 37.0
+    BOTTOM = 8.0
+
+    @classmethod
+    def setUpClass(cls):
+        cls.doc = FreeCAD.newDocument("TestBSplineCAMCylinderStock")
+        cls.surface = bump()
+        cls.model, cls.job, cls.finish = pipeline.build_job(
+            cls.surface, FINISH, cam.Cutting(), cls.doc, roughing=ROUGH)
+        cls.top = float(np.max(cls.surface.grid(101, 101)[..., 2])) + 2.0
+        old = cls.job.Stock
+        placement = FreeCAD.Placement(FreeCAD.Vector(25, 25, cls.BOTTOM), FreeCAD.Rotation())
+        cls.job.Stock = compat.cam_module("stock").CreateCylinder(
+            cls.job, radius=cls.RADIUS, height=cls.top - cls.BOTTOM, placement=placement)
+        cls.doc.removeObject(old.Name)
+        cls.doc.recompute()
+        cls.rough = cls.job.Operations.Group[0]
+
+    @classmethod
+    def tearDownClass(cls):
+        FreeCAD.closeDocument(cls.doc.Name)
+
+    def test_the_ops_stock_is_the_cylinder(self):
+        from BSplineCAM.core.stock import CylinderStock
+
+        self.assertEqual(compat.cam_stock_type(self.job.Stock), "CreateCylinder")
+        stock = self.rough.Proxy.stock_block(self.rough)
+        self.assertIsInstance(stock, CylinderStock)
+        self.assertAlmostEqual(stock.x, 25.0, places=6)
+        self.assertAlmostEqual(stock.y, 25.0, places=6)
+        self.assertAlmostEqual(stock.radius, self.RADIUS, places=6)
+        self.assertAlmostEqual(stock.z_min, self.BOTTOM, places=6)
+        self.assertAlmostEqual(stock.z_max, self.top, places=6)
+        from BSplineCAM.app.stock_left import job_stock
+
+        self.assertEqual(job_stock(self.job), stock)
+
+    def test_roughs_within_the_cylinder(self):
+        from BSplineCAM.core.job_simulation import simulate_job
+        from BSplineCAM.core.simulate import Grid
+
+        report = json.loads(self.rough.Report)
+        self.assertNotIn("error", report)
+        self.assertTrue(self.rough.Path.Commands)
+        stock = self.rough.Proxy.stock_block(self.rough)
+        # every feed ends within the tool's reach of the cylinder (links join such ends,
+        # inside the same disk): nothing clears the box's corners
+        reach = stock.radius + 4.0 + 0.5
+        far = [c for c in self.rough.Path.Commands if c.Name in ("G1", "G2", "G3")
+               and "X" in c.Parameters and "Y" in c.Parameters
+               and np.hypot(c.Parameters["X"] - stock.x, c.Parameters["Y"] - stock.y) > reach]
+        self.assertEqual(far, [])
+        # the op's program simulated from the cylinder: no rapid cuts, material removed, the
+        # width of cut outside entries within 1.1 stepover (the round fronts on the level at
+        # the cylinder's bottom made it 5.5 mm while they ran in stairs through the cells)
+        program = read_gcode(f"T1 M6\n{self.rough.Path.toGCode()}\nM2\n", "rough")
+        grid = Grid.covering(stock.x_min, stock.x_max, stock.y_min, stock.y_max, CELL)
+        job = simulate_job(program, {1: Tool(8.0, "flat")}, grid, stock)
+        self.assertEqual(job.collisions, ())
+        self.assertGreater(job.removed_volume(), 0.0)
+        self.assertEqual(job.cylinder, stock)
+        stepover = 0.01 * ROUGH.stepover_percent * 8.0
+        radial = job.tools[1].radial_engagement_max_mm
+        self.assertGreaterEqual(radial, 0.9 * stepover)
+        self.assertLessEqual(radial, 1.1 * stepover + CELL)
+
+    def test_verify_follows_the_cylinder(self):
+        """The workbench's Verify of the job starts the whole program from the cylinder."""
+        from BSplineCAM.app import verify_feature
+
+        before = {o.Name for o in self.doc.Objects}
+        result = verify_feature.verify_job(self.job, cell=0.5)
+        try:
+            metrics = json.loads(result.Metrics)
+            self.assertAlmostEqual(metrics["stock_cylinder_mm"]["radius"], self.RADIUS,
+                                   places=6)
+            self.assertEqual(metrics["rapid_collisions"], [])
+            self.assertEqual(sorted(metrics["tools"]), ["1", "2"])
+        finally:
+            for name in {o.Name for o in self.doc.Objects} - before:
+                self.doc.removeObject(name)
+
+
 class TestJobCommand(unittest.TestCase):
     """``bsplinecam job`` in this FreeCAD: block to part on the bump, every output checked."""
 

@@ -417,3 +417,11 @@ def make_proxy_restorable(obj) -> bool:
         return False
     proxy.__dict__["restorable"] = True
     return True
+
+
+def cam_stock_type(stock) -> str:
+    """CAM's own name for the kind of a job's stock ("FromBase", "CreateBox",
+    "CreateCylinder", "None" or "Unknown"), by CAM's ``StockType.FromStock`` (the same in
+    0.20, 1.0 and 1.1): the hidden ``StockType`` property a GUI session adds, else the
+    properties each kind carries (a cylinder's Radius and Height)."""
+    return str(cam_module("stock").StockType.FromStock(stock))

@@ -5,8 +5,8 @@ plus a stock to leave, with a flat or bull-nose end mill (issue 12).
 A Path/CAM op like the finishing op (:mod:`finishing_op`, whose surface, faces and depths
 handling it shares): ``opExecute`` reads the properties, calls the numeric core
 (:func:`BSplineCAM.core.toolpath.roughing.generate_roughing`) with the part's exact heights
-(the BSplineCAM surface, or every face of the job's model) and the job's stock box, and turns
-the moves into Path commands.  The tool comes from the op's ToolController (flat, bull-nose or
+(the BSplineCAM surface, or every face of the job's model) and the job's stock (a block, or
+CAM's cylinder stock as a cylinder), and turns the moves into Path commands.  The tool comes from the op's ToolController (flat, bull-nose or
 ball ToolBit).
 """
 
@@ -76,15 +76,15 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         return obj.Surface is None and find_surface(self.job_of(obj)) is None
 
     def stock_block(self, obj):
-        """The job's stock box as a core Stock (mm)."""
-        from ..core.toolpath.roughing import Stock
+        """The job's stock as core data (mm): a CylinderStock for CAM's cylinder stock (its
+        axis along Z), so that the roughing cuts no air in the corners of its box, else the
+        Stock block of its shape's box (:func:`.stock_left.job_stock`)."""
+        from .stock_left import job_stock
 
         job = self.job_of(obj)
-        stock = getattr(job, "Stock", None) if job is not None else None
-        if stock is None or stock.Shape.isNull():
+        if job is None or getattr(job, "Stock", None) is None or job.Stock.Shape.isNull():
             raise OpError(f"{obj.Label}: the job has no stock to rough from")
-        box = stock.Shape.BoundBox
-        return Stock(box.XMin, box.XMax, box.YMin, box.YMax, box.ZMin, box.ZMax)
+        return job_stock(job)
 
     def height_function(self, obj):
         """height(xs, ys) -> (len(ys), len(xs)) top of the part (NaN off it), exact: the

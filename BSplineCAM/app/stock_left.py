@@ -1,10 +1,13 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""The stock an op starts from: the job's stock block cut by earlier ops (issue 12).
+"""The stock an op starts from: the job's stock cut by earlier ops (issue 12).
 
-The earlier ops' Path commands, each after a tool change to its controller's number, are
-read as one program (:func:`BSplineCAM.core.gcode.read_gcode`) and simulated from the job's
-stock box with each controller's tool (:func:`BSplineCAM.core.job_simulation.simulate_job`),
-the same simulation ``verify`` runs on the posted program.
+The job's stock is read as core data (:func:`job_stock`): CAM's cylinder stock
+("CreateCylinder") with a vertical axis as a :class:`BSplineCAM.core.stock.CylinderStock`,
+every other stock as the block of its shape's box.  The earlier ops' Path commands, each
+after a tool change to its controller's number, are read as one program
+(:func:`BSplineCAM.core.gcode.read_gcode`) and simulated from that stock with each
+controller's tool (:func:`BSplineCAM.core.job_simulation.simulate_job`), the same simulation
+``verify`` runs on the posted program.
 """
 
 from __future__ import annotations
@@ -43,18 +46,35 @@ def program_of(ops, source: str):
     return read_gcode("".join(parts), source), tools
 
 
-def stock_box(job) -> tuple[float, float, float, float, float, float]:
-    """The job's stock as (x0, x1, y0, y1, z0, z1) mm (its shape's box)."""
+#: Largest sine (of the angle between a cylinder stock's axis and Z) for which the cylinder
+#: counts as vertical; a tilted cylinder is taken as its box (the roughing cuts Z levels).
+VERTICAL_AXIS_TOLERANCE = 1e-9
+
+
+def job_stock(job):
+    """The job's stock as a core :class:`~BSplineCAM.core.stock.CylinderStock` when it is
+    CAM's cylinder stock with its axis along Z (centre and height from its shape, which
+    carries the Placement, radius from its Radius property), else as the
+    :class:`~BSplineCAM.core.stock.Stock` block of its shape's box (mm, job coordinates).
+    ValueError naming the job when it has no stock."""
+    from ..core.stock import CylinderStock, Stock
+
     stock = getattr(job, "Stock", None)
     if stock is None or stock.Shape.isNull():
         raise ValueError(f"{job.Label}: the job has no stock")
     b = stock.Shape.BoundBox
-    return (b.XMin, b.XMax, b.YMin, b.YMax, b.ZMin, b.ZMax)
+    if compat.cam_stock_type(stock) == "CreateCylinder" and hasattr(stock, "Radius"):
+        axis = stock.Placement.Rotation.multVec(FreeCAD.Vector(0, 0, 1))
+        if abs(axis.x) <= VERTICAL_AXIS_TOLERANCE and abs(axis.y) <= VERTICAL_AXIS_TOLERANCE:
+            radius = float(getattr(stock.Radius, "Value", stock.Radius))
+            return CylinderStock(0.5 * (b.XMin + b.XMax), 0.5 * (b.YMin + b.YMax), radius,
+                                 b.ZMin, b.ZMax)
+    return Stock(b.XMin, b.XMax, b.YMin, b.YMax, b.ZMin, b.ZMax)
 
 
 def stock_after_ops(job, op, ops, cell: float, progress=None):
-    """The job's stock block cut by ``ops`` (in the job's order) on cells of ``cell`` mm, as
-    a core JobSimulation; None when none of them cuts."""
+    """The job's stock (:func:`job_stock`, a block or a cylinder) cut by ``ops`` (in the job's
+    order) on cells of ``cell`` mm, as a core JobSimulation; None when none of them cuts."""
     from ..core.job_simulation import simulate_job
     from ..core.simulate import Grid
 
@@ -63,6 +83,6 @@ def stock_after_ops(job, op, ops, cell: float, progress=None):
     if not ops:
         return None
     program, tools = program_of(ops, f"{job.Label}: ops before {op.Label}")
-    box = stock_box(job)
-    grid = Grid.covering(box[0], box[1], box[2], box[3], cell)
-    return simulate_job(program, tools, grid, box, progress=progress)
+    stock = job_stock(job)
+    grid = Grid.covering(stock.x_min, stock.x_max, stock.y_min, stock.y_max, cell)
+    return simulate_job(program, tools, grid, stock, progress=progress)

@@ -195,7 +195,7 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
     geometry, e.g. in job coordinates); ``tool_diameter`` is the ball end's (mm); ``cell``
     the Z-map cell (mm, default: :func:`default_cell`).  With ``tools`` ({number: core Tool})
     the program's tool changes are followed from the block ``stock`` (x0, x1, y0, y1, z0, z1
-    mm; :func:`BSplineCAM.core.verify.verify_job`), the per-tool figures join the metrics and
+    mm, a core Stock, or a core CylinderStock; :func:`BSplineCAM.core.verify.verify_job`), the per-tool figures join the metrics and
     the stock after each tool but the last becomes a mesh of its own (``StockAfter``).
     ``progress(fraction)`` is told of each stage (default: FreeCAD's progress bar when the
     GUI is up) and may raise to cancel; the document is touched only after the simulation.
@@ -352,10 +352,10 @@ def verify_job(job, cell: float | None = None, stride: int | None = None, progre
     used = {int(o.ToolController.ToolNumber) for o in job.Operations.Group
             if getattr(o, "Active", True) and getattr(o, "ToolController", None) is not None}
     tools = stock = None
-    if len(used) > 1:  # roughing and finishing: the whole program from the stock block
-        from .stock_left import stock_box
+    if len(used) > 1:  # roughing and finishing: the whole program from the job's stock
+        from .stock_left import job_stock
 
-        tools, stock = job_tools(job), stock_box(job)
+        tools, stock = job_tools(job), job_stock(job)  # a block, or a cylinder as one
     return make_verification(source, gcode, diameter, cell, stride, program=f"{job.Label} (linuxcnc)",
                              job=job, surface=surface, doc=job.Document, progress=progress,
                              tools=tools, stock=stock)

@@ -4,9 +4,11 @@
 The Z-map is that of :mod:`.simulate` (one dexel per cell, its top at the cell centre, each
 move cut to the exact lower envelope of the tool swept along it, arcs as chords), but the
 moves are cut one after the other, each with the tool the program loaded last (M6, see
-``Program.tool``), starting from the block ``stock`` = (x0, x1, y0, y1, z0, z1) mm.  Cells
-whose centre lies outside the block's XY have no material (their height is z0) and are never
-counted; the height never goes below z0 (no material there to remove).
+``Program.tool``), starting from the block ``stock`` = (x0, x1, y0, y1, z0, z1) mm or a
+vertical cylinder (:class:`.stock.CylinderStock`, CAM's "CreateCylinder" stock).  Cells
+whose centre lies outside the block's XY (the cylinder's circle) have no material (their
+height is z0) and are never counted; the height never goes below z0 (no material there to
+remove).
 
 Definitions, per linearised move (a line, or one chord of an arc); "removed" at a cell means
 the height drop that move causes there, and a cell counts as *engaged* when that drop exceeds
@@ -61,6 +63,7 @@ from .simulate import (
     _merge,
     _round_up,
 )
+from .stock import CylinderStock, Stock
 from .tooltable import check_program_tools
 from .typing import FloatArray
 
@@ -159,7 +162,9 @@ class JobSimulation:
     """The machined block and the per-tool figures.
 
     ``height`` (ny, nx) mm is the final Z-map (z0 where the block has no material),
-    ``in_stock`` the cells inside the block's XY, ``snapshots[n]`` the Z-map after the last
+    ``stock`` the block (x0, x1, y0, y1, z0, z1) mm or, for a cylinder (``cylinder``), its
+    bounding box, ``in_stock`` the cells inside the block's XY (the cylinder's circle),
+    ``snapshots[n]`` the Z-map after the last
     move of tool n.  Per linearised move (``segments``): ``tool`` number, ``volume`` removed
     (mm^3), ``axial`` and ``radial`` engagement (mm) and ``entry``.
     """
@@ -179,6 +184,7 @@ class JobSimulation:
     collisions: tuple[Collision, ...]
     unsimulated_rapids: int = 0
     threshold_mm: float = field(default=ENGAGEMENT_DEPTH_MM)
+    cylinder: CylinderStock | None = None
 
     def removed_volume(self) -> float:
         """Volume cut from the block (mm^3), all tools."""
@@ -215,13 +221,48 @@ def check_stock(stock, argument: str = "stock") -> tuple[float, float, float, fl
     return values
 
 
+def check_stock_form(stock, argument: str = "stock") -> tuple[float, float, float, float, float,
+                                                               float] | CylinderStock:
+    """The stock as the job simulation takes it: a :class:`.stock.CylinderStock` as it is, a
+    :class:`.stock.Stock` block or six numbers as :func:`check_stock`'s (x0, x1, y0, y1, z0,
+    z1) mm; else ParameterError naming ``argument``."""
+    if isinstance(stock, CylinderStock):
+        if not all(abs(v) <= MAX_COORDINATE_MM for v in stock.bounds):
+            raise ParameterError(f"{argument} must lie within MAX_COORDINATE_MM="
+                                 f"{MAX_COORDINATE_MM:g} mm, got the {stock.describe()}")
+        return stock
+    if isinstance(stock, Stock):
+        stock = stock.bounds
+    return check_stock(stock, argument)
+
+
+def initial_height(grid: Grid, stock) -> tuple[FloatArray, np.ndarray]:
+    """(Z-map (ny, nx) float32 mm, cells with material) of the uncut ``stock`` (any form
+    :func:`check_stock_form` takes): its top z1 over the cells whose centre lies in its XY
+    footprint (a block's rectangle, a cylinder's circle, rims included), z0 (the bottom,
+    -inf for a block without one) elsewhere."""
+    form = check_stock_form(stock)
+    xs, ys = grid.centres()
+    if isinstance(form, CylinderStock):
+        in_stock = form.contains_xy(xs[None, :], ys[:, None])
+        z0, z1 = form.z_min, form.z_max
+    else:
+        x0, x1, y0, y1, z0, z1 = form
+        in_stock = ((xs[None, :] >= x0) & (xs[None, :] <= x1)
+                    & (ys[:, None] >= y0) & (ys[:, None] <= y1))
+    height = np.where(in_stock, np.float32(z1), np.float32(z0) if math.isfinite(z0)
+                      else np.float32(-np.inf)).astype(np.float32)
+    return height, in_stock
+
+
 def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
                  feed_default: float | None = None,
                  progress: Callable[[float], None] | None = None,
                  chord_tolerance: float | None = None,
                  threshold: float | None = None) -> JobSimulation:
-    """Cut the block ``stock`` = (x0, x1, y0, y1, z0, z1) mm on ``grid`` with ``program``,
-    each move with the tool ``tools[program.tool[move]]`` (see the module docstring).
+    """Cut the block ``stock`` = (x0, x1, y0, y1, z0, z1) mm (or a :class:`.stock.Stock`,
+    or a vertical :class:`.stock.CylinderStock`) on ``grid`` with ``program``, each move with
+    the tool ``tools[program.tool[move]]`` (see the module docstring).
 
     ``feed_default`` (mm/min) stands for feed moves without a feed in the removal rate.
     ``progress(fraction)`` is called about every 50 ms and at the end (1.0); it may raise to
@@ -229,7 +270,9 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     A tool change to a number ``tools`` lacks raises ParameterError naming it and its line;
     rapids before the first tool change are not simulated if there is no tool 0.
     """
-    x0, x1, y0, y1, z0, z1 = check_stock(stock)
+    form = check_stock_form(stock)
+    cylinder = form if isinstance(form, CylinderStock) else None
+    x0, x1, y0, y1, z0, z1 = form.bounds if cylinder is not None else form
     if feed_default is not None and not (math.isfinite(feed_default) and feed_default > 0):
         raise ParameterError(f"default feed must be positive (mm/min), got {feed_default!r}")
     check_program_tools(program, tools)
@@ -239,11 +282,7 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     tol = simulation_chord_tolerance(grid.cell) if chord_tolerance is None else chord_tolerance
     seg = linearise(program, tol)
     n = len(seg)
-    xs, ys = grid.centres()
-    in_stock = ((xs[None, :] >= x0) & (xs[None, :] <= x1)
-                & (ys[:, None] >= y0) & (ys[:, None] <= y1))
-    height = np.where(in_stock, np.float32(z1), np.float32(z0) if math.isfinite(z0)
-                      else np.float32(-np.inf)).astype(np.float32)
+    height, in_stock = initial_height(grid, form)
     number = program.tool[seg.move] if n else np.zeros(0, np.intp)
     rapid = np.asarray(seg.rapid, bool)
     entry = entry_moves(program, seg)[seg.move] & ~rapid if n else np.zeros(0, bool)
@@ -293,7 +332,7 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
         grid=grid, stock=(x0, x1, y0, y1, z0, z1), height=height.astype(float),
         in_stock=in_stock, tools=reports, snapshots=snapshots, segments=seg, tool=number,
         volume=volume, axial=axial, radial=radial, entry=entry, collisions=collisions,
-        unsimulated_rapids=int(np.sum(rapid & ~known)), threshold_mm=thr)
+        unsimulated_rapids=int(np.sum(rapid & ~known)), threshold_mm=thr, cylinder=cylinder)
 
 
 @dataclass

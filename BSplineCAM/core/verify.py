@@ -35,8 +35,9 @@ from .faces import Face
 from .faces_height import FacesHeight
 from .footprint import footprint_bounds, surface_height
 from .gcode import MoveKind, Program, linearise, simulation_chord_tolerance
-from .job_simulation import JobSimulation, check_stock, simulate_job
+from .job_simulation import JobSimulation, check_stock_form, simulate_job
 from .simulate import Grid, Simulation, Tool, simulate
+from .stock import CylinderStock
 from .surface import Surface
 from .toolpath.common import check_tool_fits
 from .tooltable import check_program_tools
@@ -221,16 +222,17 @@ def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: flo
 
 
 def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[int, Tool],
-               stock: tuple[float, float, float, float, float, float] | None = None,
-               cell: float = 0.1, stock_top: str | StockTop = StockTop.DESIGN,
+               stock: tuple | CylinderStock | None = None, cell: float = 0.1,
+               stock_top: str | StockTop = StockTop.DESIGN,
                stock_margin: float = DEFAULT_STOCK_MARGIN,
                rapid_rate: float = DEFAULT_RAPID_RATE,
                coverage_tolerance: float = DEFAULT_COVERAGE_TOLERANCE,
                chord_tolerance: float | None = None, feed_default: float | None = None,
                progress: Callable[[float], None] | None = None) -> Verification:
     """Simulate a program with tool changes (:func:`.job_simulation.simulate_job`) from the
-    block ``stock`` = (x0, x1, y0, y1, z0, z1) mm and measure the result as :func:`verify`
-    (``model`` a Surface) or :func:`verify_faces` (a sequence of faces) do.
+    block ``stock`` = (x0, x1, y0, y1, z0, z1) mm (or a vertical
+    :class:`.stock.CylinderStock`) and measure the result as :func:`verify` (``model`` a
+    Surface) or :func:`verify_faces` (a sequence of faces) do.
 
     Without ``stock`` the block is that of :func:`verify`: the grid's extent, no bottom, its
     top from ``stock_top``.  The grid covers the model and the block's XY.  The finishing tool,
@@ -242,7 +244,7 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
     if len(program) == 0:
         raise ParameterError("the program has no moves")
     check_program_tools(program, tools)
-    block = None if stock is None else check_stock(stock)
+    block = None if stock is None else check_stock_form(stock)
     feeds = np.flatnonzero(program.kind != MoveKind.RAPID)
     last = int(program.tool[feeds[-1]]) if len(feeds) else min(tools, default=0)
     if last not in tools:
@@ -259,7 +261,8 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
                            progress=report, chord_tolerance=chord_tolerance)
         return job.simulation(), len(job.segments), job
 
-    xy = None if block is None else block[:4]
+    xy = None if block is None else tuple(
+        block.bounds if isinstance(block, CylinderStock) else block)[:4]
     if isinstance(model, Surface):
         return _verify_surface(model, program, finishing, cell, stock_top, stock_margin,
                                rapid_rate, coverage_tolerance, progress, run, xy)
@@ -293,6 +296,10 @@ def _describe_job(metrics: dict, job: JobSimulation | None, model: np.ndarray) -
         stock_top_mm=job.stock[5], engagement_threshold_mm=job.threshold_mm,
         unsimulated_rapids=job.unsimulated_rapids,
     )
+    if job.cylinder is not None:
+        c = job.cylinder
+        metrics["stock_cylinder_mm"] = {"x": c.x, "y": c.y, "radius": c.radius,
+                                        "z_min": c.z_min, "z_max": c.z_max}
 
 
 def _check_arguments(cell: float, rapid_rate: float, coverage_tolerance: float,

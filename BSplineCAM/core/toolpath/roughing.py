@@ -1,5 +1,6 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""3-axis Z-level roughing from a stock block down to the part plus a stock to leave.
+"""3-axis Z-level roughing from a stock block or cylinder down to the part plus a stock to
+leave.
 
 The part is a height function sampled on a grid.  The lowest allowed tool-tip height T(x, y) is
 the maximum over the tool's footprint of part + axial allowance - profile(|d|), the footprint
@@ -26,10 +27,17 @@ link or a straight descent is entered by a ramp along the pass itself at RAMP_AN
 the surface down to the level: backwards along an open pass to its start (so the pass does not
 go back over the ramp), round a closed one.
 
+The stock is a block or a vertical cylinder (:mod:`..stock`, CAM's "CreateCylinder" stock):
+material lies only over its footprint, so Q_0 is every allowed centre whose tool disk misses
+that footprint (the corners of a cylinder's bounding box are air), the uncut grid and the
+surface estimate start at the stock top only inside it, and the passes, cut only where they
+meet uncut material, end at most a tool radius and a few cells past the rim; the first pass
+of a level starts out there, by a straight descent in the air beside the stock.
+
 Known limit: a pass running head-on into a wall, or past the end of the previous pass along a
 wall that slants across the fronts, ends with material on both sides; there the width of cut
-reaches about R + s/2 (up to 7.0 mm for a 10 mm mill at a 4 mm stepover on
-examples/case-study.json, in about 6 % of the moves the job simulation measures).
+reaches about R + s/2 (up to 7.2 mm for a 10 mm mill at a 4 mm stepover and a 2 mm stepdown
+on examples/case-study.json, in about 7 % of the moves the job simulation measures).
 """
 
 from __future__ import annotations
@@ -44,6 +52,7 @@ import numpy as np
 from ..distance import squared_distance
 from ..errors import ParameterError
 from ..simulate import Grid, Tool
+from ..stock import CylinderStock, Stock, StockShape
 from ..typing import FloatArray
 from .common import (
     CancelFn,
@@ -82,39 +91,6 @@ _EPS = 1e-6
 GRID_GROWTH_CELLS = 1.5
 
 
-@dataclass(frozen=True)
-class Stock:
-    """A block of stock (mm)."""
-
-    x_min: float
-    x_max: float
-    y_min: float
-    y_max: float
-    z_min: float
-    z_max: float
-
-    def __post_init__(self) -> None:
-        for name in ("x_min", "x_max", "y_min", "y_max", "z_min", "z_max"):
-            object.__setattr__(self, name, check_finite(getattr(self, name), f"stock {name}",
-                                                        "mm"))
-        for axis in "xyz":
-            lo, hi = getattr(self, f"{axis}_min"), getattr(self, f"{axis}_max")
-            if not hi > lo:
-                raise ParameterError(
-                    f"stock {axis}_max ({hi:g} mm) must lie above {axis}_min ({lo:g} mm)")
-
-    @classmethod
-    def around(cls, bounds: tuple[float, float, float, float, float, float], margin: float,
-               top_margin: float | None = None) -> Stock:
-        """The part box (x0, x1, y0, y1, z0, z1) grown by ``margin`` sideways and
-        ``top_margin`` (default ``margin``) above; the bottom is the part's bottom (mm)."""
-        margin = check_range(margin, "margin", "mm", 0.0, math.inf)
-        top = margin if top_margin is None else check_range(top_margin, "top_margin", "mm",
-                                                            0.0, math.inf)
-        x0, x1, y0, y1, z0, z1 = (float(v) for v in bounds)
-        return cls(x0 - margin, x1 + margin, y0 - margin, y1 + margin, z0, z1 + top)
-
-
 @dataclass
 class TipHeight:
     """Lowest allowed tool-tip Z (mm) per cell of ``grid`` (rows along y); ``z`` is (ny, nx)."""
@@ -140,8 +116,9 @@ def _validate(height, stock, tool, stepdown, stepover, radial, axial, cell, clea
     if not callable(height):
         raise ParameterError(f"height must be a function (xs, ys) -> heights in mm, got "
                              f"{height!r}")
-    if not isinstance(stock, Stock):
-        raise ParameterError(f"stock must be a Stock block (mm), got {stock!r}")
+    if not isinstance(stock, (Stock, CylinderStock)):
+        raise ParameterError(f"stock must be a Stock block or a CylinderStock (mm), got "
+                             f"{stock!r}")
     if not isinstance(tool, Tool):
         raise ParameterError(f"tool must be a simulate.Tool, got {tool!r}")
     stepdown = check_positive(stepdown, "stepdown", "mm")
@@ -471,12 +448,14 @@ class _Writer:
             self.retracts += 1
 
 
-def generate_roughing(height: HeightFn, stock: Stock, tool: Tool, stepdown: float,
+def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown: float,
                       stepover: float, radial_allowance: float = 0.0,
                       axial_allowance: float = 0.0, cell: float | None = None,
                       clearance_height: float | None = None, flat_levels: bool = True,
                       progress: ProgressFn = None, cancel: CancelFn = None) -> Roughing:
-    """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``.
+    """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``, a
+    :class:`~BSplineCAM.core.stock.Stock` block or a vertical
+    :class:`~BSplineCAM.core.stock.CylinderStock` (material only inside its circle).
 
     ``stepdown`` (mm) between levels, ``stepover`` (mm, at most the diameter) the largest
     radial width of cut, allowances (mm) left on the walls and floors, ``cell`` (mm) the
@@ -510,14 +489,15 @@ def generate_roughing(height: HeightFn, stock: Stock, tool: Tool, stepdown: floa
         raise ParameterError(f"height must return an array of shape (len(ys), len(xs)) = "
                              f"{(grid.ny, grid.nx)}, got {part.shape}")
     has = np.isfinite(part)
+    xg, yg = np.meshgrid(xs, ys)
+    outside = stock.distance_xy(xg, yg)
     if has.any():
-        xg, yg = np.meshgrid(xs, ys)
-        out = has & ((xg < stock.x_min - cell) | (xg > stock.x_max + cell)
-                     | (yg < stock.y_min - cell) | (yg > stock.y_max + cell))
+        out = has & (outside > cell)
         if out.any():
             raise ParameterError(
                 "stock must contain the part's XY extent: part found at "
-                f"x={xg[out][0]:.3f}, y={yg[out][0]:.3f} mm outside the stock")
+                f"x={xg[out][0]:.3f}, y={yg[out][0]:.3f} mm outside the stock "
+                f"({stock.describe()})")
         top_part = float(part[has].max())
         if top_part > stock.z_max + 1e-9:
             raise ParameterError(
@@ -528,12 +508,10 @@ def generate_roughing(height: HeightFn, stock: Stock, tool: Tool, stepdown: floa
     T = tip_height(part, cell, tool, ar, aa, stock.z_min, ztol)
     monitor(0.05)
 
-    xg, yg = np.meshgrid(xs, ys)
-    in_stock = ((xg >= stock.x_min) & (xg <= stock.x_max)
-                & (yg >= stock.y_min) & (yg <= stock.y_max))
-    dxo = np.maximum(np.maximum(stock.x_min - xg, xg - stock.x_max), 0.0)
-    dyo = np.maximum(np.maximum(stock.y_min - yg, yg - stock.y_max), 0.0)
-    air = np.hypot(dxo, dyo) >= R * (1 + 1e-9)
+    # material only inside the stock's footprint (a block's rectangle or a cylinder's
+    # circle): the fronts start from the air around it, where the tool's disk meets none
+    in_stock = stock.contains_xy(xg, yg)
+    air = outside >= R * (1 + 1e-9)
     levels = _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels)
     Hp = np.where(has, part + aa, -np.inf)
 
@@ -559,6 +537,7 @@ def generate_roughing(height: HeightFn, stock: Stock, tool: Tool, stepdown: floa
         "cutting_length_mm": cut,
         "entries": {"helical": job.helical, "outside": job.outside, "ramp": job.ramps},
         "entry_spans": job.entry_spans,
+        "link_moves": job.links,
         "retracts": job.writer.retracts,
         "lifts": job.lifts,
         "ramps": job.ramps,
@@ -620,6 +599,7 @@ class _Job:
         self.ramps = 0
         self.lifts = 0
         self.entry_spans: list = []
+        self.links: list[int] = []
         self.floor = np.full(T.shape, stock.z_max)  # lowest level cut at each cell
         self.skipped: list = []
 
@@ -750,6 +730,13 @@ class _Job:
             w.add("rapid", q[0], q[1], over)
         w.add("feed", q[0], q[1], z)
 
+    def link(self, q: tuple) -> None:
+        """A stay-down feed to q (x, y, z) between passes, its index kept in ``links``."""
+        n = len(self.writer.moves)
+        self.writer.add("feed", *q)
+        if len(self.writer.moves) > n:
+            self.links.append(n)
+
     def back_ramp(self, p: FloatArray, z: float, top: float,
                   slope: float) -> tuple | None:
         """A ramp into the open pass p (xy) that reaches level z at its start, so that the pass
@@ -786,12 +773,12 @@ class _Job:
         if w.pos is not None and abs(w.pos[2] - z) < 1e-9 and \
                 math.dist(w.pos[:2], q[:2]) <= 10 * self.tool.diameter and \
                 self.link_ok(w.pos, q, z):
-            w.add("feed", *q)
+            self.link(q)
         elif (top := self.safe_at(p[0], z)) <= z + 0.01:
             self.descend(p[0], z, z + 1.0)
         elif (near := self.clear_near(p[0], z)) is not None:
             self.descend(near, z, z + 1.0)
-            w.add("feed", *q)
+            self.link(q)
         else:
             slope = math.tan(math.radians(RAMP_ANGLE_DEG))
             back = None if closed else self.back_ramp(p, z, top, slope)
@@ -841,12 +828,18 @@ class _Job:
             cx, cy, rh = centre
             Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
         frac0 = (li + 0.05) / nlevels
-        # growing fronts
+        # growing fronts.  On a level at a flat floor T - z is 0 over whole areas, where a
+        # front's contour would run through the cells' centres (stairs of cell-long moves
+        # across the round fronts of a cylinder stock, each stair a burst of engagement):
+        # inside {T <= z} the wall term is taken a cell lower, so that there the distance
+        # places the contour.  It still crosses only cell edges from an allowed centre, which
+        # GRID_GROWTH_CELLS covers.
+        wall = np.where(A, tip - z - cell, tip - z)
         k = 0
         while True:
             self.monitor(0.05 + 0.9 * (frac0 + min(k, 50) / 60.0 / nlevels))
             dQ = capped_distance(Q, self.s / cell + 2) * cell
-            F = np.maximum(dQ - self.s, tip - z)
+            F = np.maximum(dQ - self.s, wall)
             F[A & ~self.allowed] = 1.0
             Qn = F <= 0.0
             if Qn.sum() <= Q.sum():
@@ -952,7 +945,9 @@ class _Job:
                 continue
             tz = _bilinear(self.T - z, line[:, 0], line[:, 1])
             fr = _bilinear(front, line[:, 0], line[:, 1])
-            is_front = fr >= tz
+            # front where the front's distance decides the contour; on a flat floor both are
+            # about 0 and rounding would cut the front into slivers, each with its own ramp
+            is_front = fr >= tz - 0.25 * self.cell
             for piece in _stretches(line, cuts & is_front, free, clear, closed, back):
                 # climb, unless only the end is out of the material (saves a ramp)
                 ends = _bilinear(du, piece[[0, -1], 0], piece[[0, -1], 1]) >= self.Rc + 1.0
