@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CASE_STUDY, ROOT
+from conftest import CASE_STUDY, ROOT, plane_net, run_main
 
 from BSplineCAM.core import ParameterError, Surface
 from BSplineCAM.core.gcode import read_gcode
@@ -47,15 +47,6 @@ def small_net(tmp_path: Path, size: float = 30.0) -> Path:
     path.write_text(json.dumps({"name": "n4", "knots": "clamped",
                                 "control_points": np.stack([x, y, z], -1).tolist()}))
     return path
-
-
-def run_main(capsys, *argv: str) -> tuple[int, str, str]:
-    try:
-        status = cli.main(list(argv))
-    except SystemExit as exc:  # argparse
-        status = int(exc.code)
-    captured = capsys.readouterr()
-    return status, captured.out, captured.err
 
 
 def assert_refused(status: int, err: str, *fragments: str) -> None:
@@ -203,16 +194,6 @@ def test_unknown_command_and_missing_option_one_line(capsys):
 
 
 # -- verify ------------------------------------------------------------------------------------------
-def plane_net(tmp_path: Path, width: float = 60.0, depth: float = 40.0, z: float = 10.0) -> Path:
-    t = np.linspace(0.0, 1.0, 4)
-    x, y = np.meshgrid(t * width, t * depth, indexing="ij")
-    net = np.stack([x, y, np.full_like(x, z)], -1)
-    path = tmp_path / "plane.json"
-    path.write_text(json.dumps({"name": "plane", "knots": "clamped",
-                                "control_points": net.tolist()}))
-    return path
-
-
 def raster_text(units: str = "G21", scale: float = 1.0, dx: float = 0.0) -> str:
     """Ball passes at z = 10 over the 60 x 40 plane, every 2 mm, numbers times ``scale``."""
     lines = [f"{units} G90 G17", f"G0 X{dx:.4f} Y0 Z{30 * scale:.4f}"]
@@ -467,12 +448,11 @@ def test_job_options_refused(capsys, tmp_path, extra, fragments):
 
 
 @pytest.mark.parametrize("extra, fragments", [
-    (["--strategy", "steep_shallow"], ["--strategy", "steep_shallow", "control net"]),
     (["--knots", "uniform"], ["--knots", "control nets"]),
 ])
 def test_job_on_a_part_refuses_what_parts_lack(capsys, tmp_path, extra, fragments):
-    """Parts are finished by raster, waterline or iso-parametric passes; the refusal comes
-    before the part is read or FreeCAD loaded."""
+    """Knots belong to control nets; the refusal comes before the part is read or FreeCAD
+    loaded."""
     out = tmp_path / "out"
     status, stdout, err = run_main(capsys, "job", str(ROOT / "examples" / "part.step"), *extra,
                                    "--out", str(out))

@@ -16,15 +16,13 @@ runs the same cases each time; the suite is sized to about 30 s per interpreter.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import signal
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from conftest import FUZZ, hang_guard
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM.core import netio
@@ -36,36 +34,6 @@ from BSplineCAM.core.gcode import (
     read_gcode,
     read_gcode_file,
 )
-
-#: Seconds after which a reader is taken as hung (see the module's docstring).
-HANG_S = 20.0
-
-FUZZ = settings(
-    derandomize=True,
-    database=None,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                           HealthCheck.function_scoped_fixture],
-)
-
-
-class ReaderHung(AssertionError):
-    """A reader ran past HANG_S on a fuzzed input."""
-
-
-@contextlib.contextmanager
-def hang_guard(seconds: float = HANG_S) -> Iterator[None]:
-    def expire(_signum, _frame):
-        raise ReaderHung(f"a reader ran longer than HANG_S={seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-
 
 # ---------------------------------------------------------------------------------------------
 # mutations

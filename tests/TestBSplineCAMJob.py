@@ -17,23 +17,14 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
+from bsplinecam_freecad import CASE_STUDY, ROOT, ROUNDING, TOOL, FreeCAD
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
-from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.verify import verify  # noqa: E402
-from BSplineCAM.orchestration import rs274  # noqa: E402
-
-FreeCAD = compat.ensure_freecad()
-CASE_STUDY = ROOT / "examples" / "case-study.json"
-TOOL = 6.0
-#: Posted coordinates carry 4 decimals: up to 0.05 µm of rounding per axis.
-ROUNDING = 1e-4
+from BSplineCAM import Surface
+from BSplineCAM.app import cam, compat, pipeline
+from BSplineCAM.core.gcode import MoveKind, read_gcode
+from BSplineCAM.core.simulate import Tool
+from BSplineCAM.core.verify import verify
+from BSplineCAM.orchestration import rs274
 
 
 def case_study() -> Surface:
@@ -155,6 +146,16 @@ class TestJob(JobFixture):
     def test_unknown_post_is_named(self):
         with self.assertRaisesRegex(ValueError, "unknown post-processor 'nosuch'.*linuxcnc"):
             cam.post_process(self.job, "nosuch")
+
+    def test_faces_apply_to_parts_only(self):
+        """pipeline.machine takes ``faces`` on part files only: on a control net it refuses
+        them before any document is made or program written."""
+        path = Path(self.tmp.name) / "faces.ngc"
+        documents = set(FreeCAD.listDocuments())
+        with self.assertRaisesRegex(ValueError, "faces .*part files"):
+            pipeline.machine(case_study(), self.params, path, faces=[1])
+        self.assertFalse(path.exists())
+        self.assertEqual(set(FreeCAD.listDocuments()), documents)
 
     def test_job_saves_and_reopens(self):
         path = Path(self.tmp.name) / "job.FCStd"

@@ -21,11 +21,11 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import CASE_STUDY, ROOT
+from conftest import CASE_STUDY, ROOT, run_main
 
 from BSplineCAM.core.faces import Face, FaceError, sample_points, to_dict
 from BSplineCAM.core.nurbs import NurbsSurface
-from BSplineCAM.orchestration import cli, cli_toolpath, parts, runtime
+from BSplineCAM.orchestration import cli_toolpath, parts, runtime
 
 EXAMPLE = ROOT / "examples" / "part.step"
 BIN = ROOT / "bin" / "bsplinecam"
@@ -118,15 +118,6 @@ def test_worker_passes_part_requests_on():
 
 
 # -- refusals before any FreeCAD work (in-process) ---------------------------------------------
-def run_main(capsys, *argv: str) -> tuple[int, str, str]:
-    try:
-        status = cli.main(list(argv))
-    except SystemExit as exc:  # argparse
-        status = int(exc.code)
-    captured = capsys.readouterr()
-    return status, captured.out, captured.err
-
-
 @pytest.mark.parametrize("argv, fragments", [
     (["check", str(CASE_STUDY), "--faces", "up"], ["--faces applies to parts", "case-study"]),
     (["check", str(CASE_STUDY), "--out", "OUT"], ["--out applies to parts"]),
@@ -139,9 +130,9 @@ def run_main(capsys, *argv: str) -> tuple[int, str, str]:
       "--out", "OUT"], ["--faces", "'x'"]),
     (["toolpath", str(EXAMPLE), "--faces", "all", "--tool-diameter", "6", "--scallop", "0.01",
       "--out", "OUT"], ["--faces all"]),
-    (["toolpath", str(EXAMPLE), "--strategy", "steep_shallow", "--tool-diameter", "6",
-      "--scallop", "0.01", "--out", "OUT"],
-     ["--strategy steep_shallow", "raster, waterline, isoparametric"]),
+    (["toolpath", str(EXAMPLE), "--strategy", "steep_shallow", "--direction", "oneway",
+      "--tool-diameter", "6", "--scallop", "0.01", "--out", "OUT"],
+     ["--direction oneway", "zigzag"]),
     (["toolpath", str(EXAMPLE), "--strategy", "isoparametric", "--direction", "oneway",
       "--tool-diameter", "6", "--scallop", "0.01", "--out", "OUT"],
      ["--direction oneway", "zigzag"]),

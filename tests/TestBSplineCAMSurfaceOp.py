@@ -13,33 +13,25 @@ from __future__ import annotations
 import math
 import os
 import re
-import sys
 import tempfile
 import unittest
 from pathlib import Path
 from unittest import mock
 
 import numpy as np
+from bsplinecam_freecad import CASE_STUDY, ROUNDING, TOOL, FreeCAD
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from BSplineCAM import Surface
+from BSplineCAM.app import cam, compat, surface3d
+from BSplineCAM.app.surface_feature import make_surface
+from BSplineCAM.core.gcode import MoveKind, read_gcode
+from BSplineCAM.orchestration import rs274
 
-from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.app import cam, compat, surface3d  # noqa: E402
-from BSplineCAM.app.surface_feature import make_surface  # noqa: E402
-from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
-from BSplineCAM.orchestration import rs274  # noqa: E402
-
-FreeCAD = compat.ensure_freecad()
-CASE_STUDY = ROOT / "examples" / "case-study.json"
-TOOL = 6.0
 #: Coarse enough for a quick test: stepover 2 sqrt(2 R h - h^2) = 3.3 mm (55 % of the tool).
 SCALLOP = 0.5
 #: FreeCAD's default sampling along a pass (mm), and a coarse tessellation (mm), for speed.
 SAMPLE_INTERVAL = 1.0
 LINEAR_DEFLECTION = 0.02
-ROUNDING = 1e-4
 
 
 class JobFixture(unittest.TestCase):

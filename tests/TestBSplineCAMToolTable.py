@@ -4,17 +4,15 @@ changes in the G-code reader, and ``bsplinecam verify`` with --tools/--tool-tabl
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import shutil
-import signal
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from conftest import FUZZ, hang_guard, plane_net, run_main
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM.core.errors import BSplineCAMError, ParameterError
@@ -27,7 +25,7 @@ from BSplineCAM.core.tooltable import (
     parse_tools_option,
     read_tool_table,
 )
-from BSplineCAM.orchestration import cli, rs274
+from BSplineCAM.orchestration import rs274
 
 # -- --tools -----------------------------------------------------------------------------------
 
@@ -188,24 +186,7 @@ def test_tool_numbers_as_linuxcnc(tmp_path: Path) -> None:
 
 # -- fuzz ----------------------------------------------------------------------------------------
 
-HANG_S = 20.0
-FUZZ = settings(derandomize=True, database=None, deadline=None, max_examples=300,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                       HealthCheck.function_scoped_fixture])
-
-
-@contextlib.contextmanager
-def hang_guard(seconds: float = HANG_S) -> Iterator[None]:
-    def expire(_signum, _frame):
-        raise AssertionError(f"read_tool_table ran longer than {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
+TABLE_FUZZ = settings(FUZZ, max_examples=300)
 
 
 _PIECES = st.sampled_from([
@@ -236,13 +217,13 @@ def mutated_tables(draw) -> bytes:
     return data
 
 
-@FUZZ
+@TABLE_FUZZ
 @given(data=mutated_tables())
 def test_fuzz_tool_table(tmp_path_factory, data: bytes) -> None:
     """Any file gives tools with finite sizes or a one-line ToolTableError naming the file."""
     path = tmp_path_factory.mktemp("fuzz") / "t.tbl"
     path.write_bytes(data)
-    with hang_guard():
+    with hang_guard(what="read_tool_table"):
         try:
             tools = read_tool_table(path)
         except BSplineCAMError as exc:
@@ -256,7 +237,7 @@ def test_fuzz_tool_table(tmp_path_factory, data: bytes) -> None:
         assert 0 <= tool.corner_radius <= tool.radius
 
 
-@FUZZ
+@TABLE_FUZZ
 @given(text=st.text(st.sampled_from("T=,:0123456789.flatbulnose-e+ "), max_size=60))
 def test_fuzz_tools_option(text: str) -> None:
     try:
@@ -270,16 +251,6 @@ def test_fuzz_tools_option(text: str) -> None:
 # -- bsplinecam verify ---------------------------------------------------------------------------
 
 
-def plane_net(tmp_path: Path, width: float = 60.0, depth: float = 40.0, z: float = 10.0) -> Path:
-    t = np.linspace(0.0, 1.0, 4)
-    x, y = np.meshgrid(t * width, t * depth, indexing="ij")
-    net = np.stack([x, y, np.full_like(x, z)], -1)
-    path = tmp_path / "plane.json"
-    path.write_text(json.dumps({"name": "plane", "knots": "clamped",
-                                "control_points": net.tolist()}))
-    return path
-
-
 def job_text(finish_tool: int = 2) -> str:
     """T1 (flat 10) faces the 60 x 40 x 14 block to z 11; then a ball raster at z 10."""
     lines = ["G21 G90 G17", "(T1 flat 10 mm)", "T1 M6", "S8000 M3"]
@@ -291,15 +262,6 @@ def job_text(finish_tool: int = 2) -> str:
         x0, x1 = (0.0, 60.0) if k % 2 == 0 else (60.0, 0.0)
         lines += [f"G0 X{x0} Y{y} Z16", "G1 Z10 F600", f"G1 X{x1}", "G0 Z16"]
     return "\n".join([*lines, "M5", "M2"]) + "\n"
-
-
-def run_main(capsys, *argv: str) -> tuple[int, str, str]:
-    try:
-        status = cli.main(list(argv))
-    except SystemExit as exc:  # argparse
-        status = int(exc.code)
-    captured = capsys.readouterr()
-    return status, captured.out, captured.err
 
 
 @pytest.mark.parametrize("how", ["tools", "table"])

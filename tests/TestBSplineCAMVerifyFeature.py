@@ -9,27 +9,20 @@ vertices, deviation and metrics are compared with it.
 from __future__ import annotations
 
 import json
-import sys
 import tempfile
 import unittest
 from pathlib import Path
 
 import numpy as np
+from bsplinecam_freecad import CASE_STUDY, TOOL, FreeCAD
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from BSplineCAM import Surface
+from BSplineCAM.app import cam, pipeline
+from BSplineCAM.app import verify_feature as vf
+from BSplineCAM.core.gcode import read_gcode
+from BSplineCAM.core.simulate import Tool
+from BSplineCAM.core.verify import verify
 
-from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
-from BSplineCAM.app import verify_feature as vf  # noqa: E402
-from BSplineCAM.core.gcode import read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.verify import verify  # noqa: E402
-
-FreeCAD = compat.ensure_freecad()
-CASE_STUDY = ROOT / "examples" / "case-study.json"
-TOOL = 6.0
 CELL = 0.5
 
 

@@ -25,21 +25,12 @@ import unittest
 from pathlib import Path
 
 import numpy as np
+from bsplinecam_freecad import CASE_STUDY, ROUNDING, TOOL, FreeCAD
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.app import cam, compat, finishing_op, pipeline, surface_feature  # noqa: E402
-from BSplineCAM.app import verify_feature as vf  # noqa: E402
-from BSplineCAM.orchestration import rs274  # noqa: E402
-
-FreeCAD = compat.ensure_freecad()
-CASE_STUDY = ROOT / "examples" / "case-study.json"
-TOOL = 6.0
-#: Posted coordinates carry 4 decimals.
-ROUNDING = 1e-4
+from BSplineCAM import Surface
+from BSplineCAM.app import cam, compat, finishing_op, pipeline, surface_feature
+from BSplineCAM.app import verify_feature as vf
+from BSplineCAM.orchestration import rs274
 
 
 def hill() -> Surface:

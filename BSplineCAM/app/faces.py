@@ -16,7 +16,6 @@ the trim's own points) and z > 1e-9 at one of them at least; vertical walls are 
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Sequence
@@ -26,6 +25,7 @@ import numpy as np
 
 from ..core import faces as core_faces
 from ..core.errors import BSplineCAMError
+from ..core.face_import import RELATIVE_DEVIATION, checked_face, segment_box
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 from ..core.typing import FloatArray
 from .compat import ensure_freecad
@@ -35,8 +35,6 @@ import Part  # noqa: E402  (needs FreeCAD on sys.path first)
 
 #: A normal's z below -UP_TOLERANCE points down; above +UP_TOLERANCE, up.
 UP_TOLERANCE = 1e-9
-#: Largest accepted distance of a face's NURBS from OCCT's original, relative to its size.
-RELATIVE_DEVIATION = 1e-9
 #: Part file types :func:`read_part` reads.
 PART_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".fcstd")
 
@@ -155,13 +153,9 @@ def _nurbs_arrays(surface, uv_box: tuple[float, float, float, float], name: str)
     else:
         if not _clamped(surface):
             surface = surface.copy()
-            u0, u1, v0, v1 = surface.bounds()
-            if surface.isUPeriodic():
-                u0, u1 = _periodic_range(uv_box[0], uv_box[1], surface.UPeriod(), "u", name)
-            if surface.isVPeriodic():
-                v0, v1 = _periodic_range(uv_box[2], uv_box[3], surface.VPeriod(), "v", name)
             periods = (surface.UPeriod() if surface.isUPeriodic() else 0.0,
                        surface.VPeriod() if surface.isVPeriodic() else 0.0)
+            u0, u1, v0, v1 = segment_box(surface.bounds(), uv_box, periods, name)
             surface.segment(u0, u1, v0, v1)
             shift = core_faces.period_shift(surface.bounds(), (u0, v0), periods)
             if not _clamped(surface):
@@ -174,14 +168,6 @@ def _nurbs_arrays(surface, uv_box: tuple[float, float, float, float], name: str)
     # Segment may land a whole period away from the trim: translate the knots back.
     return {"poles": poles, "weights": weights, "knots_u": knots_u - shift[0],
             "knots_v": knots_v - shift[1], "degree_u": int(p), "degree_v": int(q)}
-
-
-def _periodic_range(a: float, b: float, period: float, which: str, name: str):
-    if b - a > period * (1 + 1e-12):
-        raise FaceError(f"{name}: its trim spans more than one period in {which}")
-    if b - a >= period * (1 - 1e-12):
-        b = a + period
-    return a, b
 
 
 def _xy(point) -> tuple[float, float]:
@@ -267,27 +253,11 @@ def _extract(source: Part.Face, index: int, tolerance: float, selected: bool):
     uv_box = (float(box[:, 0].min()), float(box[:, 0].max()),
               float(box[:, 1].min()), float(box[:, 1].max()))
     data = _nurbs_arrays(work.Surface, uv_box, name)
-    flipped = work.Orientation == "Reversed"
-    if flipped:
-        data["poles"], data["weights"], knots_v = core_faces.flip_v(
-            data["poles"], data["weights"], data["knots_v"])
-        vsum = data["knots_v"][0] + data["knots_v"][-1]
-        data["knots_v"] = knots_v
-        outer = np.column_stack([outer[:, 0], vsum - outer[:, 1]])
-        holes = [np.column_stack([h[:, 0], vsum - h[:, 1]]) for h in holes]
-    try:
-        surface = core_faces.make_surface(name=name, **data)
-    except BSplineCAMError as exc:
-        raise FaceError(f"{name} ({kind}): {exc}") from None
-    face = Face(surface, outer, tuple(holes), index=index, name=name, selected=selected,
-                flipped_v=flipped, source=kind, tolerance=tolerance)
-    deviation = measure(face, source, work)
-    size = max(source.BoundBox.DiagonalLength, 1e-300)
-    if not deviation <= RELATIVE_DEVIATION * size:
-        raise FaceError(f"{name} ({kind}): its NURBS is {deviation:.3g} mm from OCCT's "
-                        f"original surface, more than {RELATIVE_DEVIATION:g} of its size "
-                        f"{size:.6g} mm")
-    return dataclasses.replace(face, deviation=deviation), work
+    face = checked_face(data, outer, holes, work.Orientation == "Reversed",
+                        lambda face: measure(face, source, work),
+                        max(source.BoundBox.DiagonalLength, 1e-300), index=index, name=name,
+                        kind=kind, selected=selected, tolerance=tolerance)
+    return face, work
 
 
 def measure(face: Face, source: Part.Face, work: Part.Face) -> float:
@@ -353,17 +323,10 @@ def faces_from_shape(shape: Part.Shape, selection: core_faces.Selection = "up",
     the other faces come back with ``selected=False`` (check surfaces).  ``tolerance`` is the
     trim polylines' 3-D chord tolerance in mm.  Errors (FaceError) name the face.
     """
-    if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
-        raise FaceError(f"{where}: trim tolerance must be a positive length in mm, "
-                        f"got {tolerance!r}")
-    if shape.isNull() or not shape.Faces:
-        raise FaceError(f"{where}: has no faces")
-    check_shape(shape, where)
-    sources = shape.Faces
+    sources = _checked_faces(shape, tolerance, where)
     chosen = core_faces.parse_selection(selection, len(sources), where)
-    pairs = [_extract(f, i, tolerance, False) for i, f in enumerate(sources, 1)]
-    reach = [reaches_from_above(face, work) for face, work in pairs]
-    return core_faces.apply_selection([face for face, _ in pairs], reach, chosen, where)
+    faces, reach = _faces_with_reach(sources, tolerance)
+    return core_faces.apply_selection(faces, reach, chosen, where)
 
 
 def faces_and_reach(shape: Part.Shape, tolerance: float = DEFAULT_TOLERANCE,
@@ -371,13 +334,25 @@ def faces_and_reach(shape: Part.Shape, tolerance: float = DEFAULT_TOLERANCE,
     """Every face of ``shape`` (unselected, mm) and whether a 3-axis tool reaches it from
     above (:func:`reaches_from_above`): what :func:`faces_from_shape` selects from, for
     callers that combine the faces of several shapes (the finishing op's ``Base``)."""
+    return _faces_with_reach(_checked_faces(shape, tolerance, where), tolerance)
+
+
+def _checked_faces(shape: Part.Shape, tolerance: float, where: str) -> list[Part.Face]:
+    """The faces of ``shape`` once the trim ``tolerance`` (mm) and the shape are found fit
+    (FaceError naming ``where`` otherwise), before any face is extracted."""
     if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
         raise FaceError(f"{where}: trim tolerance must be a positive length in mm, "
                         f"got {tolerance!r}")
     if shape.isNull() or not shape.Faces:
         raise FaceError(f"{where}: has no faces")
     check_shape(shape, where)
-    pairs = [_extract(f, i, tolerance, False) for i, f in enumerate(shape.Faces, 1)]
+    return shape.Faces
+
+
+def _faces_with_reach(sources: list[Part.Face],
+                      tolerance: float) -> tuple[list[Face], list[tuple[bool, str]]]:
+    """Every source face as an unselected core Face, and whether it is reached from above."""
+    pairs = [_extract(f, i, tolerance, False) for i, f in enumerate(sources, 1)]
     return [face for face, _ in pairs], [reaches_from_above(face, work) for face, work in pairs]
 
 

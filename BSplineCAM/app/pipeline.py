@@ -187,33 +187,7 @@ def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = c
 
 
 def machine(
-    surface: Surface,
-    params: FinishingParameters,
-    gcode_path: str | os.PathLike,
-    post: str = "linuxcnc",
-    cutting: cam.Cutting = cam.Cutting(),
-    document_path: str | os.PathLike | None = None,
-    roughing: RoughingParameters | None = None,
-    more_posts: dict | None = None,
-) -> dict:
-    """Compute, post and write the program; return the op's report plus timings.
-
-    With ``roughing``, the job roughs first (T1) and finishes with the ball (T2); the
-    roughing op's report is under ``roughing``, with its tool and stock box.
-    The document is temporary and closed at the end (saved first to ``document_path`` if
-    given).  ``more_posts`` ({post: path}) posts the same job by other post-processors too.
-    Errors in the op (bad parameters, unreachable tolerance) raise ValueError.
-    """
-    def build(doc):
-        _, job, op = build_job(surface, params, cutting, doc, post, roughing)
-        return job, op
-
-    return _machine(build, params, gcode_path, post, cutting, document_path, roughing,
-                    more_posts)
-
-
-def machine_part(
-    part_path: str | os.PathLike,
+    model: Surface | str | os.PathLike,
     params: FinishingParameters,
     gcode_path: str | os.PathLike,
     post: str = "linuxcnc",
@@ -223,9 +197,36 @@ def machine_part(
     more_posts: dict | None = None,
     faces=None,
 ) -> dict:
-    """:func:`machine` for a part file (STEP, BREP, FCStd): the finishing op on its
-    ``faces`` (numbers, or None for every face reached from above), the roughing from a
-    block around the whole part."""
+    """Compute, post and write the program; return the op's report plus timings.
+
+    ``model`` is a core Surface (a control net) or a part file (STEP, BREP, FCStd): on a
+    part the finishing op takes its ``faces`` (numbers, or None for every face reached from
+    above; a surface has no faces to choose), the roughing a block around the whole part.
+    With ``roughing``, the job roughs first (T1) and finishes with the ball (T2); the
+    roughing op's report is under ``roughing``, with its tool and stock box.
+    The document is temporary and closed at the end (saved first to ``document_path`` if
+    given).  ``more_posts`` ({post: path}) posts the same job by other post-processors too.
+    Errors in the op (bad parameters, unreachable tolerance) raise ValueError.
+    """
+    if isinstance(model, (str, os.PathLike)):
+        build = _part_builder(model, params, cutting, post, roughing, faces)
+    else:
+        if faces is not None:
+            raise ValueError(f"faces {faces!r}: a surface has no faces to choose; "
+                             "faces apply to part files")
+
+        def build(doc):
+            _, job, op = build_job(model, params, cutting, doc, post, roughing)
+            return job, op
+
+    return _machine(build, params, gcode_path, post, cutting, document_path, roughing,
+                    more_posts)
+
+
+def _part_builder(part_path, params: FinishingParameters, cutting: cam.Cutting, post: str,
+                  roughing: RoughingParameters | None, faces):
+    """``build(doc) -> (job, finishing op)`` for a part file, read once here so that an
+    unreadable file fails before any document is made."""
     from pathlib import Path
 
     from .faces import read_part
@@ -242,13 +243,12 @@ def machine_part(
             add_roughing(job, roughing, cutting)
         return job, op
 
-    return _machine(build, params, gcode_path, post, cutting, document_path, roughing,
-                    more_posts)
+    return build
 
 
 def _machine(build, params, gcode_path, post, cutting, document_path, roughing,
              more_posts) -> dict:
-    """The common tail of :func:`machine` and :func:`machine_part`: a temporary document,
+    """The work of :func:`machine` on a surface or a part: a temporary document,
     ``build(doc) -> (job, finishing op)``, recompute, every op checked, posts, reports."""
     compat.post_module(post)  # an unknown post-processor fails before any work
     for other in more_posts or {}:

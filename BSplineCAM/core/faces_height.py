@@ -31,6 +31,7 @@ import numpy as np
 
 from .errors import BSplineCAMError
 from .faces import Face
+from .footprint import fill_empty_cells
 from .simulate import THREADS
 from .typing import FloatArray
 
@@ -206,7 +207,7 @@ class _FaceSeeds:
         order = np.argsort(pts[:, 2], kind="stable")  # higher samples written last win
         table = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int64)
         table[cell[order]] = order
-        self.table = _fill(table.reshape(self.shape), 2).ravel()
+        self.table = fill_empty_cells(table.reshape(self.shape), 2).ravel()
         self.box = (self.lo[0], self.lo[0] + span[0], self.lo[1], self.lo[1] + span[1])
 
     def _cell(self, x: FloatArray, y: FloatArray) -> np.ndarray:
@@ -281,25 +282,6 @@ class _FaceSeeds:
                                   np.clip(hv[out] + b * dv, v0, v1))
             inside[out[near]] = True
         return active[idx[inside]], hz[inside], hu[inside], hv[inside]
-
-
-def _fill(table: np.ndarray, passes: int) -> np.ndarray:
-    """Give empty lookup cells a neighbour's sample, ``passes`` cells deep."""
-    for _ in range(passes):
-        empty = table < 0
-        if not np.any(empty):
-            break
-        source = table.copy()
-        for axis in (0, 1):
-            for shift in (1, -1):
-                rolled = np.roll(table, shift, axis=axis)
-                edge = [slice(None)] * 2
-                edge[axis] = 0 if shift == 1 else -1
-                rolled[tuple(edge)] = -1
-                take = (source < 0) & (rolled >= 0)
-                source[take] = rolled[take]
-        table = source
-    return table
 
 
 class FacesHeight:

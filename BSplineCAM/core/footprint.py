@@ -86,7 +86,7 @@ class _Seeds:
         order = np.argsort(flat_p[:, 2], kind="stable")  # later (higher) samples overwrite
         table = np.full(self.shape[0] * self.shape[1], -1, dtype=np.int64)
         table[cell[order]] = order
-        table = _fill(table.reshape(self.shape), 3)
+        table = fill_empty_cells(table.reshape(self.shape), 3)
         self.table = table
         self.u = np.repeat(pu, n)
         self.w = np.tile(pw, n)
@@ -115,8 +115,9 @@ class _Seeds:
         return (np.clip(self.u[k] + du, 0.0, 1.0), np.clip(self.w[k] + dw, 0.0, 1.0), near)
 
 
-def _fill(table: np.ndarray, passes: int) -> np.ndarray:
-    """Give empty lookup cells a neighbour's sample, ``passes`` cells deep."""
+def fill_empty_cells(table: np.ndarray, passes: int) -> np.ndarray:
+    """Give empty lookup cells (index -1) a neighbour's sample, ``passes`` cells deep: the seed
+    tables of one surface (here) and of a model's faces (faces_height) fill their gaps alike."""
     for _ in range(passes):
         empty = table < 0
         if not np.any(empty):

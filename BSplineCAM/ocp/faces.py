@@ -12,7 +12,6 @@ Import only in a Python that has cadquery (the project venv).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from pathlib import Path
@@ -35,12 +34,11 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedMapOfShape
 
 from ..core import faces as core_faces
-from ..core.errors import BSplineCAMError
+from ..core.face_import import checked_face, segment_box
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 
 #: Same thresholds as the FreeCAD side.
 UP_TOLERANCE = 1e-9
-RELATIVE_DEVIATION = 1e-9
 
 
 def read_part(path: str | os.PathLike) -> TopoDS_Shape:
@@ -123,13 +121,9 @@ def _nurbs_arrays(surface, uv_box, name: str):
     shift = (0.0, 0.0)
     if not _clamped(s):
         s = _bspline(s.Copy())
-        u0, u1, v0, v1 = s.Bounds()
-        if s.IsUPeriodic():
-            u0, u1 = _periodic_range(uv_box[0], uv_box[1], s.UPeriod(), "u", name)
-        if s.IsVPeriodic():
-            v0, v1 = _periodic_range(uv_box[2], uv_box[3], s.VPeriod(), "v", name)
         periods = (s.UPeriod() if s.IsUPeriodic() else 0.0,
                    s.VPeriod() if s.IsVPeriodic() else 0.0)
+        u0, u1, v0, v1 = segment_box(s.Bounds(), uv_box, periods, name)
         s.Segment(u0, u1, v0, v1)
         shift = core_faces.period_shift(s.Bounds(), (u0, v0), periods)
         if not _clamped(s):
@@ -145,14 +139,6 @@ def _nurbs_arrays(surface, uv_box, name: str):
     return {"poles": poles, "weights": weights, "knots_u": knots_u.astype(float) - shift[0],
             "knots_v": knots_v.astype(float) - shift[1], "degree_u": s.UDegree(),
             "degree_v": s.VDegree()}
-
-
-def _periodic_range(a: float, b: float, period: float, which: str, name: str):
-    if b - a > period * (1 + 1e-12):
-        raise FaceError(f"{name}: its trim spans more than one period in {which}")
-    if b - a >= period * (1 - 1e-12):
-        b = a + period
-    return a, b
 
 
 def _xyz(p) -> tuple[float, float, float]:
@@ -239,26 +225,11 @@ def _extract(source, index: int, tolerance: float, selected: bool):
     box = np.concatenate([outer, *holes])
     uv_box = (box[:, 0].min(), box[:, 0].max(), box[:, 1].min(), box[:, 1].max())
     data = _nurbs_arrays(BRep_Tool.Surface_s(work), uv_box, name)
-    flipped = work.Orientation() == TopAbs_REVERSED
-    if flipped:
-        vsum = data["knots_v"][0] + data["knots_v"][-1]
-        data["poles"], data["weights"], data["knots_v"] = core_faces.flip_v(
-            data["poles"], data["weights"], data["knots_v"])
-        outer = np.column_stack([outer[:, 0], vsum - outer[:, 1]])
-        holes = [np.column_stack([h[:, 0], vsum - h[:, 1]]) for h in holes]
-    try:
-        surface = core_faces.make_surface(name=name, **data)
-    except BSplineCAMError as exc:
-        raise FaceError(f"{name} ({kind}): {exc}") from None
-    face = Face(surface, outer, tuple(holes), index=index, name=name, selected=selected,
-                flipped_v=flipped, source=kind, tolerance=tolerance)
-    deviation = measure(face, source, work)
-    size = _diagonal(source)
-    if not deviation <= RELATIVE_DEVIATION * size:
-        raise FaceError(f"{name} ({kind}): its NURBS is {deviation:.3g} mm from OCCT's "
-                        f"original surface, more than {RELATIVE_DEVIATION:g} of its size "
-                        f"{size:.6g} mm")
-    return dataclasses.replace(face, deviation=deviation), work
+    face = checked_face(data, outer, holes, work.Orientation() == TopAbs_REVERSED,
+                        lambda face: measure(face, source, work), _diagonal(source),
+                        index=index, name=name, kind=kind, selected=selected,
+                        tolerance=tolerance)
+    return face, work
 
 
 def _diagonal(shape) -> float:

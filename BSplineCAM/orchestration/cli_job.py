@@ -23,10 +23,16 @@ from pathlib import Path
 from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
 from ..core.toolpath import check_request
-from ..core.toolpath.common import CuttingParameters, Strategy, check_range
+from ..core.toolpath.common import Strategy, check_range
 from . import rs274
-from .cli_toolpath import CUTTING_OPTIONS, DEFAULT_RAPID, machining_time
 from .cli_verify import add_machine_options, check_machine_limits
+from .pipeline_run import (
+    DEFAULT_RAPID,
+    check_posts,
+    cutting_parameters,
+    freecad_cutting,
+    run_pipeline,
+)
 
 #: Ranges of the roughing options (mm, percent).
 STOCK_MARGIN_RANGE = (0.0, 1000.0)
@@ -118,21 +124,11 @@ def roughing_parameters(args: argparse.Namespace):
 
 
 def cmd_job(args: argparse.Namespace) -> int:
-    from .cli import (
-        EXIT_CHECK_FAILED,
-        _safe_name,
-        captured_console,
-        check_interrupted,
-        check_output,
-        emit,
-        json_text,
-        staged_output,
-    )
+    from .cli import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
 
     started = time.perf_counter()
     args.rapid_rate = args.rapid  # one rapid rate for the time estimates
-    cutting_params = CuttingParameters.validate(args.feed, args.plunge_feed, args.spindle,
-                                                args.rapid, CUTTING_OPTIONS)
+    cutting_params = cutting_parameters(args)
     rough_tool, roughing = roughing_parameters(args)
     finish_tool = parse_tool(args.finish, "--finish")
     if finish_tool.shape.value != "ball":
@@ -152,10 +148,6 @@ def cmd_job(args: argparse.Namespace) -> int:
     if parts.is_part(args.net):
         if args.knots is not None:
             raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
-        if args.strategy not in parts.PART_STRATEGIES:
-            raise ParameterError(f"--strategy {args.strategy}: parts are finished by "
-                                 f"{', '.join(parts.PART_STRATEGIES)} (steep_shallow needs a "
-                                 "control net)")
         from ..core.toolpath.common import ToolParameters, check_angle
 
         tool = ToolParameters.validate(finish_tool.diameter, args.scallop, args.tolerance,
@@ -165,50 +157,30 @@ def cmd_job(args: argparse.Namespace) -> int:
         selection = parts.parse_faces(args.faces)
         model = parts.load_faces(args.net, parts._selection_text(selection))
         name = _safe_name(Path(args.net).stem)
-        from ..app import pipeline
-
-        def run(params, program, document, others):
-            return pipeline.machine_part(args.net, params, program, posts[0], cutting, document,
-                                         roughing=roughing, more_posts=others,
-                                         faces=None if selection == "up" else selection)
+        target, faces = args.net, None if selection == "up" else selection
     else:
         parts.refuse_faces_on_net(args.faces, args.net)
         model = Surface.from_file(args.net, args.knots)
         strategy, tool, angle = check_request(model, args.strategy, finish_tool.diameter,
                                               args.scallop, args.tolerance, args.angle, names)
         name = _safe_name(model.name)
-        from ..app import pipeline
-
-        def run(params, program, document, others):
-            return pipeline.machine(model, params, program, posts[0], cutting, document,
-                                    roughing=roughing, more_posts=others)
-    from ..app import cam, compat
+        target, faces = model, None
+    from ..app import pipeline
 
     roughing = pipeline.RoughingParameters(**roughing)
-    for post in posts:
-        try:
-            compat.post_module(post)
-        except ValueError as exc:
-            raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
+    check_posts(posts)
     params = pipeline.FinishingParameters(
         tool_diameter=finish_tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, arcs=args.arcs == "on", rest_limit=rest_limit)
-    cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
-                          cutting_params.spindle, cutting_params.rapid)
+    cutting = freecad_cutting(cutting_params)
     with staged_output(Path(args.out)) as stage:
         program = stage / f"{name}.ngc"
         others = {post: stage / f"{name}-{post}.ngc" for post in posts[1:]}
-        try:
-            with captured_console():
-                report = run(params, program, stage / f"{name}-job.FCStd", others)
-        except ValueError as exc:
-            check_interrupted()
-            raise ParameterError(str(exc)) from None
-        check_interrupted()
-        text = program.read_text()
-        report["cutting_length_mm"], report["machining_time_s"] = (
-            round(v, 3) for v in machining_time(text, cutting_params.rapid))
-        report["program"] = program.name
+        report = run_pipeline(
+            lambda: pipeline.machine(target, params, program, posts[0], cutting,
+                                     stage / f"{name}-job.FCStd", roughing=roughing,
+                                     more_posts=others, faces=faces),
+            program, cutting_params.rapid)
         tools = {1: rough_tool, 2: finish_tool}
         report["programs"] = {post: path.name for post, path in
                               [(posts[0], program), *others.items()]}

@@ -13,7 +13,6 @@ from pathlib import Path
 
 from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
-from ..core.gcode import MoveKind, read_gcode
 from ..core.toolpath import check_request
 from ..core.toolpath.common import (
     CuttingParameters,
@@ -23,12 +22,17 @@ from ..core.toolpath.common import (
     ToolParameters,
 )
 from . import rs274
+from .pipeline_run import (
+    DEFAULT_RAPID,
+    check_posts,
+    cutting_parameters,
+    freecad_cutting,
+    run_pipeline,
+)
+from .pipeline_run import machining_time as machining_time  # parts.py takes it from here
 
 #: Option names, in the order the core's validators take them.
 TOOL_OPTIONS = ("--tool-diameter", "--scallop", "--tolerance", "--angle")
-CUTTING_OPTIONS = ("--feed", "--plunge-feed", "--spindle", "--rapid")
-
-DEFAULT_RAPID = 5000.0
 
 
 def register(sub) -> None:
@@ -56,32 +60,12 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_toolpath)
 
 
-def machining_time(gcode: str, rapid: float = DEFAULT_RAPID) -> tuple[float, float]:
-    """(cutting length mm, machining time s) of a program, from its own text and feeds."""
-    program = read_gcode(gcode, "program", require_end=False)
-    lengths = program.lengths()
-    rapid_mask = program.kind == MoveKind.RAPID
-    cutting = float(lengths[~rapid_mask].sum())
-    minutes = float((lengths[~rapid_mask] / program.feed[~rapid_mask]).sum()) + float(lengths[rapid_mask].sum()) / rapid
-    return cutting, 60.0 * minutes
-
-
 def cmd_toolpath(args: argparse.Namespace) -> int:
-    from .cli import (
-        EXIT_CHECK_FAILED,
-        _safe_name,
-        captured_console,
-        check_interrupted,
-        check_output,
-        emit,
-        json_text,
-        staged_output,
-    )
+    from .cli import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
 
     # Everything the FreeCAD op would refuse is refused here first, with the core's own checks,
     # so that no refusal happens inside a recompute (whose traceback FreeCAD prints).
-    cutting_params = CuttingParameters.validate(args.feed, args.plunge_feed, args.spindle,
-                                                args.rapid, CUTTING_OPTIONS)
+    cutting_params = cutting_parameters(args)
     check_output(args.out)
     from . import parts
 
@@ -91,33 +75,21 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
     surface = Surface.from_file(args.net, args.knots)
     strategy, tool, angle = check_request(surface, args.strategy, args.tool_diameter,
                                           args.scallop, args.tolerance, args.angle, TOOL_OPTIONS)
-    from ..app import cam, compat, pipeline
+    from ..app import pipeline
 
-    try:
-        compat.post_module(args.post)
-    except ValueError as exc:
-        raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
+    check_posts([args.post])
     params = pipeline.FinishingParameters(
         tool_diameter=2.0 * tool.radius, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, direction=args.direction,
         iso_direction=args.iso_direction, arcs=args.arcs == "on")
-    cutting = cam.Cutting(cutting_params.feed, cutting_params.plunge_feed,
-                          cutting_params.spindle, cutting_params.rapid)
+    cutting = freecad_cutting(cutting_params)
     name = _safe_name(surface.name)
     with staged_output(Path(args.out)) as stage:
         program = stage / f"{name}.ngc"
-        try:
-            with captured_console():
-                report = pipeline.machine(surface, params, program, args.post, cutting,
-                                          stage / f"{name}-job.FCStd")
-        except ValueError as exc:
-            check_interrupted()
-            raise ParameterError(str(exc)) from None
-        check_interrupted()
-        text = program.read_text()
-        report["cutting_length_mm"], report["machining_time_s"] = (
-            round(v, 3) for v in machining_time(text, cutting_params.rapid))
-        report["program"] = program.name
+        report = run_pipeline(
+            lambda: pipeline.machine(surface, params, program, args.post, cutting,
+                                     stage / f"{name}-job.FCStd"),
+            program, cutting_params.rapid)
         report["parameters"] = {
             "strategy": strategy.value, "angle_deg": angle, "direction": args.direction,
             "iso_direction": args.iso_direction, "arcs": args.arcs,
@@ -161,10 +133,6 @@ def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameter
         raise ParameterError(f"{args.net}: toolpaths on parts need the multi-face raster "
                              f"({FACES_RASTER}), which this build does not have yet; "
                              "machine a control net (.json, .csv, .dat) instead")
-    if args.strategy not in parts.PART_STRATEGIES:
-        raise ParameterError(f"--strategy {args.strategy}: parts are machined by "
-                             f"{', '.join(parts.PART_STRATEGIES)} (steep_shallow needs a "
-                             "control net)")
     if args.strategy != Strategy.WATERLINE.value and args.direction != Direction.ZIGZAG.value:
         raise ParameterError(f"--direction {args.direction}: {args.strategy} on parts runs "
                              "zigzag only")

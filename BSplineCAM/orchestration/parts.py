@@ -23,7 +23,6 @@ import numpy as np
 from ..core import faces as core_faces
 from ..core.errors import BSplineCAMError, ParameterError
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
-from ..core.toolpath import FACE_STRATEGIES
 from . import runtime
 
 if TYPE_CHECKING:
@@ -40,9 +39,6 @@ RELATIVE_TOLERANCE = 1e-9
 PART_SAMPLES = 31
 #: Worker request kinds handled here (``worker.handle`` passes them on).
 REQUESTS = ("part_faces", "part_check", "evaluate_faces")
-
-#: ``--strategy`` values for parts.
-PART_STRATEGIES = FACE_STRATEGIES
 
 #: What ``--faces`` may hold: "up", "all" (check only), or 1-based face numbers.
 FacesArg = Union[str, list]

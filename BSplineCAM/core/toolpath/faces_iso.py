@@ -32,7 +32,6 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..typing import FloatArray
-from .chords import lift_chords, sample_chords
 from .common import (
     IsoDirection,
     Jet,
@@ -41,11 +40,11 @@ from .common import (
     ToolParameters,
     Toolpath,
     ToolpathStats,
-    simplify,
 )
 from .faces_raster import STAY_DOWN_LINK, FaceQuery
 from .faceset import FaceSet
-from .isoparametric import _allowed_step
+from .isoparametric import _allowed_step, lifted_runs
+from .raster import zigzag_by_line
 
 #: Halvings of a parameter interval that crosses the trim (the crossing is then known to
 #: 2^-40 of the interval).
@@ -240,23 +239,9 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
         return [], fixed, {}
     starts = np.cumsum([0] + [b - a for a, b in runs])
     idx = np.concatenate([np.arange(a, b) for a, b in runs])
-    pts = cl[idx]
-    keep = simplify(pts, starts, half, "distance")
-    raw = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
-    samples = sample_chords(query.heights_and_slopes, raw, [p[:, 2] for p in raw], step)
-    stats = lift_chords(query.heights_and_slopes, samples, half)
-    vxy, vz, vline = samples.vertices()
-    cuts = np.flatnonzero(np.diff(vline)) + 1
-    passes = []
-    run_line = [int(line[a]) for a, _b in runs]
-    for rl, pxy, pz in zip(run_line, np.split(vxy, cuts), np.split(vz, cuts)):
-        passes.append((rl, np.column_stack([pxy, pz])))
-    ordered = []
-    for ln in sorted({rl for rl, _ in passes}):
-        group = [p for rl, p in passes if rl == ln]
-        if ln % 2:
-            group = [p[::-1] for p in group[::-1]]
-        ordered.extend(group)
+    pieces, stats = lifted_runs(query.heights_and_slopes, cl[idx], starts, half, step)
+    passes = [(int(line[a]), p) for (a, _b), p in zip(runs, pieces)]
+    ordered = zigzag_by_line(passes)
     stats["lifted_points"] = int((lift > tool.tolerance).sum())
     return ordered, fixed, stats
 

@@ -21,7 +21,6 @@ import numpy as np
 
 from ..faces import sample_points
 from ..typing import FloatArray
-from .chords import ChordSamples, lift_chords
 from .common import (
     Jet,
     Monitor,
@@ -31,10 +30,14 @@ from .common import (
     ToolpathStats,
     check_angle,
     normal_curvature,
-    simplify,
 )
 from .faceset import FaceSet
-from .raster import cross_section_stepover
+from .raster import (
+    cross_section_stepover,
+    lifted_line_runs,
+    scallop_line_offsets,
+    zigzag_by_line,
+)
 
 #: Rounds of midpoint refinement along a pass.
 REFINE_ROUNDS = 5
@@ -124,25 +127,6 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
     return b[order], a[order], np.array([ab.min(axis=0), ab.max(axis=0)])
 
 
-def _line_offsets(b_off: FloatArray, allowed: FloatArray, b0: float, b1: float,
-                  tool: ToolParameters, gap: float) -> list[float]:
-    """Pass offsets from b0 to b1: each step the least allowance in the band it spans."""
-    lines = [b0]
-    b = b0
-    widest = min(float(allowed.max(initial=tool.flat_stepover)), tool.radius)
-    while b < b1 - 1e-9:
-        step = widest
-        for _ in range(8):
-            lo, hi = np.searchsorted(b_off, [b - gap, b + step + gap])
-            need = float(allowed[lo:hi].min()) if hi > lo else step
-            if need >= step * 0.999:
-                break
-            step = need
-        b = min(b + step, b1)
-        lines.append(b)
-    return lines
-
-
 def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float,
                           tolerance: float, angle: float = 0.0,
                           progress: ProgressFn = None) -> Toolpath:
@@ -171,7 +155,7 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     a1 = max(float((corners @ along).max()), float(reach[1, 0]))
     b0 = min(float((corners @ across).min()), float(reach[0, 1]))
     b1 = max(float((corners @ across).max()), float(reach[1, 1]))
-    offsets = _line_offsets(b_off, allowed, b0, b1, tool, 0.5 * tool.flat_stepover)
+    offsets = scallop_line_offsets(b_off, allowed, b0, b1, tool, 0.5 * tool.flat_stepover)
     step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
     n = max(2, math.ceil((a1 - a0) / step) + 1)
     base = np.linspace(a0, a1, n)
@@ -214,24 +198,10 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     if runs:
         idx = np.concatenate([np.arange(s, e) for s, e in runs])
         xy = xy_of(a[idx], line[idx])
-        pts = np.column_stack([xy, z[idx]])
-        starts = np.cumsum([0] + [e - s for s, e in runs])
-        keep = simplify(pts, starts, half, "vertical")
-        run_id = np.repeat(np.arange(len(runs)), np.diff(starts))
         _, grad = query.heights_and_slopes(xy)
-        samples = ChordSamples(a[idx], xy, z[idx], grad, run_id, keep, z[idx].copy())
-        monitor(0.85)
-        lift_stats = lift_chords(query.heights_and_slopes, samples, half)
-        vxy, vz, vline = samples.vertices()
-        cuts = np.flatnonzero(np.diff(vline)) + 1
-        for (s, _e), pxy, pz in zip(runs, np.split(vxy, cuts), np.split(vz, cuts)):
-            passes.append((int(line[s]), np.column_stack([pxy, pz])))
-    ordered = []
-    for k in sorted({k for k, _ in passes}):
-        group = [p for kk, p in passes if kk == k]
-        if k % 2:
-            group = [r[::-1] for r in group[::-1]]
-        ordered.extend(group)
+        passes, lift_stats = lifted_line_runs(query.heights_and_slopes, runs, line, a[idx], xy,
+                                              z[idx], grad, half, monitor)
+    ordered = zigzag_by_line(passes)
     monitor(0.95)
     steps = np.diff(bvals)
     parameters = {"strategy": "raster", "tool_diameter": 2.0 * R, "scallop": tool.scallop,

@@ -53,7 +53,7 @@ from .common import (
 )
 from .faces_raster import FaceQuery
 from .faceset import FaceSet
-from .waterline import _chain, _crossings, densify, push_out
+from .waterline import _chain, _crossings, densify, push_out, step_levels
 
 #: Largest |(c - p) / R - n| of a surface contact (c the ball centre, p the contact, n the
 #: upward unit normal there); more is an edge contact (a trim edge, a face's border).
@@ -124,23 +124,7 @@ def level_heights(zs: FloatArray, dzs: FloatArray, tool: ToolParameters, min_slo
                   z_top: float, z_bottom: float) -> list[float]:
     """Tip heights of the waterlines, top down (mm): each step the least step-down allowed
     by the steep samples in the band it spans (as :func:`.waterline.level_heights`)."""
-    floor = tool.flat_stepover * math.sin(min_slope)
-    gap = 1e-3 * tool.radius
-    levels = []
-    z = z_top
-    while True:
-        step = tool.flat_stepover
-        for _ in range(6):
-            lo, hi = np.searchsorted(zs, [z - step - gap, z + gap])
-            need = max(float(dzs[lo:hi].min()), 0.02 * floor) if hi > lo else step
-            if need >= 0.999 * step:
-                break
-            step = need
-        z -= step
-        if z <= z_bottom:
-            break
-        levels.append(z)
-    return levels
+    return step_levels(zs, dzs, tool, min_slope, z_top, z_bottom, gap=1e-3 * tool.radius)
 
 
 def _contacts(faceset: FaceSet, query: FaceQuery, signs: np.ndarray,

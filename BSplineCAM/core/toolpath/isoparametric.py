@@ -70,6 +70,23 @@ def _cl(dc: DropCutter, along: FloatArray, fixed: FloatArray, iso: IsoDirection,
     return cl, lift, s_t + radius * dn
 
 
+def lifted_runs(query, cl: FloatArray, starts: np.ndarray, half: float,
+                step: float) -> tuple[list[FloatArray], dict]:
+    """The runs ``cl[starts[k]:starts[k + 1]]`` of cutter locations (mm) thinned to ``half``
+    (mm, Douglas-Peucker by distance), their chords sampled every ``step`` (mm) and lifted
+    one-sided against the drop-cutter ``query`` (:func:`.chords.lift_chords`): one (n, 3)
+    polyline per run and the lift statistics.  One net's iso-parametric passes (here) and the
+    faces' (faces_iso) end alike."""
+    keep = simplify(cl, starts, half, "distance")
+    raw = [cl[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+    samples = sample_chords(query, raw, [p[:, 2] for p in raw], step)
+    stats = lift_chords(query, samples, half)
+    vxy, vz, vline = samples.vertices()
+    cuts = np.flatnonzero(np.diff(vline)) + 1
+    return [np.column_stack([pxy, pz])
+            for pxy, pz in zip(np.split(vxy, cuts), np.split(vz, cuts))], stats
+
+
 def _allowed_step(dc: DropCutter, tool: ToolParameters, along: FloatArray, fixed: float,
                   iso: IsoDirection) -> float:
     """Largest parameter step across the pass keeping the scallop <= h along this curve."""
@@ -150,16 +167,9 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
         dcl, fresh = dcl[order], fresh[order]
     monitor(0.9)
     starts = np.concatenate([[0], np.flatnonzero(np.diff(lines)) + 1, [len(lines)]])
-    keep = simplify(cl, starts, half, "distance")
-    raw = [cl[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
-    samples = sample_chords(dc.heights_and_slopes, raw, [p[:, 2] for p in raw], step)
-    lift_stats = lift_chords(dc.heights_and_slopes, samples, half)
-    vxy, vz, vline = samples.vertices()
-    cuts = np.flatnonzero(np.diff(vline)) + 1
-    passes = []
-    for k, (pxy, pz) in enumerate(zip(np.split(vxy, cuts), np.split(vz, cuts))):
-        p = np.column_stack([pxy, pz])
-        passes.append(p[::-1] if direction is Direction.ZIGZAG and k % 2 else p)
+    pieces, lift_stats = lifted_runs(dc.heights_and_slopes, cl, starts, half, step)
+    passes = [p[::-1] if direction is Direction.ZIGZAG and k % 2 else p
+              for k, p in enumerate(pieces)]
     steps = np.diff(fixed)
     lifted = int((lift > tool.tolerance).sum())
     notes = [f"{lifted} cutter locations lifted to avoid gouging"] if lifted else []

@@ -75,6 +75,63 @@ def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: 
     return spacing / sec2
 
 
+def scallop_line_offsets(b_off: FloatArray, allowed: FloatArray, b0: float, b1: float,
+                         tool: ToolParameters, gap: float) -> list[float]:
+    """Offsets of the passes from b0 to b1 (mm): each step the least allowed stepover
+    ``allowed`` (mm) among the contacts whose offsets ``b_off`` (mm, ascending) lie in the band
+    it spans, widened by ``gap`` (mm) each side.  Shared by one net's raster (here) and the
+    faces' raster (faces_raster)."""
+    lines = [b0]
+    b = b0
+    # Convex stretches allow more than the flat stepover (the centres lie on the larger
+    # offset circle): start from the largest value anywhere and shrink to the band's least.
+    widest = min(float(allowed.max(initial=tool.flat_stepover)), tool.radius)
+    while b < b1 - 1e-9:
+        step = widest
+        for _ in range(8):
+            lo, hi = np.searchsorted(b_off, [b - gap, b + step + gap])
+            need = float(allowed[lo:hi].min()) if hi > lo else step
+            if need >= step * 0.999:
+                break
+            step = need
+        b = min(b + step, b1)
+        lines.append(b)
+    return lines
+
+
+def lifted_line_runs(query, runs: list[tuple[int, int]], line: np.ndarray, a: FloatArray,
+                     xy: FloatArray, z: FloatArray, grad: FloatArray, half: float,
+                     monitor: Monitor) -> tuple[list[tuple[int, FloatArray]], dict]:
+    """Runs ``(lo, hi)`` of dense cutter locations along raster lines made into passes:
+    thinned vertically to ``half`` (mm, Douglas-Peucker), their chords lifted one-sided against
+    the drop-cutter ``query`` (:func:`.chords.lift_chords`).  ``a`` (mm along the line), ``xy``,
+    ``z`` (mm) and ``grad`` (dz/dx, dz/dy) hold the runs' samples end to end; ``line`` is
+    indexed by ``lo``.  Returns [(line index, (n, 3) pass)] and the lift statistics: one net's
+    raster (here) and the faces' (faces_raster) end alike."""
+    starts = np.cumsum([0] + [hi - lo for lo, hi in runs])
+    keep = simplify(np.column_stack([xy, z]), starts, half, "vertical")
+    run_id = np.repeat(np.arange(len(runs)), np.diff(starts))
+    samples = ChordSamples(a, xy, z, grad, run_id, keep, z.copy())
+    monitor(0.85)
+    stats = lift_chords(query, samples, half)
+    vxy, vz, vline = samples.vertices()
+    cuts = np.flatnonzero(np.diff(vline)) + 1
+    return [(int(line[lo]), np.column_stack([pxy, pz]))
+            for (lo, _hi), pxy, pz in zip(runs, np.split(vxy, cuts), np.split(vz, cuts))], stats
+
+
+def zigzag_by_line(passes: list[tuple[int, FloatArray]]) -> list[FloatArray]:
+    """Passes tagged with their line index, in line order, those of odd lines reversed (each
+    and their order along the line): the zig-zag of the rasters and the faces' iso passes."""
+    ordered = []
+    for k in sorted({k for k, _ in passes}):
+        group = [p for kk, p in passes if kk == k]
+        if k % 2:
+            group = [r[::-1] for r in group[::-1]]
+        ordered.extend(group)
+    return ordered
+
+
 class RasterPlanner:
     """State shared by the passes of one raster: frame, drop-cutter and sampling steps."""
 
@@ -129,23 +186,7 @@ class RasterPlanner:
         step to the next line is the smallest allowed stepover among contacts in the band
         the two lines and the strip between them touch."""
         b_off, allowed = self.stepover_field()
-        b0, b1 = self.b_range
-        lines = [b0]
-        b = b0
-        # Convex stretches allow more than the flat stepover (the centres lie on the larger
-        # offset circle): start from the largest value anywhere and shrink to the band's least.
-        widest = min(float(allowed.max(initial=self.tool.flat_stepover)), self.tool.radius)
-        while b < b1 - 1e-9:
-            step = widest
-            for _ in range(8):
-                lo, hi = np.searchsorted(b_off, [b - self.gap, b + step + self.gap])
-                need = float(allowed[lo:hi].min()) if hi > lo else step
-                if need >= step * 0.999:
-                    break
-                step = need
-            b = min(b + step, b1)
-            lines.append(b)
-        return lines
+        return scallop_line_offsets(b_off, allowed, *self.b_range, self.tool, self.gap)
 
     def cl_passes(self, offsets: list[float], monitor: Monitor) -> tuple[FloatArray, ...]:
         """Dense cutter locations of all lines at once: (line index, a, tip z, contact u, w)."""
@@ -234,28 +275,12 @@ def raster(surface: Any, tool: ToolParameters, angle_deg: float, direction: Dire
     if runs:
         idx = np.concatenate([np.arange(lo, hi) for lo, hi in runs])
         xy = plan._xy(a[idx], bvals[line[idx]])
-        pts = np.column_stack([xy, z[idx]])
-        starts = np.cumsum([0] + [hi - lo for lo, hi in runs])
-        keep = simplify(pts, starts, 0.5 * tool.tolerance, "vertical")
-        run_id = np.repeat(np.arange(len(runs)), np.diff(starts))
-        samples = ChordSamples(a[idx], xy, z[idx], plan.dc.slopes(xy, _u[idx], _w[idx]),
-                               run_id, keep, z[idx].copy())
-        monitor(0.85)
-        lift_stats = lift_chords(plan.dc.heights_and_slopes, samples, 0.5 * tool.tolerance)
-        vxy, vz, vline = samples.vertices()
-        cuts = np.flatnonzero(np.diff(vline)) + 1
-        for (lo, _hi), pxy, pz in zip(runs, np.split(vxy, cuts), np.split(vz, cuts)):
-            passes.append((int(line[lo]), np.column_stack([pxy, pz])))
+        passes, lift_stats = lifted_line_runs(
+            plan.dc.heights_and_slopes, runs, line, a[idx], xy, z[idx],
+            plan.dc.slopes(xy, _u[idx], _w[idx]), 0.5 * tool.tolerance, monitor)
     monitor(1.0)
-    if direction is Direction.ZIGZAG:
-        ordered = []
-        for k in sorted({k for k, _ in passes}):
-            group = [p for kk, p in passes if kk == k]
-            if k % 2:
-                group = [r[::-1] for r in group[::-1]]
-            ordered.extend(group)
-    else:
-        ordered = [p for _, p in passes]
+    ordered = (zigzag_by_line(passes) if direction is Direction.ZIGZAG
+               else [p for _, p in passes])
     steps = np.diff(bvals)
     extra = {
         "stepover_min_mm": float(steps.min()) if len(steps) else float("nan"),

@@ -56,11 +56,20 @@ def level_heights(dc: DropCutter, tool: ToolParameters, min_slope: float,
     dz = contact * np.clip(1.0 - tool.radius * kappa, 0.05, None) * sin_a
     z_off = jet.p[:, 2] + tool.radius * (n[:, 2] - 1.0)
     order = np.argsort(z_off[steep])
-    zs, dzs = z_off[steep][order], dz[steep][order]
+    return step_levels(z_off[steep][order], dz[steep][order], tool, min_slope, z_top, z_bottom,
+                       gap=dc.margin ** 0.5)
+
+
+def step_levels(zs: FloatArray, dzs: FloatArray, tool: ToolParameters, min_slope: float,
+                z_top: float, z_bottom: float, gap: float) -> list[float]:
+    """Tip heights of the waterlines from ``z_top`` down to above ``z_bottom`` (mm): each step
+    the least step-down ``dzs`` (mm) of the steep samples whose tip heights ``zs`` (mm,
+    ascending) lie in the band it spans, widened by ``gap`` (mm); the flat stepover where the
+    band holds none, and never below 2 % of its vertical share at ``min_slope`` (rad).  One
+    control net (here) and a model's faces (faces_waterline) step down alike."""
     floor = tool.flat_stepover * math.sin(min_slope)
     levels = []
     z = z_top
-    gap = dc.margin ** 0.5
     while True:
         step = tool.flat_stepover
         for _ in range(6):

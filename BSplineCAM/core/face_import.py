@@ -1,0 +1,83 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""What the two readers of parts share once OCCT has a face's B-spline and trim loops.
+
+FreeCAD's Part (``app/faces.py``) and OCP (``ocp/faces.py``) reach OCCT by different APIs but
+make a core Face the same way:
+
+* the core takes clamped knot vectors only, so a periodic or unclamped surface is segmented
+  first (OCCT's exact knot insertion keeps its parameters) to its own bounds, but a periodic
+  direction to the trim's range, which must span one period at the most
+  (:func:`segment_box`); then :func:`.faces.period_shift` puts the knots back on the trim's
+  parameters;
+* a face whose orientation is reversed is flipped in v, so that its normal points outwards,
+  and the result must lie within :data:`RELATIVE_DEVIATION` of its size from OCCT's original
+  surface (:func:`checked_face`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from . import faces as core_faces
+from .errors import BSplineCAMError
+from .faces import Face, FaceError
+from .typing import FloatArray
+
+#: Largest distance of a face's NURBS from OCCT's original surface, over the face's size.
+RELATIVE_DEVIATION = 1e-9
+
+
+def periodic_range(a: float, b: float, period: float, which: str,
+                   name: str) -> tuple[float, float]:
+    """The trim's parameter range [a, b] of a periodic direction ``which`` ("u" or "v"),
+    widened to exactly one ``period`` when it spans one up to rounding; FaceError naming the
+    face ``name`` when it spans more."""
+    if b - a > period * (1 + 1e-12):
+        raise FaceError(f"{name}: its trim spans more than one period in {which}")
+    if b - a >= period * (1 - 1e-12):
+        b = a + period
+    return a, b
+
+
+def segment_box(bounds: Sequence[float], uv_box: Sequence[float], periods: Sequence[float],
+                name: str) -> tuple[float, float, float, float]:
+    """(u0, u1, v0, v1) to segment a surface to before clamping it: its ``bounds`` (u0, u1,
+    v0, v1), each periodic direction (``periods`` (u, v) > 0; 0 for a non-periodic one) cut to
+    the trim's range in ``uv_box`` (u0, u1, v0, v1) by :func:`periodic_range`."""
+    u0, u1, v0, v1 = (float(x) for x in bounds)
+    if periods[0] > 0:
+        u0, u1 = periodic_range(uv_box[0], uv_box[1], periods[0], "u", name)
+    if periods[1] > 0:
+        v0, v1 = periodic_range(uv_box[2], uv_box[3], periods[1], "v", name)
+    return u0, u1, v0, v1
+
+
+def checked_face(data: dict, outer: FloatArray, holes: list[FloatArray], flipped: bool,
+                 deviation: Callable[[Face], float], size: float, *, index: int, name: str,
+                 kind: str, selected: bool, tolerance: float) -> Face:
+    """The core Face of the NURBS arrays ``data`` (core.faces.make_surface's keywords) and
+    the trim loops ``outer``, ``holes`` (parameters), flipped in v when OCCT's face is
+    ``flipped`` (reversed), with its ``deviation(face)`` (mm) from OCCT's surfaces; FaceError
+    naming the face ``name`` (of surface type ``kind``) when the arrays make no surface or the
+    deviation exceeds RELATIVE_DEVIATION of the face's ``size`` (mm)."""
+    if flipped:
+        vsum = data["knots_v"][0] + data["knots_v"][-1]
+        data["poles"], data["weights"], data["knots_v"] = core_faces.flip_v(
+            data["poles"], data["weights"], data["knots_v"])
+        outer = np.column_stack([outer[:, 0], vsum - outer[:, 1]])
+        holes = [np.column_stack([h[:, 0], vsum - h[:, 1]]) for h in holes]
+    try:
+        surface = core_faces.make_surface(name=name, **data)
+    except BSplineCAMError as exc:
+        raise FaceError(f"{name} ({kind}): {exc}") from None
+    face = Face(surface, outer, tuple(holes), index=index, name=name, selected=selected,
+                flipped_v=flipped, source=kind, tolerance=tolerance)
+    measured = deviation(face)
+    if not measured <= RELATIVE_DEVIATION * size:
+        raise FaceError(f"{name} ({kind}): its NURBS is {measured:.3g} mm from OCCT's "
+                        f"original surface, more than {RELATIVE_DEVIATION:g} of its size "
+                        f"{size:.6g} mm")
+    return dataclasses.replace(face, deviation=measured)
