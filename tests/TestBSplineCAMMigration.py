@@ -17,25 +17,18 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 import tempfile
 import unittest
 from pathlib import Path
 
 import numpy as np
+from bsplinecam_freecad import CASE_STUDY, ROOT, TOOL, FreeCAD
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+from BSplineCAM import Surface
+from BSplineCAM.app import cam, compat, pipeline
+from BSplineCAM.core.gcode import read_gcode
+from BSplineCAM.orchestration import rs274
 
-from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
-from BSplineCAM.core.gcode import read_gcode  # noqa: E402
-from BSplineCAM.orchestration import rs274  # noqa: E402
-
-FreeCAD = compat.ensure_freecad()
-CASE_STUDY = ROOT / "examples" / "case-study.json"
-TOOL = 6.0
 CUTTING = cam.Cutting(horizontal_feed=1100.0, vertical_feed=350.0, spindle_speed=11000.0)
 PARAMS = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=0.08, strategy="raster", angle=30.0)
 
