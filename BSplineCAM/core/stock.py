@@ -13,24 +13,18 @@ counts volume that was never there.  Both forms answer the same questions, so th
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .errors import ParameterError
+from .toolpath.common import check_finite
 from .typing import FloatArray
 
 
 def _finite(value: Any, argument: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"{argument} must be a number in mm, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ParameterError(f"{argument} must be finite (mm), got {value!r}")
-    return number
+    return check_finite(value, argument, "mm")
 
 
 @dataclass(frozen=True)

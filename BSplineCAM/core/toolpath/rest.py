@@ -720,8 +720,17 @@ def _steep_shallow(raster: Toolpath, water: Toolpath, split: SlopeSplit, query: 
     return toolpath.finish(started, clearance_height)
 
 
-def _overlap(overlap: float | None, R: float) -> float:
-    return 0.5 * R if overlap is None else check_positive(overlap, "overlap", "mm")
+def _steep_shallow_request(threshold_deg: Any, tool_diameter: Any, overlap: Any,
+                           progress: ProgressFn, cancel: CancelFn) -> tuple:
+    """(start time, threshold degrees, tool radius mm, overlap mm (default R/2), monitor at 0)
+    of a steep/shallow request, its arguments checked."""
+    started = time.perf_counter()
+    threshold = _check_threshold(threshold_deg)
+    R = _tool_radius(tool_diameter)
+    overlap = 0.5 * R if overlap is None else check_positive(overlap, "overlap", "mm")
+    monitor = Monitor(progress, cancel, "steep/shallow")
+    monitor(0.0)
+    return started, threshold, R, overlap, monitor
 
 
 def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
@@ -739,12 +748,8 @@ def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
     from . import generate
     from .dropcutter import DropCutter
 
-    started = time.perf_counter()
-    threshold = _check_threshold(threshold_deg)
-    R = _tool_radius(tool_diameter)
-    overlap = _overlap(overlap, R)
-    monitor = Monitor(progress, cancel, "steep/shallow")
-    monitor(0.0)
+    started, threshold, R, overlap, monitor = _steep_shallow_request(
+        threshold_deg, tool_diameter, overlap, progress, cancel)
     raster = generate(surface, "raster", tool_diameter, scallop, tolerance, angle,
                       clearance_height=clearance_height)
     monitor(0.4)
@@ -773,12 +778,8 @@ def generate_faces_steep_shallow(faceset: Any, tool_diameter: float, scallop: fl
     from .faces_raster import FaceQuery, generate_faces_raster
     from .faces_waterline import generate_faces_waterline
 
-    started = time.perf_counter()
-    threshold = _check_threshold(threshold_deg)
-    R = _tool_radius(tool_diameter)
-    overlap = _overlap(overlap, R)
-    monitor = Monitor(progress, cancel, "steep/shallow")
-    monitor(0.0)
+    started, threshold, R, overlap, monitor = _steep_shallow_request(
+        threshold_deg, tool_diameter, overlap, progress, cancel)
     raster = generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle,
                                    lambda f: monitor(0.3 * f))
     wall = max(threshold - 10.0, 1.0)
