@@ -370,3 +370,51 @@ def test_height_probe_on_near_vertical_fillet_matches_faces_height():
     assert found.all()
     np.testing.assert_array_equal(face, ref.face)
     np.testing.assert_allclose(z, ref.z, atol=1e-6)
+
+
+def wavy_fillet() -> NurbsSurface:
+    """fillet_arc with its straight direction raised to degree 5 (poles spread unevenly in y
+    and weights varied along it): the hull of N's second derivatives along y is no longer zero
+    and the net is rational in both directions, as on the STEP part's fillets (degree 8)."""
+    c = math.sqrt(0.5)
+    arc = [(0.0, RHO), (RHO, RHO), (RHO, 0.0)]
+    ys = np.array([0.0, 1.0, 3.5, 4.0, 6.5, LENGTH])
+    wy = np.array([1.0, 1.1, 0.9, 1.05, 0.95, 1.0])
+    poles = np.array([[[x, y, z] for y in ys] for x, z in arc])
+    weights = np.array([[w * wy_ for wy_ in wy] for w in (1.0, c, 1.0)])
+    knots_v = [0.0] * 6 + [1.0] * 6
+    return NurbsSurface(poles, [0, 0, 0, 1, 1, 1], knots_v, 2, 5, weights=weights)
+
+
+@pytest.mark.parametrize("slope_deg", [10.0, 45.0, 70.0, 80.0, 86.0])
+def test_region_certificate_holds_on_a_dense_sample(slope_deg):
+    """The local certificate (FaceSet._face_regions) claims f <= f(x*) + excess on a box
+    around any surface point x*; checked against f on a dense sample of that box, for balls
+    resting on a fillet from gentle to nearly vertical (where the xy map turns singular and the
+    bound per direction holds the region), at the contact and at points beside it (where the
+    excess is not zero and depends on the concavity bound: one 30 times too strong fails)."""
+    fillet = wavy_fillet()
+    fs = FaceSet([Face(fillet, rectangle(fillet))])
+    d = fs.data[0]
+    a = math.radians(slope_deg)
+    # the ball touching the arc (radius RHO about the y axis) at angle a from the top
+    x = np.full(3, (RHO + R_BALL) * math.sin(a))
+    q = np.column_stack([x, [2.2, 4.0, 5.7]])
+    res = fs.centre_heights(q, R_BALL)
+    assert np.all(res.gap == 0.0)
+    exact = math.sqrt((RHO + R_BALL) ** 2 - x[0] ** 2)
+    assert np.all((exact - CERTIFY - 1e-9 <= res.centre) & (res.centre <= exact + 1e-9))
+    for du, dv in ((0.0, 0.0), (0.01, 0.0), (0.0, 0.02)):
+        u, v = np.clip(res.u + du, 0.0, 1.0), np.clip(res.v + dv, 0.0, 1.0)
+        p = fillet.evaluate(u, v)
+        f0 = p[:, 2] + np.sqrt(R_BALL ** 2 - ((p[:, :2] - q) ** 2).sum(axis=1))
+        found, box, excess = fs._face_regions(d, q, R_BALL, u, v, np.full(3, 1.0))
+        assert found.all()
+        for k in range(3):
+            b = box[k]
+            gu, gv = np.linspace(b[0], b[1], 121), np.linspace(b[2], b[3], 121)
+            pts = fillet.evaluate_grid(gu, gv).reshape(-1, 3)
+            d2 = ((pts[:, :2] - q[k]) ** 2).sum(axis=1)
+            f = np.where(d2 <= R_BALL ** 2,
+                         pts[:, 2] + np.sqrt(np.maximum(R_BALL ** 2 - d2, 0.0)), -np.inf)
+            assert f.max() <= f0[k] + excess[k] + 1e-12

@@ -42,7 +42,11 @@ control nets, so rational patches split exactly), and the returned height is wit
   trim polylines (exact edge contacts on the polyline, which is within the face's trim
   tolerance of the true edge).
 
-Everything is vectorised over queries (chunks of ``QUERY_CHUNK``) and sub-patches.
+Everything is vectorised over queries (chunks of ``QUERY_CHUNK``) and sub-patches.  The queries
+of a pass meet the same sub-patches (the halving does not depend on the query), so a level's
+pairs index a table of distinct sub-patches (:class:`_Items`): each is split once and its
+query-free bound terms computed once, and the trim classification and material vertices of a
+sub-patch are remembered across levels and calls (:class:`_RowCache`).
 """
 
 from __future__ import annotations
@@ -89,6 +93,8 @@ REGION_EVERY = 3
 REGION_TIE = 0.01
 #: A region's side splits a sub-patch only this far (fraction) from the sub-patch's sides.
 CUT_MARGIN = 0.02
+#: Sub-patch trim classifications (and vertices) remembered per face (see :class:`_RowCache`).
+CLASSIFY_CACHE = 50_000
 #: Sub-patches this shallow also offer the surface point below their control point nearest
 #: the query as a lower bound (see :meth:`FaceSet._bounds`).
 SEED_DEPTH = 3
@@ -402,24 +408,74 @@ class _SegmentGrid:
         return qi[keep], si[keep]
 
 
+class _RowCache:
+    """Answers of a function of a row alone, remembered by the row's bytes: ``cache(keys,
+    compute)`` returns ``compute(rows)`` (a tuple of arrays, one row per index of ``rows``)
+    for every row of ``keys`` (n, w), computing each distinct row not seen before once.  At
+    most CLASSIFY_CACHE rows are kept (then it starts afresh)."""
+
+    def __init__(self):
+        self.index: dict = {}
+        self.store: list = []
+        self.size = 0
+
+    def __call__(self, keys: FloatArray, compute) -> tuple:
+        keys = np.ascontiguousarray(keys, dtype=float)
+        rows = keys.view(np.dtype((np.void, keys.itemsize * keys.shape[1]))).ravel()
+        uniq, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
+        ukeys = uniq.tolist()
+        get = self.index.get
+        pos = np.fromiter((get(k, -1) for k in ukeys), np.intp, len(ukeys))
+        todo = np.flatnonzero(pos < 0)
+        if len(todo) and self.size + len(todo) > CLASSIFY_CACHE:
+            self.index, self.store, self.size = {}, [], 0
+            pos[:] = -1
+            todo = np.arange(len(ukeys))
+        if len(todo):
+            done = compute(first[todo])
+            need = self.size + len(todo)
+            if not self.store or need > len(self.store[0]):
+                cap = max(2 * need, 1024)
+                grown = [np.empty((cap,) + a.shape[1:], a.dtype) for a in done]
+                for g, old in zip(grown, self.store):
+                    g[: self.size] = old[: self.size]
+                self.store = grown
+            for g, a in zip(self.store, done):
+                g[self.size:need] = a
+            pos[todo] = np.arange(self.size, need)
+            self.index.update(zip([ukeys[k] for k in todo.tolist()], range(self.size, need)))
+            self.size = need
+        at = pos[inverse.ravel()]
+        return tuple(g[at] for g in self.store)
+
+
 @dataclass
 class _Items:
     """(query, sub-patch) pairs of one face: homogeneous nets, parameter boxes, trim state.
 
-    ``status`` 1: wholly inside the trim, 2: straddling it.  ``segs`` (n, K) indices of the trim
-    segments crossing a straddling sub-patch (-1 padding; row all -2: more than K, test all).
+    The nets live in a table ``nets`` (N, 4, p+1, q+1) that the pairs index by ``node``: the
+    queries of a pass share their sub-patches, so each is split and bounded (its query-free
+    part) once, not once per query.  ``status`` 1: wholly inside the trim, 2: straddling it.
+    ``segs`` (n, K) indices of the trim segments crossing a straddling sub-patch (-1 padding;
+    row all -2: more than K, test all).
     """
 
     query: np.ndarray
-    net: FloatArray
+    node: np.ndarray
+    nets: FloatArray
     box: FloatArray
     depth: np.ndarray
     status: np.ndarray
     segs: np.ndarray
 
+    @property
+    def net(self) -> FloatArray:
+        """Each pair's net (n, 4, p+1, q+1)."""
+        return self.nets[self.node]
+
     def take(self, keep: np.ndarray) -> _Items:
-        return _Items(self.query[keep], self.net[keep], self.box[keep], self.depth[keep],
-                      self.status[keep], self.segs[keep])
+        return _Items(self.query[keep], self.node[keep], self.nets, self.box[keep],
+                      self.depth[keep], self.status[keep], self.segs[keep])
 
 
 class _FaceData:
@@ -454,7 +510,12 @@ class _FaceData:
         for c, side in ((0, du0), (0, du1), (1, dv0), (1, dv1)):
             on_side |= (np.abs(e[:, c] - side) <= eps) & (np.abs(e[:, c + 2] - side) <= eps)
         self.edges = e[~on_side]
+        self._elo = np.minimum(self.edges[:, :2], self.edges[:, 2:])
+        self._ehi = np.maximum(self.edges[:, :2], self.edges[:, 2:])
+        self._pad = 1e-9 * max(du1 - du0, dv1 - dv0)
         self._grid = _SegmentGrid(self.edges, face.surface.domain)
+        self._known = _RowCache()  # classify's answers by row
+        self._known_vertices = _RowCache()  # vertices' answers by row
         self.design = _bernstein_grid(self.p, self.q)
         self.pinv = np.linalg.pinv(self.design)  # (3, K)
         status, segs = self.classify(self.boxes, np.full((len(self.boxes), 1), -2))
@@ -482,7 +543,20 @@ class _FaceData:
 
     def classify(self, box: FloatArray, parent_segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Status (0 outside, 1 inside, 2 straddling) and crossing segments of boxes (n, 4)
-        whose parents were crossed by ``parent_segs`` (rows of -2: by any segment)."""
+        whose parents were crossed by ``parent_segs`` (rows of -2: by any segment).
+
+        A row's answer depends on the row alone, and the queries of a pass meet the same
+        sub-patches (halving is the same for every query): rows are classified once each
+        (duplicates within a call share the answer, earlier calls' answers are remembered:
+        :class:`_RowCache`), so the trim test, which at shallow depth clips every one of the
+        face's segments, runs per sub-patch, not per query."""
+        if len(box) == 0:
+            return np.zeros(0, np.int8), np.full((0, MAX_SEGMENTS), -1, dtype=np.int64)
+        return self._known(np.column_stack([box, parent_segs]),
+                           lambda rows: self._classify(box[rows], parent_segs[rows]))
+
+    def _classify(self, box: FloatArray, parent_segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`classify` of every row (no sharing)."""
         n = len(box)
         status = np.zeros(n, np.int8)
         segs = np.full((n, MAX_SEGMENTS), -1, dtype=np.int64)
@@ -491,22 +565,28 @@ class _FaceData:
         every = parent_segs[:, 0] == -2
         E = len(self.edges)
         counts = np.zeros(n, int)
-        # sub-patches whose parent was crossed by many segments: test all of them
+        # sub-patches whose parent was crossed by many segments: test all of them, those whose
+        # boxes (padded against rounding) meet the sub-patch's by Liang-Barsky
         idx_all = np.flatnonzero(every)
-        chunk = max(1, 2_000_000 // max(E, 1))
+        chunk = max(1, 4_000_000 // max(E, 1))
         for start in range(0, len(idx_all), chunk):
             rows = idx_all[start:start + chunk]
-            seg = np.broadcast_to(self.edges, (len(rows), E, 4))
-            hit, _, _ = _clip(seg, box[rows])
-            counts[rows] = hit.sum(axis=1)
-            small = counts[rows] <= MAX_SEGMENTS
-            if small.any():
-                # each row's hit segment ids, compacted to the front (-1 padding)
-                hs = hit[small]
-                order = np.argsort(~hs, axis=1, kind="stable")[:, :MAX_SEGMENTS]
-                ids = np.where(np.take_along_axis(hs, order, axis=1), order, -1)
-                segs[rows[small], : ids.shape[1]] = ids
-            segs[rows[~small]] = -2
+            b = box[rows]
+            pad = self._pad
+            near = ((self._elo[None, :, 0] <= b[:, 1:2] + pad)
+                    & (self._ehi[None, :, 0] >= b[:, 0:1] - pad)
+                    & (self._elo[None, :, 1] <= b[:, 3:4] + pad)
+                    & (self._ehi[None, :, 1] >= b[:, 2:3] - pad))
+            ri, ei = np.nonzero(near)  # row-major: each row's segments in ascending order
+            hit, _, _ = _clip(self.edges[ei][:, None, :], b[ri])
+            hr, he = ri[hit[:, 0]], ei[hit[:, 0]]
+            cnt = np.bincount(hr, minlength=len(rows))
+            counts[rows] = cnt
+            rank = np.arange(len(hr)) - np.searchsorted(hr, hr)
+            # each row's first MAX_SEGMENTS hit segment ids (-1 padding), -2 rows for more
+            small = rank < MAX_SEGMENTS
+            segs[rows[hr[small]], rank[small]] = he[small]
+            segs[rows[cnt > MAX_SEGMENTS]] = -2
         rest = np.flatnonzero(~every)
         if len(rest) and E:
             ps = parent_segs[rest]
@@ -530,16 +610,22 @@ class _FaceData:
     def vertices(self, items: _Items) -> tuple[FloatArray, np.ndarray]:
         """Local (s, t) in [0, 1]^2 of the candidate vertices of the material in straddling
         sub-patches (n, 4 + 2K, 2) and their validity (n, 4 + 2K): the 4 corners (valid when
-        inside the trim), then the clipped trim segment end points."""
-        n = len(items.query)
+        inside the trim), then the clipped trim segment end points.  They depend on the box
+        and its segments alone: computed once per distinct sub-patch (see :class:`_RowCache`)."""
+        if len(items.query) == 0:
+            return self._vertices(items.box, items.segs)
+        return self._known_vertices(np.column_stack([items.box, items.segs]),
+                                    lambda rows: self._vertices(items.box[rows], items.segs[rows]))
+
+    def _vertices(self, box: FloatArray, ps: np.ndarray) -> tuple[FloatArray, np.ndarray]:
+        """:meth:`vertices` of every row (no sharing)."""
+        n = len(box)
         st = np.zeros((n, 4 + 2 * MAX_SEGMENTS, 2))
         ok = np.zeros((n, 4 + 2 * MAX_SEGMENTS), bool)
         st[:, :4] = CORNERS
-        box = items.box
         du = box[:, 1] - box[:, 0]
         dv = box[:, 3] - box[:, 2]
         ok[:, :4] = self.inside(box[:, [0, 1, 0, 1]], box[:, [2, 2, 3, 3]])
-        ps = items.segs
         valid = ps >= 0
         seg = np.where(valid[..., None], self.edges[np.maximum(ps, 0)], np.nan)
         hit, e0, e1 = _clip(seg, box)
@@ -652,7 +738,7 @@ class FaceSet:
             if len(qi) == 0:
                 continue
             r = roots[ri]
-            groups.append((j, d, _Items(qi, d.nets[r], d.boxes[r], np.zeros(len(r), int),
+            groups.append((j, d, _Items(qi, r, d.nets, d.boxes[r], np.zeros(len(r), int),
                                         d.root_status[r], d.root_segs[r])))
         # per face (rows follow ``data``): its best lower bound and contact, and the certified
         # region around that contact (box in (u, v), the bound of f on it; inf: none)
@@ -904,11 +990,17 @@ class FaceSet:
         second derivatives over the box (hodographs) bounds N <= n1 . d + lam |d|^2 / 2 and
         |E| >= (sigma - M2 rho / 2) |d|, d = x - x* (rho the box's largest |d|, sigma the least
         singular value of E's Jacobian at x*, n1 = grad N(x*)), so with
-        k = (sigma - M2 rho / 2)^2 / (2R) - lam w_max / 2 > 0 the bracket is at most
-        w_max (n1 . d)+ - k |d|^2.  For any unit vector nu with alpha = n1 . nu >= 0 and
-        beta = |n1 x nu|, n1 . d <= alpha delta + beta |d| where delta = max nu . d over the
-        material in the box (a polygon: its largest value is at a vertex, the box corners in
-        the material and the trim segments' ends clipped to the box), hence
+        k = (sigma - M2 rho / 2)+^2 / (2R) - lam w_max / 2 > 0 the bracket is at most
+        w_max (n1 . d)+ - k |d|^2.  The same per direction: |E|^2 >= d^T J^T J d - M2 rho
+        sigma_max |d|^2 (J = E's Jacobian at x*) and the hulls of N_ss, |N_st|, N_tt bound
+        the Taylor term in (|ds|, |dt|), so the least eigenvalue of the 2x2 matrix they make
+        is a k as well; the larger of the two is used.  Where a face turns steep its xy map
+        nears singular across the slope (sigma -> 0: the first k fails), while N, concave
+        across the slope, and J along it keep the second positive.  For any unit vector nu
+        with alpha = n1 . nu >= 0 and beta = |n1 x nu|, n1 . d <= alpha delta + beta |d|
+        where delta = max nu . d over the material in the box (a polygon: its largest value is
+        at a vertex, the box corners in the material and the trim segments' ends clipped to
+        the box), hence
 
             bracket <= w_max alpha delta + (w_max beta)^2 / (4 k).
 
@@ -966,8 +1058,9 @@ class FaceSet:
             N = np.einsum("nc,ncij->nij", gk, sub[:, :3]) - hw * gp[k_, None, None]
             E = sub[:, :2] - hw[:, None] * pk[:, :2, None, None]
             nss, nst, ntt = _second_differences(N, d.p, d.q)
-            lam = _quadratic_bound(nss.max(axis=(-2, -1)), np.abs(nst).max(axis=(-2, -1)),
-                                   ntt.max(axis=(-2, -1)))
+            h_ss, h_st, h_tt = (nss.max(axis=(-2, -1)), np.abs(nst).max(axis=(-2, -1)),
+                                ntt.max(axis=(-2, -1)))
+            lam = _quadratic_bound(h_ss, h_st, h_tt)
             ess, est, ett = _second_differences(E, d.p, d.q)
             mc = _quadratic_bound(np.abs(ess).max(axis=(-2, -1)),
                                   np.abs(est).max(axis=(-2, -1)),
@@ -987,6 +1080,21 @@ class FaceSet:
             s_eff = sigma - 0.5 * m2 * rmax
             lam_w = np.where(lam >= 0, lam * wmax, lam * wmin)
             kk = np.where(s_eff > 0, s_eff, 0.0) ** 2 / (2.0 * R) - 0.5 * lam_w
+            # the same per direction (where the face turns steep, its xy map is nearly
+            # singular across the slope, where N is strongly concave, and not along it):
+            # |E|^2 >= |J d|^2 - 2 e |d| |J d| >= d^T (J^T J) d - 2 e smax |d|^2 with
+            # e = M2 rho / 2, and w d^T H_N d <= (a, 2b, c) . (ds^2, |ds dt|, dt^2) with the
+            # hulls' a, b, c (times w_max or w_min by sign), so the bracket is at most
+            # w_max (n1 . d)+ - d'^T K d' for d' = (|ds|, |dt|) (|d'| = |d|): the least
+            # eigenvalue of K serves as k too
+            e_s = 0.5 * m2 * rmax * smax / R
+            g_ss, g_tt = a11 * a11 + a21 * a21, a12 * a12 + a22 * a22
+            g_st = np.abs(a11 * a12 + a21 * a22)
+            k11 = g_ss / (2.0 * R) - e_s - 0.5 * np.where(h_ss >= 0, h_ss * wmax, h_ss * wmin)
+            k22 = g_tt / (2.0 * R) - e_s - 0.5 * np.where(h_tt >= 0, h_tt * wmax, h_tt * wmin)
+            k12 = g_st / (2.0 * R) + 0.5 * h_st * wmax
+            k_dir = 0.5 * (k11 + k22) - np.sqrt(0.25 * (k11 - k22) ** 2 + k12 * k12)
+            kk = np.maximum(kk, k_dir)
             # the material's polygon in the box: its vertices in the box's local (s, t)
             b = box[k_]
             rbox = np.column_stack([b[:, 0] + s0 * wu[k_], b[:, 0] + s1 * wu[k_],
@@ -1004,7 +1112,8 @@ class FaceSet:
                 status[cut], segs_k[cut] = d.classify(rbox[cut], segs[k_[cut]])
                 segs[k_[cut]] = segs_k[cut]
                 stat[k_[cut]] = status[cut]
-                st[cut], okv[cut] = d.vertices(_Items(np.zeros(len(cut), int), sub[cut],
+                st[cut], okv[cut] = d.vertices(_Items(np.zeros(len(cut), int),
+                                                      np.arange(len(cut)), sub[cut],
                                                       rbox[cut], np.zeros(len(cut), int),
                                                       status[cut], segs_k[cut]))
             # too many segments to list: the whole box's corners bound the polygon
@@ -1038,7 +1147,10 @@ class FaceSet:
                 cand = np.where(cok, cand, np.inf)
                 excess = cand.min(axis=1) / (wmin * wmin)
             usable = (status > 0) | whole
-            ok = (s_eff > 0) & (kk > 0) & (wmin > 0) & usable & (excess <= limit[k_])
+            # k > 0 is all the bound needs: where the face turns steep its xy map nears
+            # singular (s_eff <= 0, no concavity from the hemisphere), but a convex face's own
+            # curvature (lam < 0) still makes f strongly concave along it
+            ok = (kk > 0) & (wmin > 0) & usable & (excess <= limit[k_])
             hit = k_[ok]
             found[hit] = True
             out_box[hit] = rbox[ok]
@@ -1091,30 +1203,39 @@ class FaceSet:
         point inside the trim, -inf if none) and that point's (u, v)."""
         n = len(it.query)
         R2 = R * R
-        flat = it.net.reshape(n, 4, -1)
+        # the query-free part, once per sub-patch of the table (see _Items)
+        N = len(it.nets)
+        flat = it.nets.reshape(N, 4, -1)
         if d.face.surface.rational:
             w = flat[:, 3]
-            px, py, pz = flat[:, 0] / w, flat[:, 1] / w, flat[:, 2] / w  # (n, K) planes
+            PX, PY, PZ = flat[:, 0] / w, flat[:, 1] / w, flat[:, 2] / w  # (N, K) planes
         else:
-            px, py, pz = flat[:, 0], flat[:, 1], flat[:, 2]
+            PX, PY, PZ = flat[:, 0], flat[:, 1], flat[:, 2]
+        CX, CY, CZ = PX.mean(axis=1), PY.mean(axis=1), PZ.mean(axis=1)
+        # g = grad f(centroid) . (P_k - centroid) = G0 - a GX - b GY (a, b from the query):
+        # its affine part and residuals split the same way
+        G = np.stack([PZ - CZ[:, None], PX - CX[:, None], PY - CY[:, None]])  # (3, N, K)
+        C = G @ d.pinv.T  # (3, N, 3)
+        RS = G - C @ d.design.T  # (3, N, K)
+        nd = it.node
         qq = q[it.query]
         qx, qy = qq[:, :1], qq[:, 1:]
-        dx = np.maximum(np.maximum(px.min(axis=1) - qq[:, 0], qq[:, 0] - px.max(axis=1)), 0.0)
-        dy = np.maximum(np.maximum(py.min(axis=1) - qq[:, 1], qq[:, 1] - py.max(axis=1)), 0.0)
+        dx = np.maximum(np.maximum(PX.min(axis=1)[nd] - qq[:, 0],
+                                   qq[:, 0] - PX.max(axis=1)[nd]), 0.0)
+        dy = np.maximum(np.maximum(PY.min(axis=1)[nd] - qq[:, 1],
+                                   qq[:, 1] - PY.max(axis=1)[nd]), 0.0)
         dd = dx * dx + dy * dy
         reach = dd <= R2
-        ub = np.where(reach, pz.max(axis=1) + np.sqrt(np.maximum(R2 - dd, 0.0)), -np.inf)
+        ub = np.where(reach, PZ.max(axis=1)[nd] + np.sqrt(np.maximum(R2 - dd, 0.0)), -np.inf)
         # tangent-plane bound of the concave maximand at the net's centroid
-        cx, cy, cz = px.mean(axis=1), py.mean(axis=1), pz.mean(axis=1)
-        ox, oy = cx - qq[:, 0], cy - qq[:, 1]
+        cz = CZ[nd]
+        ox, oy = CX[nd] - qq[:, 0], CY[nd] - qq[:, 1]
         d0 = ox * ox + oy * oy
         lin_ok = d0 < 0.999 * R2
         s0 = np.sqrt(np.maximum(R2 - d0, 1e-300))
-        g = pz - cz[:, None]
-        g -= (px - cx[:, None]) * (ox / s0)[:, None]
-        g -= (py - cy[:, None]) * (oy / s0)[:, None]
-        coef = g @ d.pinv.T  # (n, 3): affine a(s, t) = c0 + c1 s + c2 t
-        resid = (g - coef @ d.design.T).max(axis=1)
+        a_, b_ = (ox / s0)[:, None], (oy / s0)[:, None]
+        coef = C[0, nd] - a_ * C[1, nd] - b_ * C[2, nd]  # (n, 3): a(s, t) = c0 + c1 s + c2 t
+        resid = (RS[0, nd] - a_ * RS[1, nd] - b_ * RS[2, nd]).max(axis=1)
         # affine part at the corners (valid for the whole box, rational patches included)
         amax = coef[:, 0] + np.maximum(coef[:, 1], 0.0) + np.maximum(coef[:, 2], 0.0)
         cok = np.ones((n, 4), bool)
@@ -1135,8 +1256,9 @@ class FaceSet:
         ub[~reach] = -np.inf
         # lower bound: corners (control points on the surface) inside the trim
         cidx = _corner_index(d.p, d.q)
-        cd = (px[:, cidx] - qx) ** 2 + (py[:, cidx] - qy) ** 2
-        fc = np.where((cd <= TOUCH * R2) & cok, pz[:, cidx] + np.sqrt(np.maximum(R2 - cd, 0.0)),
+        cx_, cy_, cz_ = PX[:, cidx][nd], PY[:, cidx][nd], PZ[:, cidx][nd]
+        cd = (cx_ - qx) ** 2 + (cy_ - qy) ** 2
+        fc = np.where((cd <= TOUCH * R2) & cok, cz_ + np.sqrt(np.maximum(R2 - cd, 0.0)),
                       -np.inf)
         k = np.argmax(fc, axis=1)
         rows = np.arange(n)
@@ -1174,7 +1296,8 @@ class FaceSet:
         # where the ball comes down, so that an early lower bound prunes the other faces
         sel = np.flatnonzero((it.depth <= SEED_DEPTH) & reach)
         if len(sel):
-            kn = np.argmin((px[sel] - qx[sel]) ** 2 + (py[sel] - qy[sel]) ** 2, axis=1)
+            ns = nd[sel]
+            kn = np.argmin((PX[ns] - qx[sel]) ** 2 + (PY[ns] - qy[sel]) ** 2, axis=1)
             loc = d.design[kn, 1:]
             uu, vv, fv = ball_at(sel, loc)
             strad_sel = it.status[sel] == 2
@@ -1191,57 +1314,96 @@ class FaceSet:
                   cut: tuple | None = None) -> _Items:
         """Halve each sub-patch (those in ``mask``) along its longer side (corner distances);
         with ``cut`` = (t, along_u) (n,) each, a sub-patch whose t is finite is split at its
-        local parameter t along u (along_u) or v instead."""
+        local parameter t along u (along_u) or v instead.
+
+        Halving depends on the sub-patch alone, and the queries of a pass share their shallow
+        sub-patches: each node of the table is halved once, its halves shared (the pieces of
+        a split at a region's side, which depends on the query, are the pair's own)."""
         idx_all = np.arange(len(it.query)) if mask is None else np.flatnonzero(mask)
-        net = it.net
-        k2, k3 = net.shape[2] - 1, net.shape[3] - 1
-        corner = net[idx_all][:, :, ::k2, ::k3]  # (n, 4, 2, 2)
-        if d.face.surface.rational:
-            corner = corner[:, :2] / corner[:, 3:]
-        len_u = np.abs(corner[:, :2, 1] - corner[:, :2, 0]).sum(axis=(1, 2))
-        len_v = np.abs(corner[:, :2, :, 1] - corner[:, :2, :, 0]).sum(axis=(1, 2))
-        along_u = len_u >= len_v
-        n2 = 2 * len(idx_all)
-        out = np.empty((n2,) + net.shape[1:])
-        box = np.empty((n2, 4))
-        parent = np.empty(n2, dtype=np.intp)
-        pos = 0
         free = np.ones(len(idx_all), bool)
         if cut is not None:
             t_all = cut[0][idx_all]
             free = ~np.isfinite(t_all)
-            along_u = np.where(free, along_u, cut[1][idx_all])
-        for axis, sel, at in ((2, along_u & free, False), (3, ~along_u & free, False),
-                              (2, along_u & ~free, True), (3, ~along_u & ~free, True)):
-            idx = idx_all[sel]
-            m = len(idx)
-            if m == 0:
-                continue
-            b = it.box[idx]
-            lo, hi = (0, 1) if axis == 2 else (2, 3)
-            if at:
-                t = t_all[sel]
-                out[pos:pos + m] = _split_at(net[idx], axis, t, True)
-                out[pos + m:pos + 2 * m] = _split_at(net[idx], axis, t, False)
-                mid = b[:, lo] + t * (b[:, hi] - b[:, lo])
-            else:
-                _split_into(net[idx], axis, out[pos:pos + m], out[pos + m:pos + 2 * m])
-                mid = 0.5 * (b[:, lo] + b[:, hi])
-            box[pos:pos + m] = b
-            box[pos + m:pos + 2 * m] = b
-            box[pos:pos + m, hi] = mid
-            box[pos + m:pos + 2 * m, lo] = mid
-            parent[pos:pos + m] = idx
-            parent[pos + m:pos + 2 * m] = idx
-            pos += 2 * m
+        nets, boxes, parents, nodes = [], [], [], []
+        count = 0
+        fi = idx_all[free]
+        if len(fi):
+            un, inv = np.unique(it.node[fi], return_inverse=True)
+            inv = inv.ravel()
+            pn = it.nets[un]
+            along_u = self._longer_u(d, pn)
+            left = np.empty_like(pn)
+            right = np.empty_like(pn)
+            for axis, sel in ((2, along_u), (3, ~along_u)):
+                if sel.any():
+                    k = np.flatnonzero(sel)
+                    lk = np.empty_like(pn[k])
+                    rk = np.empty_like(lk)
+                    _split_into(pn[k], axis, lk, rk)
+                    left[k], right[k] = lk, rk
+            b = it.box[fi]
+            au = along_u[inv]
+            mu = 0.5 * (b[:, 0] + b[:, 1])
+            mv = 0.5 * (b[:, 2] + b[:, 3])
+            bl, br = b.copy(), b.copy()
+            bl[:, 1] = np.where(au, mu, b[:, 1])
+            br[:, 0] = np.where(au, mu, b[:, 0])
+            bl[:, 3] = np.where(au, b[:, 3], mv)
+            br[:, 2] = np.where(au, b[:, 2], mv)
+            nets += [left, right]
+            boxes += [bl, br]
+            parents += [fi, fi]
+            nodes += [inv, len(un) + inv]
+            count = 2 * len(un)
+        ci = idx_all[~free]
+        if len(ci):
+            t = t_all[~free]
+            along = cut[1][ci]
+            b = it.box[ci]
+            for axis, sel in ((2, along), (3, ~along)):
+                idx = ci[sel]
+                m = len(idx)
+                if m == 0:
+                    continue
+                lo, hi = (0, 1) if axis == 2 else (2, 3)
+                tt = t[sel]
+                bb = b[sel]
+                mid = bb[:, lo] + tt * (bb[:, hi] - bb[:, lo])
+                b0, b1 = bb.copy(), bb.copy()
+                b0[:, hi] = mid
+                b1[:, lo] = mid
+                pn = it.nets[it.node[idx]]
+                nets += [_split_at(pn, axis, tt, True), _split_at(pn, axis, tt, False)]
+                boxes += [b0, b1]
+                parents += [idx, idx]
+                nodes += [count + np.arange(m), count + m + np.arange(m)]
+                count += 2 * m
+        if not parents:
+            return it.take(np.zeros(0, np.intp))
+        out = np.concatenate(nets)
+        box = np.concatenate(boxes)
+        parent = np.concatenate(parents)
+        node = np.concatenate(nodes)
+        n2 = len(parent)
         status = np.ones(n2, np.int8)
         segs = np.full((n2, MAX_SEGMENTS), -1, dtype=np.int64)
         strad = np.flatnonzero(it.status[parent] == 2)
         if len(strad):
             status[strad], segs[strad] = d.classify(box[strad], it.segs[parent[strad]])
-        children = _Items(it.query[parent], out, box, it.depth[parent] + 1, status, segs)
+        children = _Items(it.query[parent], node, out, box, it.depth[parent] + 1, status, segs)
         keep = status > 0
         return children if keep.all() else children.take(keep)
+
+    @staticmethod
+    def _longer_u(d: _FaceData, net: FloatArray) -> np.ndarray:
+        """Whether each net's u side is the longer (the sum of its corners' xy distances)."""
+        k2, k3 = net.shape[2] - 1, net.shape[3] - 1
+        corner = net[:, :, ::k2, ::k3]  # (n, 4, 2, 2)
+        if d.face.surface.rational:
+            corner = corner[:, :2] / corner[:, 3:]
+        len_u = np.abs(corner[:, :2, 1] - corner[:, :2, 0]).sum(axis=(1, 2))
+        len_v = np.abs(corner[:, :2, :, 1] - corner[:, :2, :, 0]).sum(axis=(1, 2))
+        return len_u >= len_v
 
     # -- point probe ---------------------------------------------------------------------------
     def height(self, xy, selected_only: bool = False):
@@ -1341,7 +1503,7 @@ class FaceSet:
     def _extreme(self, d: _FaceData, c: int, sign: float, tol: float, best: float) -> float:
         """max of sign * coordinate c over the face's material (branch and bound)."""
         r = d.roots
-        it = _Items(np.zeros(len(r), int), d.nets[r], d.boxes[r], np.zeros(len(r), int),
+        it = _Items(np.zeros(len(r), int), r, d.nets, d.boxes[r], np.zeros(len(r), int),
                     d.root_status[r], d.root_segs[r])
         cap = -np.inf
         for _ in range(MAX_DEPTH):
