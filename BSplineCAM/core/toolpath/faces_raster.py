@@ -166,7 +166,7 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     def xy_of(a_, line_):
         return a_[:, None] * along + bvals[line_][:, None] * across
 
-    z, face, _u, _v, sel = query.heights(xy_of(a, line))
+    z, face, u, v, sel = query.heights(xy_of(a, line))
     monitor(0.5)
     half = 0.5 * tool.tolerance
     for r in range(REFINE_ROUNDS):
@@ -176,18 +176,17 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
             break
         am = 0.5 * (a[idx] + a[idx + 1])
         lm = line[idx]
-        zm, fm, _um, _vm, sm = query.heights(xy_of(am, lm))
+        zm, fm, um, vm, sm = query.heights(xy_of(am, lm))
         bad = np.isfinite(zm) & (np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > half)
         # keep also where the contact changes between selected and not (sharper split)
         bad |= (sel[idx] != sel[idx + 1]) & np.isfinite(zm)
         if not bad.any():
             break
-        line = np.concatenate([line, lm[bad]])
-        a = np.concatenate([a, am[bad]])
-        z = np.concatenate([z, zm[bad]])
-        sel = np.concatenate([sel, sm[bad]])
+        # every sample keeps its contact (face, u, v), for the slopes below
+        kept = [(line, lm), (a, am), (z, zm), (sel, sm), (face, fm), (u, um), (v, vm)]
+        line, a, z, sel, face, u, v = (np.concatenate([old, new[bad]]) for old, new in kept)
         order = np.lexsort((a, line))
-        line, a, z, sel = line[order], a[order], z[order], sel[order]
+        line, a, z, sel, face, u, v = (x[order] for x in (line, a, z, sel, face, u, v))
         monitor(0.5 + 0.05 * (r + 1))
     cut = np.isfinite(z) & sel
     brk = np.flatnonzero((line[1:] != line[:-1]) | (cut[1:] != cut[:-1]))
@@ -198,7 +197,7 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     if runs:
         idx = np.concatenate([np.arange(s, e) for s, e in runs])
         xy = xy_of(a[idx], line[idx])
-        _, grad = query.heights_and_slopes(xy)
+        grad = query.slopes(xy, face[idx], u[idx], v[idx])  # from the contacts found above
         passes, lift_stats = lifted_line_runs(query.heights_and_slopes, runs, line, a[idx], xy,
                                               z[idx], grad, half, monitor)
     ordered = zigzag_by_line(passes)
