@@ -169,9 +169,10 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     z, face, u, v, sel = query.heights(xy_of(a, line))
     monitor(0.5)
     half = 0.5 * tool.tolerance
+    fresh = np.ones(len(z), bool)  # an interval is tested once: when an end of it is new
     for r in range(REFINE_ROUNDS):
         ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
-        idx = np.flatnonzero(ok & (np.diff(a) > 1e-4))
+        idx = np.flatnonzero(ok & (np.diff(a) > 1e-4) & (fresh[:-1] | fresh[1:]))
         if len(idx) == 0:
             break
         am = 0.5 * (a[idx] + a[idx + 1])
@@ -185,8 +186,10 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
         # every sample keeps its contact (face, u, v), for the slopes below
         kept = [(line, lm), (a, am), (z, zm), (sel, sm), (face, fm), (u, um), (v, vm)]
         line, a, z, sel, face, u, v = (np.concatenate([old, new[bad]]) for old, new in kept)
+        fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
         order = np.lexsort((a, line))
-        line, a, z, sel, face, u, v = (x[order] for x in (line, a, z, sel, face, u, v))
+        line, a, z, sel, face, u, v, fresh = (x[order] for x in (line, a, z, sel, face, u, v,
+                                                                fresh))
         monitor(0.5 + 0.05 * (r + 1))
     cut = np.isfinite(z) & sel
     brk = np.flatnonzero((line[1:] != line[:-1]) | (cut[1:] != cut[:-1]))
