@@ -62,6 +62,45 @@ SURFACE_TILT = 1e-3
 FALSI_STEPS = 16
 
 
+class _MemoQuery(FaceQuery):
+    """:class:`FaceQuery` that remembers the drop result of every point it was asked about.
+
+    The waterline asks about many points again: the contact check after regula falsi repeats
+    each edge's last iterate (or a grid corner), every :func:`.waterline.push_out` iteration
+    re-samples the chords its pushes left where they were, and the final contact check
+    repeats push_out's last vertices.  :meth:`FaceSet.drop_ball` answers each point on its
+    own (the same bits whatever else shares its batch), so the remembered answer is the one a
+    new query would give; only points not seen before (by their exact coordinates) are
+    dropped, in one call."""
+
+    def __init__(self, faceset: FaceSet, radius: float):
+        super().__init__(faceset, radius)
+        self._row: dict[bytes, int] = {}  # exact (x, y) bytes -> row of the arrays below
+        self._tip, self._u, self._v = np.zeros(0), np.zeros(0), np.zeros(0)
+        self._face, self._sel = np.zeros(0, int), np.zeros(0, bool)
+
+    def heights(self, xy: FloatArray):
+        q = np.ascontiguousarray(np.asarray(xy, dtype=float).reshape(-1, 2))
+        keys = q.view(np.dtype((np.void, q.itemsize * 2))).ravel().tolist()
+        row = self._row
+        new: dict[bytes, int] = {}
+        for i, k in enumerate(keys):
+            if k not in row and k not in new:
+                new[k] = i
+        if new:
+            at = np.fromiter(new.values(), dtype=np.intp, count=len(new))
+            tip, face, u, v, sel = self.faceset.drop_ball(q[at], self.radius)
+            base = len(self._tip)
+            row.update(zip(new, range(base, base + len(at))))
+            self._tip = np.concatenate([self._tip, tip])
+            self._face = np.concatenate([self._face, face])
+            self._u = np.concatenate([self._u, u])
+            self._v = np.concatenate([self._v, v])
+            self._sel = np.concatenate([self._sel, sel])
+        r = np.fromiter((row[k] for k in keys), dtype=np.intp, count=len(keys))
+        return self._tip[r], self._face[r], self._u[r], self._v[r], self._sel[r]
+
+
 class _FiniteQuery:
     """:class:`FaceQuery` that answers NaN for non-finite query points instead of refusing
     them (:func:`.waterline.densify`'s Newton steps turn a point whose gradient is undefined,
@@ -217,7 +256,7 @@ def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: fl
     monitor(0.0)
     R = tool.radius
     slope = math.radians(slope_deg)
-    query = FaceQuery(faceset, R)
+    query = _MemoQuery(faceset, R)
     signs = _upward_signs(faceset)
     lo, hi = faceset.bounds(selected_only=True)
     g = R / 4.0
