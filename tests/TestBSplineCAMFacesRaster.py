@@ -46,3 +46,73 @@ def test_raster_of_trimmed_face_simulated():
     assert far.sum() > 500
     scallop = (sim.height - design)[far]
     assert scallop.max() <= h + tol + 1e-3, scallop.max()
+
+
+def _max_departure(f, df, x0, x1, n=2001):
+    """Largest |f - chord| on [x0, x1] by dense sampling, and the Hermite bound there."""
+    from BSplineCAM.core.toolpath.faces_raster import _hermite_departure
+
+    x = np.linspace(x0, x1, n)
+    chord = f(x0) + (x - x0) / (x1 - x0) * (f(x1) - f(x0))
+    true = float(np.abs(f(x) - chord).max())
+    a = np.array([x0, x1])
+    gentle, dep = _hermite_departure(a, f(a), df(a), np.ones(2, bool), np.array([0]))
+    return true, float(dep[0]), bool(gentle[0])
+
+
+def test_hermite_departure_bounds_smooth_heights_and_kinks():
+    """The model's departure from the chord bounds the true one for smooth heights (circles
+    of the ball's radius, a cubic, a sine over a sample step), is within 1.7x of a concave
+    corner's kink, and flags a wall between two gentle samples."""
+    R = 3.0
+    circle = (lambda x: np.sqrt(R * R - x * x), lambda x: -x / np.sqrt(R * R - x * x))
+    valley = (lambda x: -np.sqrt(R * R - x * x), lambda x: x / np.sqrt(R * R - x * x))
+    cubic = (lambda x: 0.01 * x ** 3 - 0.2 * x, lambda x: 0.03 * x ** 2 - 0.2)
+    sine = (lambda x: 0.5 * np.sin(2 * x), lambda x: np.cos(2 * x))
+    step = 0.22  # sqrt(8 R tol) at R = 3, tol = 0.002
+    for f, df in (circle, valley, cubic, sine):
+        for x0 in np.linspace(-2.5, 2.2, 15):
+            true, dep, gentle = _max_departure(f, df, x0, x0 + step)
+            assert dep >= true * (1 - 1e-9), (x0, true, dep)
+            assert dep <= 1.6 * true + 1e-12, (x0, true, dep)  # not loose either
+    # a V (concave corner) anywhere in the interval
+    for kink in np.linspace(0.01, 0.21, 9):
+        v = (lambda x, k=kink: np.where(x < k, -0.7 * (x - k), 1.3 * (x - k)),
+             lambda x, k=kink: np.where(x < k, -0.7, 1.3))
+        true, dep, _ = _max_departure(*v, 0.0, step)
+        assert 1.7 * dep >= true, (kink, true, dep)
+    # a 2 mm wall between two flat samples: both slopes 0, the chord's slope 9
+    wall = (lambda x: np.where(x < 0.1, 0.0, 2.0), lambda x: np.zeros_like(x))
+    _true, dep, _ = _max_departure(*wall, 0.0, step)
+    assert dep > 0.5
+
+
+def test_modelled_midpoints_leave_the_passes_unchanged(monkeypatch):
+    """With the Hermite model standing in for exact midpoints the passes are the same as with
+    every midpoint asked of the drop-cutter (MODEL_SHARE = 0), for fewer queries."""
+    from BSplineCAM.core.toolpath import faces_raster
+
+    counts = {}
+
+    def run(label):
+        fs = FaceSet(two_faces())
+        n = [0]
+        drop = fs.drop_ball
+
+        def counted(xy, *a, **k):
+            n[0] += len(np.asarray(xy).reshape(-1, 2))
+            return drop(xy, *a, **k)
+
+        fs.drop_ball = counted
+        tp = generate_faces_raster(fs, 6.0, 0.05, 0.01)
+        counts[label] = n[0]
+        return tp.passes
+
+    modelled = run("model")
+    monkeypatch.setattr(faces_raster, "MODEL_SHARE", 0.0)
+    exact = run("exact")
+    assert len(modelled) == len(exact)
+    for p, q in zip(modelled, exact):
+        assert p.shape == q.shape
+        assert np.abs(p - q).max() <= 1e-9
+    assert counts["model"] < 0.8 * counts["exact"], counts

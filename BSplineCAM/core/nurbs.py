@@ -38,6 +38,7 @@ import numpy as np
 
 from .errors import NetError, ParameterError
 from .matrix import DEGENERATE_NORMAL
+from .numeric import clamp
 from .typing import ArrayLike, FloatArray, IntArray
 
 #: Degrees accepted in each direction.
@@ -294,11 +295,11 @@ class _Direction:
         """Span index (k - p, also the first pole), local parameter s and 1/h per parameter."""
         p = self.degree
         k = np.searchsorted(self.knots, t, side="right") - 1
-        span = np.clip(k - p, self.nonempty[0], self.nonempty[-1])
+        span = clamp(k - p, self.nonempty[0], self.nonempty[-1])
         # a parameter inside an empty span (only possible by clipping) moves to a real one
         lo = self.knots[span + p]
         h = self.knots[span + p + 1] - lo
-        return span, np.clip((t - lo) / h, 0.0, 1.0), 1.0 / h
+        return span, clamp((t - lo) / h, 0.0, 1.0), 1.0 / h
 
     def weights(self, t: FloatArray, order: int) -> tuple[IntArray, FloatArray]:
         """First pole index and the p+1 basis values (or d^order/du^order) per parameter."""
@@ -498,7 +499,7 @@ class NurbsSurface:
                 raise ParameterError(
                     f"surface {self.name!r}: parameter {axis} must lie in its knot domain "
                     f"[{lo!r}, {hi!r}], got {float(values.min())!r}..{float(values.max())!r}")
-            out.append(np.clip(values, lo, hi))
+            out.append(clamp(values, lo, hi))
         return out[0], out[1]
 
     # -- scattered evaluation ----------------------------------------------------------------

@@ -6,7 +6,9 @@ the scallop height from the curvature and slope of the selected faces
 (:func:`.raster.cross_section_stepover`, the smallest allowance of the band each step spans).
 Along a pass the tool tip is the certified :meth:`FaceSet.drop_ball` height over ALL faces
 (check surfaces included, so nothing on the model is gouged), sampled every sqrt(8 R tol) mm,
-refined where a midpoint departs more than tol/2 from the chord, thinned by Douglas-Peucker to
+refined where a midpoint departs more than tol/2 from the chord (the exact midpoint is asked
+for only where the height's Hermite model, from the contacts' slopes, does not already keep
+the departure well within that: :func:`_hermite_departure`), thinned by Douglas-Peucker to
 tol/2 and made one-sided by :func:`.chords.lift_chords`.  A pass is cut only where the ball's
 contact lies on a selected face; elsewhere it is split and the tool rises between the pieces
 (stay-down links by :func:`.links.stay_down_links`, or a retract).
@@ -41,6 +43,10 @@ from .raster import (
 
 #: Rounds of midpoint refinement along a pass.
 REFINE_ROUNDS = 5
+#: Steepest slope (tan) at which the Hermite model of the height along a pass may stand in
+#: for an exact midpoint, and the share of the tolerance its departure must stay within.
+MODEL_SLOPE = 5.0
+MODEL_SHARE = 0.25
 #: Longest stay-down link between passes, in tool radii.
 STAY_DOWN_LINK = 2.0
 #: Steepest slope (degrees) of a selected face whose contact sets how far passes reach beyond
@@ -81,6 +87,39 @@ class FaceQuery:
         grad = self.slopes(xy, face, u, v)
         grad[~np.isfinite(tip)] = np.nan
         return tip, grad
+
+
+def _along(grad: FloatArray, along: FloatArray) -> FloatArray:
+    """Slope of the tip height along the pass direction (NaN where no face is met)."""
+    return grad[:, 0] * along[0] + grad[:, 1] * along[1]
+
+
+def _hermite_departure(a: FloatArray, z: FloatArray, slope: FloatArray, sel: np.ndarray,
+                       idx: np.ndarray) -> tuple[np.ndarray, FloatArray]:
+    """For the intervals ``idx`` (from sample i to i + 1 of a pass): whether the height's
+    Hermite model may stand in for exact midpoints there, and its departure from the chord
+    (mm).
+
+    The midpoint test only keeps the pass within the tolerance of the exact height (that no
+    chord dips below it is proved afterwards by :func:`.chords.lift_chords`).  Between two
+    samples the cubic Hermite interpolant H of their heights and slopes m0, m1 (from the
+    contacts) departs from the chord by tau (1 - tau) [(m0 - k)(1 - tau) - (m1 - k) tau] L,
+    k the chord's slope, so by at most 4/27 (|m0 - k| + |m1 - k|) L.  That bound also covers
+    a concave corner's kink between the samples (a V of slopes m0 < m1 departs by at most
+    (m1 - m0) L / 4 <= 1.7 times it) and flags a wall hidden between them (k far from both
+    slopes).  The model stands where both slopes are gentle (at most MODEL_SLOPE) and both
+    ends are cut or both are not; there the exact midpoint, which would be dropped anyway
+    (within MODEL_SHARE of the half tolerance), is not asked for.
+    """
+    i = idx
+    L = a[i + 1] - a[i]
+    m0, m1 = slope[i], slope[i + 1]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = (z[i + 1] - z[i]) / L
+        departure = 4.0 / 27.0 * (np.abs(m0 - k) + np.abs(m1 - k)) * L
+        gentle = ((sel[i] == sel[i + 1]) & (np.abs(m0) <= MODEL_SLOPE)
+                  & (np.abs(m1) <= MODEL_SLOPE) & np.isfinite(departure))
+    return gentle, departure
 
 
 def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
@@ -167,12 +206,16 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
         return a_[:, None] * along + bvals[line_][:, None] * across
 
     z, face, u, v, sel = query.heights(xy_of(a, line))
+    # slope along the pass of every sample, from its contact (for the midpoint model below)
+    slope = _along(query.slopes(xy_of(a, line), face, u, v), along)
     monitor(0.5)
     half = 0.5 * tool.tolerance
     fresh = np.ones(len(z), bool)  # an interval is tested once: when an end of it is new
     for r in range(REFINE_ROUNDS):
         ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
         idx = np.flatnonzero(ok & (np.diff(a) > 1e-4) & (fresh[:-1] | fresh[1:]))
+        gentle, departure = _hermite_departure(a, z, slope, sel, idx)
+        idx = idx[~(gentle & (departure <= MODEL_SHARE * half))]  # else modelled within tol
         if len(idx) == 0:
             break
         am = 0.5 * (a[idx] + a[idx + 1])
@@ -183,13 +226,15 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
         bad |= (sel[idx] != sel[idx + 1]) & np.isfinite(zm)
         if not bad.any():
             break
+        sl = _along(query.slopes(xy_of(am[bad], lm[bad]), fm[bad], um[bad], vm[bad]), along)
         # every sample keeps its contact (face, u, v), for the slopes below
         kept = [(line, lm), (a, am), (z, zm), (sel, sm), (face, fm), (u, um), (v, vm)]
         line, a, z, sel, face, u, v = (np.concatenate([old, new[bad]]) for old, new in kept)
+        slope = np.concatenate([slope, sl])
         fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
         order = np.lexsort((a, line))
-        line, a, z, sel, face, u, v, fresh = (x[order] for x in (line, a, z, sel, face, u, v,
-                                                                fresh))
+        line, a, z, sel, face, u, v, fresh, slope = (
+            x[order] for x in (line, a, z, sel, face, u, v, fresh, slope))
         monitor(0.5 + 0.05 * (r + 1))
     cut = np.isfinite(z) & sel
     brk = np.flatnonzero((line[1:] != line[:-1]) | (cut[1:] != cut[:-1]))

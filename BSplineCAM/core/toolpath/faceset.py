@@ -59,6 +59,7 @@ import numpy as np
 
 from ..errors import BSplineCAMError, ParameterError
 from ..faces import Face
+from ..numeric import clamp
 from ..typing import FloatArray
 
 #: Certified accuracy of the ball-centre height (mm).
@@ -238,7 +239,7 @@ class _Bands:
         self.table = table
 
     def _band(self, v: FloatArray) -> np.ndarray:
-        return np.clip(np.floor((v - self.v0) / self.h), 0, self.n - 1).astype(np.intp)
+        return clamp(np.floor((v - self.v0) / self.h), 0, self.n - 1).astype(np.intp)
 
     def __call__(self, u: FloatArray, v: FloatArray) -> np.ndarray:
         u = np.asarray(u, dtype=float)
@@ -338,7 +339,7 @@ class _Walls:
         tau = np.sign(dz) * np.abs(dz) * np.sqrt(np.maximum(R2 - perp, 0.0)
                                                  / (Ls * (Ls + dz * dz)))
         t = np.where(flat, np.where(dz >= 0, hi_t, lo_t), tau - ed / Ls)
-        t = np.clip(t, lo_t, hi_t)
+        t = clamp(t, lo_t, hi_t)
 
         def f_at(tt):
             p = a + tt[:, None] * d
@@ -389,7 +390,7 @@ class _SegmentGrid:
             self.table[c, : len(r)] = r
 
     def _cell(self, pts: FloatArray) -> np.ndarray:
-        return np.clip(np.floor((pts - self.o) / self.h), 0, self.g - 1).astype(np.intp)
+        return clamp(np.floor((pts - self.o) / self.h), 0, self.g - 1).astype(np.intp)
 
     def near(self, u: FloatArray, v: FloatArray, eps: float):
         pts = np.column_stack([u, v])
@@ -402,7 +403,7 @@ class _SegmentGrid:
         e = self.edges[si]
         a, d = e[:, :2], e[:, 2:] - e[:, :2]
         L2 = (d * d).sum(axis=1)
-        t = np.clip(((pts[qi] - a) * d).sum(axis=1) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+        t = clamp(((pts[qi] - a) * d).sum(axis=1) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
         r = pts[qi] - (a + t[:, None] * d)
         keep = (r * r).sum(axis=1) <= eps * eps
         return qi[keep], si[keep]
@@ -529,8 +530,8 @@ class _FaceData:
         sides outside) moved a hair into the domain first."""
         (u0, u1), (v0, v1) = self.face.surface.domain
         eu, ev = 1e-12 * (u1 - u0), 1e-12 * (v1 - v0)
-        u = np.clip(np.asarray(u, dtype=float), u0 + eu, u1 - eu)
-        v = np.clip(np.asarray(v, dtype=float), v0 + ev, v1 - ev)
+        u = clamp(np.asarray(u, dtype=float), u0 + eu, u1 - eu)
+        v = clamp(np.asarray(v, dtype=float), v0 + ev, v1 - ev)
         return self._bands(u, v)
 
     def segments_at(self, u: FloatArray, v: FloatArray, eps: float):
@@ -633,7 +634,7 @@ class _FaceData:
         loc = np.empty_like(pts)
         loc[..., 0] = (pts[..., 0] - box[:, :1]) / du[:, None]
         loc[..., 1] = (pts[..., 1] - box[:, 2:3]) / dv[:, None]
-        st[:, 4:] = np.clip(np.nan_to_num(loc), 0.0, 1.0)
+        st[:, 4:] = clamp(np.nan_to_num(loc), 0.0, 1.0)
         ok[:, 4:] = np.concatenate([hit, hit], axis=1)
         return st, ok
 
@@ -911,8 +912,8 @@ class FaceSet:
                 ul, vl, ql = u[live], v[live], qq[live]
                 with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
                     ok_, nu_, nv_ = self._newton_step(s, ul, vl, ql, R2)
-                nu_ = np.clip(nu_, u0, u1)
-                nv_ = np.clip(nv_, v0, v1)
+                nu_ = clamp(nu_, u0, u1)
+                nv_ = clamp(nv_, v0, v1)
                 p = s.evaluate(nu_, nv_)
                 pd = ((p[:, :2] - ql) ** 2).sum(axis=1)
                 fv = np.where(pd <= R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)), -np.inf)
@@ -943,7 +944,7 @@ class FaceSet:
         a = e[:, :2]
         dd = e[:, 2:] - a
         L2 = (dd * dd).sum(axis=1)
-        t = np.clip(((np.column_stack([bu[rows], bv[rows]]) - a) * dd).sum(axis=1)
+        t = clamp(((np.column_stack([bu[rows], bv[rows]]) - a) * dd).sum(axis=1)
                     / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
         qq = q[rows]
         R2 = R * R
@@ -956,7 +957,7 @@ class FaceSet:
                 f1 = gu * dd[:, 0] + gw * dd[:, 1]
                 f2 = huu * dd[:, 0] ** 2 + 2 * huw * dd[:, 0] * dd[:, 1] + hww * dd[:, 1] ** 2
                 step = np.where(f2 < 0, -f1 / f2, np.sign(f1))
-            nt = np.clip(t + np.nan_to_num(step), 0.0, 1.0)
+            nt = clamp(t + np.nan_to_num(step), 0.0, 1.0)
             p = s.evaluate(a[:, 0] + nt * dd[:, 0], a[:, 1] + nt * dd[:, 1])
             pd = ((p[:, :2] - qq) ** 2).sum(axis=1)
             fv = np.where(pd <= R2, p[:, 2] + np.sqrt(np.maximum(R2 - pd, 0.0)), -np.inf)
@@ -1018,13 +1019,13 @@ class FaceSet:
             return found, out_box, out_ex
         R2 = R * R
         s = d.face.surface
-        iu = np.clip(np.searchsorted(d.u_ends, u, side="left"), 0, d.nu - 1)
-        iv = np.clip(np.searchsorted(d.v_ends, v, side="left"), 0, d.nv - 1)
+        iu = clamp(np.searchsorted(d.u_ends, u, side="left"), 0, d.nu - 1)
+        iv = clamp(np.searchsorted(d.v_ends, v, side="left"), 0, d.nv - 1)
         root = iu * d.nv + iv
         box = d.boxes[root]
         wu, wv = box[:, 1] - box[:, 0], box[:, 3] - box[:, 2]
-        cs = np.clip((u - box[:, 0]) / wu, 0.0, 1.0)
-        ct = np.clip((v - box[:, 2]) / wv, 0.0, 1.0)
+        cs = clamp((u - box[:, 0]) / wu, 0.0, 1.0)
+        ct = clamp((v - box[:, 2]) / wv, 0.0, 1.0)
         j = s.derivatives(u, v)
         p0 = j.point
         D = p0[:, :2] - qq
@@ -1460,10 +1461,10 @@ class FaceSet:
                 dv = (su_[:, 0] * r[:, 1] - su_[:, 1] * r[:, 0]) / det
                 lim_u = box[:, 1] - box[:, 0]
                 lim_v = box[:, 3] - box[:, 2]
-                du = np.clip(du, -lim_u, lim_u)
-                dv = np.clip(dv, -lim_v, lim_v)
-                u = np.clip(u + du, u0, u1)
-                v = np.clip(v + dv, v0, v1)
+                du = clamp(du, -lim_u, lim_u)
+                dv = clamp(dv, -lim_v, lim_v)
+                u = clamp(u + du, u0, u1)
+                v = clamp(v + dv, v0, v1)
                 if np.all(np.abs(r).max(axis=1) < 1e-3 * tol):
                     break
             p = s.evaluate(u, v)
