@@ -671,6 +671,7 @@ class FaceSet:
         hi = np.max([b[1] for b in boxes], axis=0)
         self.size = float(np.linalg.norm(hi - lo))
         self.stats = {"pairs": 0, "levels": 0, "uncertified": 0}
+        self._box_memo: dict = {}  # bounds() per selected_only: the faces never change
 
     # -- drop-cutter ---------------------------------------------------------------------------
     def drop_ball(self, xy, radius: float, selected_only: bool = False,
@@ -1483,7 +1484,15 @@ class FaceSet:
     # -- bounds --------------------------------------------------------------------------------
     def bounds(self, selected_only: bool = True) -> tuple[FloatArray, FloatArray]:
         """(lo, hi) 3-vectors (mm): a box enclosing the faces (inside their trims), each side
-        found by branch and bound on the Bezier boxes to within 1e-6 of the set's size."""
+        found by branch and bound on the Bezier boxes to within 1e-6 of the set's size
+        (computed once per ``selected_only``: the op's extent and its passes both ask)."""
+        key = bool(selected_only)
+        if key not in self._box_memo:
+            self._box_memo[key] = self._bounds_box(key)
+        lo, hi = self._box_memo[key]
+        return lo.copy(), hi.copy()
+
+    def _bounds_box(self, selected_only: bool) -> tuple[FloatArray, FloatArray]:
         data = [d for d in self.data if d.selected or not selected_only]
         if not data and (selected_only or not self.walls.boxes):
             raise BSplineCAMError("no selected face: the selection is empty")
