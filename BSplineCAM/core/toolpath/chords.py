@@ -10,8 +10,12 @@ the cubic Hermite interpolant (error O(d^4 z'''') / 384, de Boor, "A Practical G
 Splines", ch. IV) locates each chord's largest excess z - chord; that point is evaluated with
 the exact drop-cutter and, where Hermite and exact values disagree by more than
 ``MODEL_ERROR``, inserted as a sample and the chord examined again.  Intervals whose slopes
-cannot be trusted (a wall steeper than ``MAX_SLOPE``, a contact on the ball's rim) are
-bisected with exact samples instead.
+cannot be trusted (a wall steeper than ``MAX_SLOPE``, a contact on the ball's rim, a secant
+steeper than that: a jump where the ball's side meets a wall) are cut into up to ``KSECT``
+pieces per round with exact samples instead, down to ``MIN_SPLIT``.  A steep interval whose
+end data fit a smooth monotone height (up to ``MAX_SMOOTH_SLOPE``) keeps the Hermite model
+until the model fails there once: a drafted wall is not cut into MIN_SPLIT pieces.  Every
+round asks the drop-cutter once (a call costs far more than its points).
 
 :func:`lift_chords` (raster, iso-parametric) then lifts each chord's end vertices by its
 excess plus ``CLEARANCE`` (a vertex shared by two chords takes the larger lift) and checks
@@ -39,12 +43,18 @@ CLEARANCE = 5e-8
 MODEL_ERROR = 2e-8
 #: Largest |grad z| at which the Hermite model of the CL height is trusted.
 MAX_SLOPE = 20.0
+#: Largest |grad z| at which the Hermite model is trusted on an interval whose end data fit a
+#: smooth monotone height (:func:`_one_signed_curvature`); the envelope-theorem slope of a
+#: contact near the ball's rim is still accurate there.
+MAX_SMOOTH_SLOPE = 200.0
 #: Intervals whose modelled maximum lies within this (mm) of the chord's best are evaluated.
 NEAR = 1e-5
 #: Intervals shorter than this (mm) are not split further.
 MIN_SPLIT = 1e-5
 #: Rounds of sample insertion per check.
 ROUNDS = 10
+#: At most this many pieces per rough interval and round (k-section).
+KSECT = 16
 
 #: query(xy) -> (tip heights (m,), gradients (m, 2)), NaN where the ball meets no surface.
 QueryFn = Callable[[FloatArray], "tuple[FloatArray, FloatArray]"]
@@ -68,11 +78,12 @@ class ChordSamples:
     zv: FloatArray
 
     def insert(self, after: np.ndarray, pos: FloatArray, xy: FloatArray, z: FloatArray,
-               grad: FloatArray) -> None:
+               grad: FloatArray) -> tuple[np.ndarray, np.ndarray]:
         """Add exact non-vertex samples, each inside the interval from sample ``after[i]`` to
-        ``after[i] + 1``, keeping the order by (line, pos)."""
+        ``after[i] + 1``, keeping the order by (line, pos).  Returns the new index of every
+        old sample and of every added one (in the order given)."""
         if len(pos) == 0:
-            return
+            return np.arange(len(self.pos)), np.empty(0, np.intp)
         order = np.lexsort((pos, after))
         at = after[order] + 1
         n, m = len(self.pos), len(at)
@@ -93,6 +104,9 @@ class ChordSamples:
         self.line = merged(self.line, self.line[after[order]])
         self.vertex = merged(self.vertex, False)
         self.zv = merged(self.zv, z[order])
+        added = np.empty(m, np.intp)
+        added[order] = new_at
+        return old_at, added
 
     def vertices(self) -> tuple[FloatArray, FloatArray, np.ndarray]:
         """XY, chord heights and line of the vertices, in order."""
@@ -144,6 +158,17 @@ def _hermite_max(z0, z1, m0, m1, c0, c1):
     return g[rows, best], tau[rows, best]
 
 
+def _one_signed_curvature(dz: FloatArray, m0: FloatArray, m1: FloatArray) -> np.ndarray:
+    """Whether end values and slopes (per unit of the interval) fit a monotone height of
+    one-signed curvature: both slopes on the side of the rise ``dz`` and the secant between
+    them (the mean value theorem for a monotone derivative).  A jump (a ball's side on a wall)
+    rises more than either end slope explains and fails this."""
+    lo, hi = np.minimum(m0, m1), np.maximum(m0, m1)
+    up = (dz > 0) & (lo >= 0) & (lo <= dz) & (dz <= hi)
+    down = (dz < 0) & (hi <= 0) & (hi >= dz) & (dz >= lo)
+    return up | down
+
+
 def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> ChordCheck:
     """Largest exact CL height above each chord (see the module docstring); inserts into
     ``s`` the samples it had to evaluate."""
@@ -153,6 +178,9 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
     done_grad = np.full((nvert, 2), np.nan)
     resolved = np.zeros(nvert, bool)
     unresolved = 0
+    # Samples where the Hermite model of a steep interval failed: their intervals are cut
+    # like rough ones from then on (the model converges slowly near a vertical tangent).
+    failed_steep = np.zeros(len(s.pos), bool)
     for r in range(rounds + 1):
         n = len(s.pos)
         idx = np.arange(n)
@@ -173,8 +201,14 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
         m0 = np.einsum("ij,ij->i", g0, d)
         m1 = np.einsum("ij,ij->i", g1, d)
         finite = np.isfinite(z0) & np.isfinite(z1)
-        steep = np.maximum(np.abs(g0).max(axis=1), np.abs(g1).max(axis=1))
-        reliable = finite & np.isfinite(m0) & np.isfinite(m1) & (steep <= MAX_SLOPE)
+        length = np.hypot(d[:, 0], d[:, 1])
+        # A secant steeper than both end slopes hides a jump (a ball's side on a wall).
+        with np.errstate(divide="ignore", invalid="ignore"):
+            secant = np.where(finite, np.abs(z1 - z0) / length, 0.0)
+        steep = np.fmax(np.maximum(np.abs(g0).max(axis=1), np.abs(g1).max(axis=1)), secant)
+        reliable = finite & np.isfinite(m0) & np.isfinite(m1)
+        reliable &= (steep <= MAX_SLOPE) | ((steep <= MAX_SMOOTH_SLOPE)
+                                            & _one_signed_curvature(z1 - z0, m0, m1))
         gh = np.full(len(k), -np.inf)
         tau = np.full(len(k), np.nan)
         if reliable.any():
@@ -182,30 +216,54 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
                                                        m1[reliable], c0[reliable], c1[reliable])
         ends = np.fmax(np.where(np.isfinite(z0), z0 - c0, -np.inf),
                        np.where(np.isfinite(z1), z1 - c1, -np.inf))
-        length = np.hypot(d[:, 0], d[:, 1])
         # Unreliable intervals: bounded by their exact ends once too short to split.
         rough = finite & ~reliable
         gh[rough] = ends[rough]
         todo = ~resolved[cid]
-        split = rough & todo & (length > MIN_SPLIT)
+        recut = reliable & (steep > MAX_SLOPE) & (failed_steep[k] | failed_steep[k + 1])
+        split = (rough | recut) & todo & (length > MIN_SPLIT)
         # Best interval of every chord still open.
         best_excess = np.full(nvert, -np.inf)
         _max_into(best_excess, cid, np.fmax(gh, ends))
         # Query every interval whose modelled maximum lies inside it, above its exact ends,
         # and near the chord's best: a second bump may hide a larger model error.
-        cand = reliable & todo & (gh > ends + 0.5 * MODEL_ERROR)
+        cand = reliable & todo & ~split & (gh > ends + 0.5 * MODEL_ERROR)
         cand &= gh >= best_excess[cid] - NEAR
         cand_idx = np.flatnonzero(cand)
-        new_after, new_pos, new_xy = [], [], []
+        # Rough intervals are cut into up to KSECT pieces at once (k-section): MIN_SPLIT is
+        # reached in a few rounds, and those points share the round's one query call with
+        # the candidates (a drop-cutter call costs far more than a few extra points).
+        ks = k[split] if r < rounds else k[:0]
+        pieces = np.clip(np.ceil((length[split] if r < rounds else length[:0]) / MIN_SPLIT),
+                         2, KSECT).astype(np.intp)
+        ks_after = np.repeat(ks, pieces - 1)
+        first = np.repeat(np.cumsum(pieces - 1) - (pieces - 1), pieces - 1)
+        frac = (np.arange(len(ks_after)) - first + 1) / np.repeat(pieces, pieces - 1)
+        split_xy = s.xy[ks_after] + frac[:, None] * (s.xy[ks_after + 1] - s.xy[ks_after])
+        split_pos = s.pos[ks_after] + frac * (s.pos[ks_after + 1] - s.pos[ks_after])
         if r < rounds and len(cand_idx):
             kk = k[cand_idx]
             t = tau[cand_idx]
             q = s.xy[kk] + t[:, None] * d[cand_idx]
-            zq, gq = query(q)
+        else:
+            q = np.empty((0, 2))
+        nq = len(q)
+        if nq + len(ks_after):
+            zall, gall = query(np.concatenate([q, split_xy]))
+        else:
+            zall, gall = np.empty(0), np.empty((0, 2))
+        zs, gs = zall[nq:], gall[nq:]
+        new_after, new_pos, new_xy = [], [], []
+        if nq:
+            zq, gq = zall[:nq], gall[:nq]
             cq = c0[cand_idx] + t * (c1[cand_idx] - c0[cand_idx])
             exact = np.where(np.isfinite(zq), zq - cq, -np.inf)
             err = np.abs(gh[cand_idx] - exact)
             ok = (err <= MODEL_ERROR) | (length[cand_idx] * np.minimum(t, 1 - t) <= MIN_SPLIT)
+            # A point clearly below the chord settles it even where the model is off by more
+            # than MODEL_ERROR (the drop-cutter's own noise on tiny intervals): four times the
+            # disagreement still leaves the chord NEAR above the CL height there.
+            ok |= exact + 4.0 * err < -NEAR
             ch = cid[cand_idx]
             # A chord is resolved when all its candidates matched the model.
             failed = np.zeros(nvert, bool)
@@ -226,8 +284,10 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
                            + t[inside] * (s.pos[kk[inside] + 1] - s.pos[kk[inside]]))
             new_xy.append(q[inside])
             s_insert = (zq[inside], gq[inside])
+            mark = (~ok & (steep[cand_idx] > MAX_SLOPE))[inside]
         else:
             s_insert = (np.empty(0), np.empty((0, 2)))
+            mark = np.zeros(0, bool)
         # Chords with no candidate (their worst point is a sample or a rough end) are done
         # once no rough interval is left to split.
         has_split = np.zeros(nvert, bool)
@@ -242,15 +302,15 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
             finish = chords & ~resolved
         done_excess[finish] = best_excess[finish]
         resolved[finish] = True
-        split_pos = split & (r < rounds)
-        ks = k[split_pos]
-        mid_xy = 0.5 * (s.xy[ks] + s.xy[ks + 1])
-        zs, gs = query(mid_xy) if len(ks) else (np.empty(0), np.empty((0, 2)))
-        s.insert(np.concatenate(new_after + [ks]).astype(np.intp),
-                 np.concatenate(new_pos + [0.5 * (s.pos[ks] + s.pos[ks + 1])]),
-                 np.concatenate(new_xy + [mid_xy]).reshape(-1, 2),
+        old_at, added = s.insert(np.concatenate(new_after + [ks_after]).astype(np.intp),
+                 np.concatenate(new_pos + [split_pos]),
+                 np.concatenate(new_xy + [split_xy]).reshape(-1, 2),
                  np.concatenate([s_insert[0], zs]),
                  np.concatenate([s_insert[1], gs]).reshape(-1, 2))
+        marks = np.zeros(len(s.pos), bool)
+        marks[old_at] = failed_steep
+        marks[added[:len(mark)]] = mark
+        failed_steep = marks
         if resolved[chords].all():
             break
     return ChordCheck(done_excess, done_where, done_grad, unresolved)
