@@ -455,7 +455,7 @@ import numpy as np
 from BSplineCAM.app import cam
 from BSplineCAM.core.toolpath.common import Toolpath, ToolpathStats
 from BSplineCAM.orchestration.parts import post_toolpath
-passes = [np.array([[5.0, y, 40.0], [40.0, y, 41.0], [75.0, y, 42.0]]) for y in (10.0, 20.0)]
+passes = [np.array([[5.0, y, 20.0], [40.0, y, 21.0], [75.0, y, 22.0]]) for y in (10.0, 20.0)]
 toolpath = Toolpath("raster", passes, {{}}, [], ToolpathStats()).finish(0.0, None)
 count = post_toolpath({step!r}, toolpath, 6.0, cam.Cutting(900.0, 300.0, 10000.0),
                       "linuxcnc", Path({ngc!r}), Path({doc!r}))
@@ -466,8 +466,10 @@ Path({ngc!r} + ".json").write_text(json.dumps(count))
 @needs_freecad
 def test_post_toolpath_of_a_part(tmp_path):
     """A two-pass toolpath posted from a job whose model is the example part: the program's
-    feed moves are the passes' points, the approach stops 1 mm above each pass start, the
-    feeds and spindle are those given, and LinuxCNC's rs274 accepts it."""
+    feed moves are the passes' points, the rapid approach stops at the safe height above the
+    job's stock (the part's exact top 29.824 mm, not OCCT's box of its poles at 41.6 mm, + 1 mm
+    of stock + CAM's SafeHeightOffset of 3 mm), the feeds and spindle are those given, and
+    LinuxCNC's rs274 accepts it."""
     from BSplineCAM.core.gcode import MoveKind, read_gcode
     from BSplineCAM.orchestration import rs274
 
@@ -482,15 +484,15 @@ def test_post_toolpath_of_a_part(tmp_path):
     assert "S10000" in text.replace(" ", "")
     program = read_gcode(text, "part.ngc")
     feeds = program.end[program.kind == MoveKind.LINE]
-    expected = [[5, 10, 40], [40, 10, 41], [75, 10, 42], [5, 20, 40], [40, 20, 41], [75, 20, 42]]
-    # each pass: a plunge feed from 1 mm above its start, then its points
+    expected = [[5, 10, 20], [40, 10, 21], [75, 10, 22], [5, 20, 20], [40, 20, 21], [75, 20, 22]]
+    # each pass: a plunge feed from the safe height to its start, then its points
     starts = [k for k in range(len(feeds)) if np.allclose(feeds[k], expected[0])
               or np.allclose(feeds[k], expected[3])]
     assert len(starts) == 2
     got = np.concatenate([feeds[starts[0]:starts[0] + 3], feeds[starts[1]:starts[1] + 3]])
     assert np.allclose(got, expected, atol=1e-4)
     rapids = program.end[program.kind == MoveKind.RAPID]
-    assert rapids[:, 2].min() == pytest.approx(41.0, abs=1e-4)  # 1 mm above the pass start
+    assert rapids[:, 2].min() == pytest.approx(29.8237 + 1.0 + 3.0, abs=1e-3)
     assert set(np.round(program.feed[program.kind == MoveKind.LINE], 6)) == {900.0, 300.0}
     if rs274.available():
         assert rs274.check(ngc, {1: 6.0}).ok
@@ -511,7 +513,7 @@ def test_toolpath_part_strategy(tmp_path, strategy):
     """``toolpath PART --strategy isoparametric`` on a block with a B-spline top: the program
     passes rs274 and, simulated from its text, never cuts below the exact faces (FaceSet.height
     of every face of the part) by more than 1 um, and leaves the scallop inside the top."""
-    from BSplineCAM.core.gcode import read_gcode
+    from BSplineCAM.core.gcode import MoveKind, read_gcode
     from BSplineCAM.core.simulate import Grid, Tool, simulate_program
     from BSplineCAM.core.toolpath.faceset import FaceSet
     from BSplineCAM.orchestration import rs274
@@ -547,6 +549,10 @@ def test_toolpath_part_strategy(tmp_path, strategy):
     on = np.isfinite(z)
     assert on.sum() > 0.3 * on.size
     assert float(np.max(z[on] - sim.height[on])) <= 1e-3
+    # the program may meet the raw stock (the job's block, 1 mm above the part): no rapid
+    # ends below its top; the plunge feed takes the tool down to each pass
+    rapids = program.end[program.kind == MoveKind.RAPID]
+    assert float(rapids[:, 2].min()) >= float(z[on].max()) + 1.0 - 1e-6
     r = tool / 2
     inner = on & (x > r) & (x < 30 - r) & (y > r) & (y < 20 - r)
     assert float(np.max(sim.height[inner] - z[inner])) <= scallop + tolerance + 1e-3

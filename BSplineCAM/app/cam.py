@@ -95,14 +95,15 @@ def make_job(model, tool_diameter: float, cutting: Cutting = Cutting(), name: st
              post: str = DEFAULT_POST):
     """A Job whose model is ``model`` (a solid B-spline surface object) and whose only tool
     controller is a ball end of ``tool_diameter`` mm with ``cutting`` feeds; its stock is
-    sized from the exact surface (:class:`SurfaceStock`) and its PostProcessor is ``post``."""
+    sized from the exact surface, or a part's optimal box (:class:`SurfaceStock`), and its
+    PostProcessor is ``post``."""
     if model is None or not hasattr(model, "Shape") or model.Shape.isNull():
         raise ValueError("a job needs a model with a shape: create the B-spline surface first")
     compat.post_module(post)  # an unknown post-processor is named before the document changes
     doc = model.Document
     _activate(doc)
     job = compat.cam_module("job").Create(name, [model])
-    use_surface_stock(job)
+    use_surface_stock(job, any_model=True)
     set_post_processor(job, post)
     tc = make_ballend_controller(tool_diameter, cutting, doc=doc)
     for old in list(job.Tools.Group):
@@ -176,8 +177,10 @@ def surface_in_job(source, clone=None):
 
 def model_extent(models):
     """A FreeCAD.BoundBox of ``models``: exact for BSplineCAM surfaces (the core's evaluation
-    of the surface, down to the solid's base plane), OCCT's box for any other model; None
-    when there is nothing.  Never OCCT's box of a B-spline face (it encloses the poles)."""
+    of the surface, down to the solid's base plane), OCCT's optimal box for any other model
+    (``optimalBoundingBox``: evaluated on the geometry); None when there is nothing.  Never
+    OCCT's quick box of a B-spline face (``Shape.BoundBox`` encloses the poles: 12 mm above
+    examples/part.step's top)."""
     from .part import surface_extent
 
     box = None
@@ -191,7 +194,8 @@ def model_extent(models):
     for model in models:
         if id(model) in covered or not hasattr(model, "Shape") or model.Shape.isNull():
             continue
-        box = model.Shape.BoundBox if box is None else box.united(model.Shape.BoundBox)
+        own = model.Shape.optimalBoundingBox(False)  # not from a view's mesh
+        box = own if box is None else box.united(own)
     return box
 
 
@@ -251,15 +255,17 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def use_surface_stock(job) -> bool:
+def use_surface_stock(job, any_model: bool = False) -> bool:
     """Give a job's stock "from base" the :class:`SurfaceStock` proxy (new jobs, and jobs
-    saved before it existed) when the job machines a BSplineCAM surface; True if changed."""
+    saved before it existed) when the job machines a BSplineCAM surface, or (``any_model``:
+    the jobs :func:`make_job` makes, STEP parts included) whatever its models; True if
+    changed."""
     stock = getattr(job, "Stock", None)
     proxy = getattr(stock, "Proxy", None)
     base_class = compat.cam_module("stock").StockFromBase
     if stock is None or type(proxy) is not base_class or not hasattr(stock, "ExtZpos"):
         return False
-    if not model_surfaces(getattr(stock.Base, "Group", [])):
+    if not any_model and not model_surfaces(getattr(stock.Base, "Group", [])):
         return False
     surface_stock = _surface_stock_class()
     new = surface_stock.__new__(surface_stock)

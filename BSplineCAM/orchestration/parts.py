@@ -364,10 +364,10 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         from .cli import captured_console
 
         with captured_console():
-            commands = post_toolpath(args.net, toolpath, 2.0 * tool.radius, cutting, args.post,
-                                     program, stage / f"{name}-job.FCStd",
-                                     arcs=getattr(args, "arcs", "off") == "on",
-                                     faceset=faceset)
+            commands, clearance, safe = post_toolpath(
+                args.net, toolpath, 2.0 * tool.radius, cutting, args.post, program,
+                stage / f"{name}-job.FCStd", arcs=getattr(args, "arcs", "off") == "on",
+                faceset=faceset)
         check_interrupted()
         text = program.read_text()
         stats = toolpath.stats
@@ -378,7 +378,7 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
             "commands": commands, "pass_length_mm": round(stats.cutting_length_mm, 6),
             "seconds": round(stats.seconds, 4), "unreachable": [
                 getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
-            "clearance_height_mm": toolpath.clearance_height, "post": args.post,
+            "clearance_height_mm": clearance, "safe_height_mm": safe, "post": args.post,
             "program": program.name,
             "parameters": {"strategy": toolpath.strategy, "angle_deg": angle,
                            "direction": getattr(args, "direction", "zigzag"),
@@ -407,7 +407,8 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
     tool controller, the toolpath as a path operation of that controller; posted by ``post``
     to ``program`` (and saved to ``document``), with one-sided arcs if ``arcs`` (waterline
     contours in G17 only with ``faceset``, the core FaceSet whose drop-cutter tells their free
-    side).  Returns the number of path commands."""
+    side).  Returns the number of path commands, the clearance and the safe height (mm)
+    of the program."""
     import FreeCAD
     import Path as FreeCADPath
 
@@ -431,12 +432,20 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
         op.addProperty("App::PropertyBool", "Active", "Path", "posted when true")
         op.ToolController = tc
         op.Active = True
-        clearance = toolpath.clearance_height
-        # rapids stop 1 mm above each pass start; passes in a coordinate plane as G2/G3 arcs
+        # rapids stop at the safe height CAM's own ops take: the job's stock top plus the
+        # setup sheet's SafeHeightOffset (the program may meet the raw stock: no rapid goes
+        # below its top), the plunge feed goes on to each pass start; the clearance is at
+        # least the stock top plus ClearanceHeightOffset; passes in a coordinate plane as
+        # G2/G3 arcs
+        stock_top = float(job.Stock.Shape.BoundBox.ZMax)
+        sheet = job.SetupSheet
+        clearance = max(toolpath.clearance_height,
+                        stock_top + float(sheet.ClearanceHeightOffset.Value))
+        safe = min(clearance, stock_top + float(sheet.SafeHeightOffset.Value))
         if faceset is not None:
-            moves = faces_program_moves(toolpath, faceset, clearance, arcs=arcs)
+            moves = faces_program_moves(toolpath, faceset, clearance, safe, arcs=arcs)
         else:
-            moves = program_moves(toolpath, clearance, arcs=arcs)
+            moves = program_moves(toolpath, clearance, safe, arcs=arcs)
         commands = moves_to_commands(moves, tc.HorizFeed.Value, tc.VertFeed.Value, clearance)
         op.Path = FreeCADPath.Path(commands)
         job.Operations.addObject(op)
@@ -444,7 +453,7 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
         cam.post_process(job, post, program)
         if document is not None:
             doc.saveAs(str(document))
-        return len(commands)
+        return len(commands), clearance, safe
     finally:
         FreeCAD.closeDocument(doc.Name)
 
