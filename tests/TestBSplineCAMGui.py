@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
+import math
 import os
 import shutil
 import sys
@@ -380,6 +381,18 @@ def cam_dialogs(post: str = "", save_path: str = "", open_path: str = "",
             yield
     finally:
         cam_commands.ask_post, cam_commands.ask_tool_diameter = saved
+
+
+def bench_window():
+    """The main window at 1600 x 1000 without FreeCAD's start page: (main window, MDI area)."""
+    mw = FreeCADGui.getMainWindow()
+    mw.showNormal()
+    mw.setGeometry(0, 0, 1600, 1000)
+    mdi = mw.findChild(QtGui.QMdiArea)
+    for sub in mdi.subWindowList():
+        if sub.windowTitle().startswith("Start page"):
+            sub.close()
+    return mw, mdi
 
 
 def isometric_view(mdi):
@@ -854,13 +867,7 @@ class TestCamCommands(CamTestCase):
         legend is fixed to the screen, fitAll frames the part; the picture only where renderers
         agree.
         """
-        mw = FreeCADGui.getMainWindow()
-        mw.showNormal()
-        mw.setGeometry(0, 0, 1600, 1000)
-        mdi = mw.findChild(QtGui.QMdiArea)
-        for sub in mdi.subWindowList():
-            if sub.windowTitle().startswith("Start page"):
-                sub.close()
+        mw, mdi = bench_window()
         view = isometric_view(mdi)
         vobj, proxy = result.ViewObject, result.ViewObject.Proxy
         # drawn: the object's root, its display-mode switch on the Deviation node, the legend
@@ -1303,6 +1310,60 @@ class TestRoughingCommand(CamTestCase):
         self.assertEqual([o.Name for o in self.doc.Objects], names)
         self.assertEqual([o.Name for o in job.Operations.Group], [op.Name])
 
+    def test_roughing_from_a_cylinder_stock(self) -> None:
+        """A job whose stock was changed to CAM's cylinder (CreateCylinder round the part):
+        the Roughing command's op roughs from the cylinder (no feed beyond its reach, the
+        box's corners hold no material) and the view shows the cylinder with the paths
+        (docs/rough_cylinder.png)."""
+        from BSplineCAM.app import compat
+        from BSplineCAM.core.stock import CylinderStock
+
+        surface, job, op = self.make_job()
+        op.RestLimit = 0
+        box = surface.Shape.BoundBox
+        radius = 0.5 * math.hypot(box.XLength, box.YLength) + 2.0
+        bottom, top = box.ZMin - 1.0, box.ZMax + 2.0
+        old = job.Stock
+        job.Stock = compat.cam_module("stock").CreateCylinder(
+            job, radius=radius, height=top - bottom,
+            placement=FreeCAD.Placement(FreeCAD.Vector(box.Center.x, box.Center.y, bottom),
+                                        FreeCAD.Rotation()))
+        self.doc.removeObject(old.Name)
+        self.doc.recompute()
+        panel = self.open_rough_panel(job)
+        panel.stepdown.setValue(4.0)
+        panel.stepover.setValue(50.0)
+        panel.diameter.setValue(12.0)
+        self.accept_panel(panel, self.doc.UndoCount + 1)
+        rough = job.Operations.Group[0]
+        self.assertNotIn("error", json.loads(rough.Report))
+        stock = rough.Proxy.stock_block(rough)
+        self.assertIsInstance(stock, CylinderStock)
+        self.assertAlmostEqual(stock.radius, radius, places=6)
+        feeds = [(c.Parameters["X"], c.Parameters["Y"]) for c in rough.Path.Commands
+                 if c.Name in ("G1", "G2", "G3") and "X" in c.Parameters
+                 and "Y" in c.Parameters]
+        self.assertTrue(feeds)
+        far = [xy for xy in feeds
+               if math.hypot(xy[0] - stock.x, xy[1] - stock.y) > radius + 6.0 + 0.5]
+        self.assertEqual(far, [])
+        mw, mdi = bench_window()
+        # the part in the cylinder (shaded, see-through) with the roughing's paths
+        op.ViewObject.Visibility = False
+        for model in job.Model.Group:
+            model.ViewObject.Visibility = True
+        job.Stock.ViewObject.Visibility = True
+        job.Stock.ViewObject.DisplayMode = "Flat Lines"
+        job.Stock.ViewObject.Transparency = 80
+        view = isometric_view(mdi)
+        self.assert_framed(view, *scene_box(view))
+        picture = DOCS / "rough_cylinder.png"
+        view.saveImage(str(picture), *PICTURE, "White")
+        # points inside the part's solid, just above its base: covered from any side
+        self.assert_picture(view, picture, [
+            (box.XMin + fx * box.XLength, box.YMin + fy * box.YLength, box.ZMin + 0.5)
+            for fx in (0.3, 0.5, 0.7) for fy in (0.3, 0.5, 0.7)])
+
     def accept_panel(self, panel, undo: int) -> None:
         """OK on ``panel``: accepted, closed, one more undo step (``undo`` in all)."""
         with message_boxes() as boxes:
@@ -1364,13 +1425,7 @@ class TestZScreenshots(PictureChecks, GuiTestCase):
     """Last: the documentation pictures, with checks of what the 3D view draws."""
 
     def test_screenshots(self) -> None:
-        mw = FreeCADGui.getMainWindow()
-        mw.showNormal()
-        mw.setGeometry(0, 0, 1600, 1000)
-        mdi = mw.findChild(QtGui.QMdiArea)
-        for sub in mdi.subWindowList():
-            if sub.windowTitle().startswith("Start page"):
-                sub.close()
+        mw, mdi = bench_window()
         combo = tree_dock(mw)
         if combo is not None:
             mw.resizeDocks([combo], [430], QtCore.Qt.Horizontal)

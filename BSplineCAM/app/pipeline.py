@@ -86,6 +86,10 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
     # the op first: CAM's ops pick their controller when made, and a job's first op with
     # several controllers to choose from fails headless (FreeCAD 0.20-1.1 PathUtils)
     op = Create("SurfaceRough", parentJob=job)
+    # inactive until it is set up: making the new controller's tool bit recomputes the
+    # document in the GUI (FreeCAD 0.20's ToolBit copies its shape), which would otherwise
+    # rough the whole stock with the finishing ball and the op's defaults first
+    op.Active = False
     for tc in job.Tools.Group:
         tc.ToolNumber = int(tc.ToolNumber) + 1
     tc = cam.add_controller(job, roughing.shape, roughing.diameter, roughing.corner_radius,
@@ -99,6 +103,7 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
         if other is not op and hasattr(other, "RestFrom"):
             other.RestFrom = [*other.RestFrom, op]
     set_roughing(op, roughing)
+    op.Active = True
     return op
 
 
