@@ -457,9 +457,9 @@ from BSplineCAM.core.toolpath.common import Toolpath, ToolpathStats
 from BSplineCAM.orchestration.parts import post_toolpath
 passes = [np.array([[5.0, y, 20.0], [40.0, y, 21.0], [75.0, y, 22.0]]) for y in (10.0, 20.0)]
 toolpath = Toolpath("raster", passes, {{}}, [], ToolpathStats()).finish(0.0, None)
-count = post_toolpath({step!r}, toolpath, 6.0, cam.Cutting(900.0, 300.0, 10000.0),
+posted = post_toolpath({step!r}, toolpath, 6.0, cam.Cutting(900.0, 300.0, 10000.0),
                       "linuxcnc", Path({ngc!r}), Path({doc!r}))
-Path({ngc!r} + ".json").write_text(json.dumps(count))
+Path({ngc!r} + ".json").write_text(json.dumps(posted))
 """
 
 

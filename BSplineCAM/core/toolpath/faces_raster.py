@@ -206,15 +206,16 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
         return a_[:, None] * along + bvals[line_][:, None] * across
 
     z, face, u, v, sel = query.heights(xy_of(a, line))
-    # slope along the pass of every sample, from its contact (for the midpoint model below)
-    slope = _along(query.slopes(xy_of(a, line), face, u, v), along)
+    # every sample's height gradient, from its contact: the midpoint model below and the
+    # chord checks after it
+    grad = query.slopes(xy_of(a, line), face, u, v)
     monitor(0.5)
     half = 0.5 * tool.tolerance
     fresh = np.ones(len(z), bool)  # an interval is tested once: when an end of it is new
     for r in range(REFINE_ROUNDS):
         ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
         idx = np.flatnonzero(ok & (np.diff(a) > 1e-4) & (fresh[:-1] | fresh[1:]))
-        gentle, departure = _hermite_departure(a, z, slope, sel, idx)
+        gentle, departure = _hermite_departure(a, z, _along(grad, along), sel, idx)
         idx = idx[~(gentle & (departure <= MODEL_SHARE * half))]  # else modelled within tol
         if len(idx) == 0:
             break
@@ -226,15 +227,15 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
         bad |= (sel[idx] != sel[idx + 1]) & np.isfinite(zm)
         if not bad.any():
             break
-        sl = _along(query.slopes(xy_of(am[bad], lm[bad]), fm[bad], um[bad], vm[bad]), along)
+        gm = query.slopes(xy_of(am[bad], lm[bad]), fm[bad], um[bad], vm[bad])
         # every sample keeps its contact (face, u, v), for the slopes below
         kept = [(line, lm), (a, am), (z, zm), (sel, sm), (face, fm), (u, um), (v, vm)]
         line, a, z, sel, face, u, v = (np.concatenate([old, new[bad]]) for old, new in kept)
-        slope = np.concatenate([slope, sl])
+        grad = np.concatenate([grad, gm])
         fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
         order = np.lexsort((a, line))
-        line, a, z, sel, face, u, v, fresh, slope = (
-            x[order] for x in (line, a, z, sel, face, u, v, fresh, slope))
+        line, a, z, sel, face, u, v, fresh, grad = (
+            x[order] for x in (line, a, z, sel, face, u, v, fresh, grad))
         monitor(0.5 + 0.05 * (r + 1))
     cut = np.isfinite(z) & sel
     brk = np.flatnonzero((line[1:] != line[:-1]) | (cut[1:] != cut[:-1]))
@@ -245,9 +246,8 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     if runs:
         idx = np.concatenate([np.arange(s, e) for s, e in runs])
         xy = xy_of(a[idx], line[idx])
-        grad = query.slopes(xy, face[idx], u[idx], v[idx])  # from the contacts found above
         passes, lift_stats = lifted_line_runs(query.heights_and_slopes, runs, line, a[idx], xy,
-                                              z[idx], grad, half, monitor)
+                                              z[idx], grad[idx], half, monitor)
     ordered = zigzag_by_line(passes)
     monitor(0.95)
     steps = np.diff(bvals)

@@ -946,7 +946,7 @@ class FaceSet:
         dd = e[:, 2:] - a
         L2 = (dd * dd).sum(axis=1)
         t = clamp(((np.column_stack([bu[rows], bv[rows]]) - a) * dd).sum(axis=1)
-                    / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+                  / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
         qq = q[rows]
         R2 = R * R
         s = d.face.surface
