@@ -21,6 +21,7 @@ from BSplineCAM.core.toolpath.roughing import (
     capped_distance,
     generate_roughing,
     marching_squares,
+    ring_step,
     tip_height,
 )
 
@@ -627,3 +628,72 @@ def test_cylinder_stock_must_hold_the_part():
     assert "mm" in str(info.value)
     with pytest.raises(ParameterError, match="stock"):
         generate_roughing(plane_in_cylinder, (0, 1, 0, 1, 0, 1), Tool(8.0, "flat"), 3.0, 3.0)
+
+
+# -- round fronts grown from a helix --------------------------------------------------------------
+def _edge_arc_in_material(rho: float, cleared: float, R: float) -> float:
+    """Largest angle (rad, from the outward normal) of the edge of a tool of radius R whose
+    centre lies at radius ``rho`` that is outside the cleared disc of radius ``cleared``:
+    a dense sample of the edge, not the closed form."""
+    phi = np.linspace(0.0, math.pi, 200_001)
+    x, y = rho + R * np.cos(phi), R * np.sin(phi)
+    return float(phi[np.hypot(x, y) >= cleared].max())
+
+
+@pytest.mark.parametrize("rho,R,s", [(4.0, 5.0, 4.0), (4.0, 5.0, 2.0), (10.0, 5.0, 4.0),
+                                     (2.5, 3.0, 1.2), (60.0, 5.0, 4.0), (0.5, 6.0, 5.0)])
+def test_ring_step_keeps_the_straight_pass_engagement(rho, R, s):
+    """The next round front of a disc cleared by a helix (tool centres within rho) meets the
+    material over the same arc of the tool's edge as a straight pass at stepover s, acos(1 -
+    s/R); the full stepover there takes a wider arc."""
+    ds = ring_step(rho, R, s)
+    assert 0.0 < ds <= s
+    straight = math.acos(1.0 - s / R)
+    assert _edge_arc_in_material(rho + ds, rho + R, R) == pytest.approx(straight, abs=1e-4)
+    if ds < s - 1e-9:
+        assert _edge_arc_in_material(rho + s, rho + R, R) > straight + 1e-3
+
+
+def test_fronts_round_a_helix_grow_by_the_ring_step():
+    """A round pocket with no way in from the air is entered by a helix; its first front is a
+    ring at the helix radius plus ring_step (not plus the stepover: there the 10 mm mill at
+    4 mm would meet the material over 96 degrees of its edge instead of 78)."""
+    def pocket(xs, ys):
+        X, Y = np.meshgrid(xs, ys)
+        h = np.where(np.hypot(X, Y) <= 20.0, 0.0, 1.0)
+        return np.where((np.abs(X) <= 30) & (np.abs(Y) <= 30), h, np.nan)
+
+    stock = Stock(-30, 30, -30, 30, -5.0, 1.0)
+    tool = Tool(10.0, "flat")
+    rough = generate_roughing(pocket, stock, tool, stepdown=1.0, stepover=4.0,
+                              radial_allowance=0.3, axial_allowance=0.2)
+    assert rough.stats["entries"]["helical"] == 1
+    first, last = rough.stats["entry_spans"][0]
+    helix = np.array([[m.x, m.y] for m in rough.moves[first:last]])
+    centre = 0.5 * (helix.min(axis=0) + helix.max(axis=0))
+    rh = float(np.hypot(*(helix - centre).T).max())
+    level = [m for m in rough.moves[last:] if m.kind == "feed" and abs(m.z - 0.2) < 1e-9]
+    radii = np.hypot(np.array([m.x for m in level]) - centre[0],
+                     np.array([m.y for m in level]) - centre[1])
+    cell = rough.tip_height.grid.cell if hasattr(rough.tip_height.grid, "cell") else 0.5
+    want = rh + ring_step(rh, tool.radius, 4.0)
+    assert np.any(np.abs(radii - want) <= cell)
+    # no front at the full stepover from the helix (the old ring, 1.45 mm further out)
+    assert not np.any(np.abs(radii - (rh + 4.0)) <= 0.25 * cell)
+
+
+def test_radial_engagement_round_a_helix_in_a_bowl():
+    """Each level of a bowl is a round pocket entered by a helix; the rings round it, the
+    last one on the bowl's wall, keep the radial engagement outside entries, measured by the
+    job simulation, within 1.1 stepover plus one cell (at the full stepover from the helix it
+    reached 3.65 mm against 2.84 mm)."""
+    stock = Stock(-20, 20, -20, 20, 0.0, 10.0)
+    tool = Tool(6.0, "flat")
+    s = 2.4
+    rough = generate_roughing(bowl, stock, tool, stepdown=2.0, stepover=s, axial_allowance=0.1)
+    assert rough.stats["entries"]["helical"] >= 3
+    radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+    assert collisions == 0
+    assert float(radial.max()) >= 0.9 * s  # not vacuous: the rings cut about the stepover
+    over = radial > 1.1 * s + SIM_CELL
+    assert not over.any(), f"{int(over.sum())} moves wider than 1.1 s, up to {radial.max():.2f}"

@@ -11,7 +11,13 @@ the inverse tool offset of a Z-map (Choi & Jerard, "Sculptured Surface Machining
 Each level z clears the allowed centres {T <= z} by distance fronts: Q_0 is air (centres whose
 tool disk lies outside the stock) or a helical entry, and Q_{k+1} = (Q_k dilated by the stepover
 s) intersected with {T <= z}.  The part of each front's boundary where it grew is a pass, so the
-width of cut stays within s; the wall pieces {T = z} a front reaches are cut right after it,
+width of cut stays within s.  In a component entered by a helix the fronts are rings round it,
+and an outward ring at the full stepover meets the material over a wider arc of the tool's edge
+than a straight pass does: a ring grows by :func:`ring_step` of its radius instead, by half the
+gap when that would leave it just short of a wall (a front running along a wall, crossing it
+back and forth, would be cut in slivers, each entered anew), to the wall when the wall lies
+within that step all round, and by s once it meets a wall on one side only.  The wall pieces
+{T = z} a front reaches are cut right after it,
 from the new front towards the old one, where the material left beside them reaches deeper than
 WALL_SLIVER s into the tool's disk, and a last pass follows the level's walls and takes the
 thinner slivers.  Contours come from marching squares on the distance field, at sub-cell
@@ -37,7 +43,8 @@ of a level starts out there, by a straight descent in the air beside the stock.
 Known limit: a pass running head-on into a wall, or past the end of the previous pass along a
 wall that slants across the fronts, ends with material on both sides; there the width of cut
 reaches about R + s/2 (up to 7.2 mm for a 10 mm mill at a 4 mm stepover and a 2 mm stepdown
-on examples/case-study.json, in about 7 % of the moves the job simulation measures).
+on examples/case-study.json).  The rings round a helix are polygons of the grid's contour,
+whose chords the simulation still measures up to about 5 mm wide there.
 """
 
 from __future__ import annotations
@@ -74,6 +81,8 @@ RAMP_ANGLE_DEG = 3.0
 #: reaches deeper than this share of the stepover into the tool's disk; thinner slivers wait
 #: for the level's last pass along the wall.
 WALL_SLIVER = 0.5
+#: A ring round a helix that would stop this close (cells) short of a wall goes half way to it.
+RING_MARGIN_CELLS = 3
 #: Gap (mm) kept above the material by rapids that travel below the clearance height.
 TRAVEL_GAP_MM = 1.0
 #: Chord error of the helices (mm).
@@ -816,6 +825,7 @@ class _Job:
         entered[np.unique(labels[Q])] = True
         self.outside += int(entered.sum())
         self.allowed = A & entered[labels]
+        rings = []  # (component mask, radius of its front) of the components entered by helix
         for comp in range(n):
             if entered[comp]:
                 continue
@@ -827,6 +837,7 @@ class _Job:
             self.allowed |= mask
             cx, cy, rh = centre
             Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
+            rings.append([mask, rh, capped_distance(mask, self.s / cell + 2) * cell <= self.s])
         frac0 = (li + 0.05) / nlevels
         # growing fronts.  On a level at a flat floor T - z is 0 over whole areas, where a
         # front's contour would run through the cells' centres (stairs of cell-long moves
@@ -835,17 +846,44 @@ class _Job:
         # places the contour.  It still crosses only cell edges from an allowed centre, which
         # GRID_GROWTH_CELLS covers.
         wall = np.where(A, tip - z - cell, tip - z)
+        # allowed cells beside a disallowed one: the rim the rings grow towards
+        rim = (capped_distance(~A, 2.0) <= 1.0) & A if rings else None
         k = 0
         while True:
             self.monitor(0.05 + 0.9 * (frac0 + min(k, 50) / 60.0 / nlevels))
             dQ = capped_distance(Q, self.s / cell + 2) * cell
-            F = np.maximum(dQ - self.s, wall)
+            step = np.full(dQ.shape, self.s)
+            for ring in rings:
+                # a ring round a helix grows by the step that keeps the arc of the tool's
+                # edge in the material that of a straight pass (see the module docstring
+                # for the rings that near a wall)
+                if ring[1] is None:
+                    continue
+                ds = ring_step(ring[1], self.R, self.s)
+                near = ~A & ring[2]
+                if near.any():
+                    # nearest wall, and the farthest point of the component's rim
+                    gap = float(dQ[near].min())
+                    far = float(dQ[rim & ring[0]].max(initial=math.inf))
+                else:
+                    gap = far = math.inf
+                margin = RING_MARGIN_CELLS * cell
+                if far <= ds or gap <= ds - margin:
+                    # the ring reaches the wall all round by no more than ds, or it meets
+                    # the wall on one side (a long pocket) and grows by the stepover on
+                    ring[1] = None
+                    continue
+                if gap <= ds + margin:
+                    ds = 0.5 * gap  # not along the wall: half way there first
+                step[ring[0]] = ds
+                ring[1] += ds
+            F = np.maximum(dQ - step, wall)
             F[A & ~self.allowed] = 1.0
             Qn = F <= 0.0
             if Qn.sum() <= Q.sum():
                 break
             k += 1
-            self.cut_contours(F, z, z_above, front=dQ - self.s)
+            self.cut_contours(F, z, z_above, front=dQ - step, reached=dQ)
             Q = Qn
         # walls
         F = tip - z
@@ -909,14 +947,14 @@ class _Job:
         self.mark(np.array([[cx, cy], [cx, cy]]))
         return float(cx), float(cy), rh
 
-    def cut_contours(self, F, z, z_above, front) -> None:
+    def cut_contours(self, F, z, z_above, front, reached=None) -> None:
         """Cut the contour F = 0 where the tool meets uncut material.
 
-        With ``front`` (distance to the cleared centres less the stepover, mm) the contour
-        is a new front: its front pieces are cut first (climb), then the pieces on the walls
-        {T = z} that the front newly reached, each from its end nearer the new front towards
-        the old one, so that the strip beside it is already cut.  Without, the contour is
-        the level's final wall pass.
+        With ``front`` (distance to the cleared centres less the step, mm) and ``reached``
+        (that distance) the contour is a new front: its front pieces are cut first (climb),
+        then the pieces on the walls {T = z} that the front newly reached, each from its end
+        nearer the new front towards the old one, so that the strip beside it is already cut.
+        Without, the contour is the level's final wall pass.
         """
         lines = marching_squares(F)
         if not lines:
@@ -953,7 +991,7 @@ class _Job:
                 ends = _bilinear(du, piece[[0, -1], 0], piece[[0, -1], 1]) >= self.Rc + 1.0
                 fronts.append(piece[::-1] if ends[1] and not ends[0] else piece)
             # wall pieces away from the old boundary (distance to it above 1.5 cells)
-            new = fr + self.s > 1.5 * self.cell
+            new = _bilinear(reached, line[:, 0], line[:, 1]) > 1.5 * self.cell
             for piece in _stretches(line, cuts & ~is_front & new, free, clear, closed, back):
                 d = _bilinear(front, piece[:, 0], piece[:, 1])
                 closed_piece = len(piece) > 2 and bool(np.allclose(piece[0], piece[-1]))
@@ -1051,6 +1089,24 @@ class _Job:
                 f"{counts[comp] * cell * cell:.1f} mm^2 around x={xs[ix].mean():.1f}, "
                 f"y={ys[iy].mean():.1f} mm, up to {float(self.floor[m].max()):.2f} mm high "
                 f"over a part down to {float(base[m].min()):.2f} mm")
+
+
+def ring_step(rho: float, R: float, s: float) -> float:
+    """Step (mm) from a round front of radius ``rho`` (tool centres, mm) cleared all round to
+    the next one, so that a tool of radius R on it meets the material over the same arc as
+    on a straight pass at stepover s.
+
+    On a straight pass the tool's edge is in the material over the angle phi0 = acos(1 - s/R)
+    from the normal to the pass; the simulation's width of cut, the extent of the engaged
+    cells across the travel, is R (1 - cos phi0) = s.  Round a cleared disc of radius
+    rho + R the edge of a tool at radius rho' = rho + ds is in the material where
+    rho'^2 + 2 rho' R cos(phi) + R^2 >= (rho + R)^2: over a wider arc than phi0 if ds = s
+    (a 10 mm mill 4 mm out of a 4 mm helix: 96 degrees instead of 78, a width of 5.5 mm).
+    The ds that gives phi0 solves rho'^2 + 2 c R rho' - ((rho + R)^2 - R^2) = 0 with
+    c = 1 - s/R; it tends to s as rho grows."""
+    c = 1.0 - s / R
+    grown = -c * R + math.sqrt(c * c * R * R + (rho + R) ** 2 - R * R)
+    return float(min(max(grown - rho, 0.0), s))
 
 
 def _ramp(p: FloatArray, closed: bool, drop: float, slope: float) -> tuple:
