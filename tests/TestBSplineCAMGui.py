@@ -1363,6 +1363,31 @@ class TestRoughingCommand(CamTestCase):
         self.assert_picture(view, picture, [
             (box.XMin + fx * box.XLength, box.YMin + fy * box.YLength, box.ZMin + 0.5)
             for fx in (0.3, 0.5, 0.7) for fy in (0.3, 0.5, 0.7)])
+        # saved, closed and opened again: the stock is still the cylinder, the op recomputes
+        # to the same path with nothing red in the report view
+        before = rough.Path.toGCode()
+        names = (job.Name, rough.Name)
+        path = self.tmp / "cylinder.FCStd"
+        self.doc.saveAs(str(path))
+        FreeCAD.closeDocument(self.doc.Name)
+        process_events()
+        clear_report()
+        self.doc = FreeCAD.openDocument(str(path))
+        self.doc_name = self.doc.Name
+        process_events()
+        job, rough = (self.doc.getObject(n) for n in names)
+        self.assertNotIn("Error", report_text())
+        self.assertEqual(type(rough.ViewObject.Proxy).__name__, "RoughOpViewProvider")
+        self.assertEqual(rough.Path.toGCode(), before)
+        rough.touch()
+        self.doc.recompute()
+        process_events()
+        self.assertNotIn("Error", report_text())
+        self.assertFalse(rough.State and "Invalid" in rough.State, rough.State)
+        stock = rough.Proxy.stock_block(rough)
+        self.assertIsInstance(stock, CylinderStock)
+        self.assertAlmostEqual(stock.radius, radius, places=6)
+        self.assertEqual(rough.Path.toGCode(), before)
 
     def accept_panel(self, panel, undo: int) -> None:
         """OK on ``panel``: accepted, closed, one more undo step (``undo`` in all)."""
