@@ -122,6 +122,22 @@ class GuiTestCase(unittest.TestCase):
         process_events()
         shutil.rmtree(self.tmp, ignore_errors=True)
 
+    def reopen(self, name: str, *objects):
+        """Save the document as ``name`` in the test's folder, close it and open it again
+        (fresh proxies); the same objects, by name, from the reopened document, which loaded
+        with nothing red in the report view."""
+        names = [o.Name for o in objects]
+        path = self.tmp / name
+        self.doc.saveAs(str(path))
+        FreeCAD.closeDocument(self.doc.Name)
+        process_events()
+        clear_report()
+        self.doc = FreeCAD.openDocument(str(path))
+        self.doc_name = self.doc.Name
+        process_events()
+        self.assertNotIn("Error", report_text())
+        return [self.doc.getObject(n) for n in names]
+
     def new_surface(self):
         """Run BSplineCAM_NewSurface on the case study; the object it made."""
         before = {o.Name for o in self.doc.Objects}
@@ -206,14 +222,7 @@ class TestSurfaceCommands(GuiTestCase):
         obj = self.new_surface()
         obj.ViewObject.ShowControlNet = False
         obj.ViewObject.ControlNetColor = (0.0, 0.5, 0.0)
-        name = obj.Name
-        path = self.tmp / "gui.FCStd"
-        self.doc.saveAs(str(path))
-        FreeCAD.closeDocument(self.doc.Name)
-        process_events()
-        self.doc = FreeCAD.openDocument(str(path))
-        self.doc_name = self.doc.Name
-        obj = self.doc.getObject(name)
+        (obj,) = self.reopen("gui.FCStd", obj)
         vobj = obj.ViewObject
         self.assertEqual(type(vobj.Proxy).__name__, "SurfaceViewProvider")
         self.assertFalse(vobj.ShowControlNet)
@@ -1169,18 +1178,7 @@ class TestReopenedDocument(CamTestCase):
         from BSplineCAM.gui import cam_commands, results_panel
         from BSplineCAM.orchestration import rs274
 
-        surface, job, op = self.make_job()
-        names = (surface.Name, job.Name, op.Name)
-        path = self.tmp / "job.FCStd"
-        self.doc.saveAs(str(path))
-        FreeCAD.closeDocument(self.doc.Name)
-        process_events()
-        clear_report()
-        self.doc = FreeCAD.openDocument(str(path))
-        self.doc_name = self.doc.Name
-        process_events()
-        surface, job, op = (self.doc.getObject(n) for n in names)
-        self.assertNotIn("Error", report_text())  # nothing red while it loads
+        surface, job, op = self.reopen("job.FCStd", *self.make_job())
         self.assertEqual(type(op.ViewObject.Proxy).__name__, "FinishOpViewProvider")
         before = op.Path.toGCode()
         # post-process the reopened job (the op stands for it), checked by rs274
@@ -1366,17 +1364,7 @@ class TestRoughingCommand(CamTestCase):
         # saved, closed and opened again: the stock is still the cylinder, the op recomputes
         # to the same path with nothing red in the report view
         before = rough.Path.toGCode()
-        names = (job.Name, rough.Name)
-        path = self.tmp / "cylinder.FCStd"
-        self.doc.saveAs(str(path))
-        FreeCAD.closeDocument(self.doc.Name)
-        process_events()
-        clear_report()
-        self.doc = FreeCAD.openDocument(str(path))
-        self.doc_name = self.doc.Name
-        process_events()
-        job, rough = (self.doc.getObject(n) for n in names)
-        self.assertNotIn("Error", report_text())
+        job, rough = self.reopen("cylinder.FCStd", job, rough)
         self.assertEqual(type(rough.ViewObject.Proxy).__name__, "RoughOpViewProvider")
         self.assertEqual(rough.Path.toGCode(), before)
         rough.touch()
