@@ -15,12 +15,20 @@ of that field.
 * The field is sampled on a grid of R / 4 over the selected faces' extent grown by R (a ball
   beside a wall still touches it); marching squares (Lorensen & Cline 1987,
   :func:`.waterline._crossings`) gives each level's contours, every crossing is polished on
-  its grid edge by regula falsi (Illinois) on the exact drop height to ``tolerance`` / 1000,
+  its grid edge by regula falsi (Illinois) on the exact drop height to ``tolerance`` / 1000
+  (:func:`polish_crossings`; "no face under the ball" stays NaN, never a stand-in number),
   level points are inserted until the contour follows the level to tolerance / 4
   (:func:`.waterline.densify`), Douglas-Peucker thins it to tolerance / 2 in XY and every chord
   is checked against the exact drop-cutter, vertices pushed outwards where the ball would dip
   below the level (:func:`.waterline.push_out`): the tool stays on the free side, never below
   the drop height.
+* Where the height jumps past a level (the ball leaving the model over an edge: its side on
+  a wall or an edge, the contact on its rim) the crossing is bracketed to tolerance / 8 and
+  the point kept on the air side (at or below the level, or no face); it counts as a contour
+  point when the contact just above the jump is a selected surface contact (tilted by up to
+  the bracket's sqrt(2 width / R)).  Between such points the contour is carried along the
+  jump to tolerance / 2 (:func:`_densify_jumps`), and push_out finds its shifts there by
+  searching for the free side rather than from the meaningless gradient.
 * A contour is kept only where the ball's contact lies on a selected face AND is a surface
   contact, the centre on the face's normal through it (|(c - p) / R - n| <= ``SURFACE_TILT``):
   a ball hanging on a trim edge (a hole's rim, a face's outer edge) touches only the edge and
@@ -58,8 +66,15 @@ from .waterline import _chain, _crossings, densify, push_out, step_levels
 #: Largest |(c - p) / R - n| of a surface contact (c the ball centre, p the contact, n the
 #: upward unit normal there); more is an edge contact (a trim edge, a face's border).
 SURFACE_TILT = 1e-3
-#: Iterations of regula falsi on a grid edge.
-FALSI_STEPS = 16
+#: Largest number of drop-cutter queries per grid edge while polishing its crossing (regula
+#: falsi converges in about 6 where the height is smooth; a jump takes about 12 bisections).
+FALSI_STEPS = 32
+#: A jump of the drop height past a level is bracketed to this fraction of the tolerance (mm):
+#: the point kept, on the air side, lies at most that far from where the ball leaves the model.
+JUMP_WIDTH = 0.125
+#: A bracket that narrow whose ends differ by more than this slope (dz / dxy; a wall within
+#: 0.06 degrees of vertical) holds a jump; else it goes on to the tolerance / 1000 in z.
+JUMP_SLOPE = 1000.0
 
 
 class _MemoQuery(FaceQuery):
@@ -81,7 +96,7 @@ class _MemoQuery(FaceQuery):
 
     def heights(self, xy: FloatArray):
         q = np.ascontiguousarray(np.asarray(xy, dtype=float).reshape(-1, 2))
-        keys = q.view(np.dtype((np.void, q.itemsize * 2))).ravel().tolist()
+        keys = _xy_keys(q)
         row = self._row
         new: dict[bytes, int] = {}
         for i, k in enumerate(keys):
@@ -166,10 +181,10 @@ def level_heights(zs: FloatArray, dzs: FloatArray, tool: ToolParameters, min_slo
     return step_levels(zs, dzs, tool, min_slope, z_top, z_bottom, gap=1e-3 * tool.radius)
 
 
-def _contacts(faceset: FaceSet, query: FaceQuery, signs: np.ndarray,
-              xy: FloatArray) -> tuple[FloatArray, np.ndarray]:
+def _contacts(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, xy: FloatArray,
+              tilt_max: float = SURFACE_TILT) -> tuple[FloatArray, np.ndarray]:
     """Tip heights at xy and whether the ball's contact there is a surface contact on a
-    selected face."""
+    selected face (|(c - p) / R - n| <= ``tilt_max``)."""
     tip, face, u, v, on_sel = query.heights(xy)
     R = query.radius
     good = on_sel & np.isfinite(tip)
@@ -182,7 +197,7 @@ def _contacts(faceset: FaceSet, query: FaceQuery, signs: np.ndarray,
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         c = np.column_stack([xy[idx], tip[idx] + R])
         tilt = np.linalg.norm((c - d.point) / R - n, axis=1)
-        good[idx] = tilt <= SURFACE_TILT
+        good[idx] = tilt <= tilt_max
     return tip, good
 
 
@@ -233,6 +248,161 @@ def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
     v = np.concatenate([[False], mask, [False]])
     e = np.flatnonzero(v[1:] != v[:-1])
     return [(a, b) for a, b in zip(e[0::2], e[1::2]) if b - a >= 2]
+
+
+def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1: FloatArray,
+                     level: FloatArray, eps: float, width: float, steps: int = FALSI_STEPS
+                     ) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray]:
+    """Where the drop height crosses ``level`` (mm) on each grid edge p0-p1.
+
+    ``heights(xy)`` gives the certified tip heights (mm) at points (n, 2), NaN where no face
+    lies under the ball: the tool falls through, below every level.  z0, z1 are those at the
+    ends, one above the level, the other at or below it (the air side) or NaN.  Regula falsi
+    with the Illinois modification (Dowell & Jarratt 1971: the value of an end kept twice in a
+    row is halved) on the exact height, bisection instead while the air end has no face (no
+    value to follow) or when three steps did not halve the bracket (Brent's safeguard: a
+    discontinuity stalls the secant next to one end).  "No face" stays NaN throughout: a
+    stand-in number would be changed by the halving and pull the secant onto that end.
+
+    An edge stops at a point within ``eps`` of the level, or when its bracket is ``width`` mm
+    wide with no face at its air end or a rise steeper than ``JUMP_SLOPE`` across it (at most
+    ``width`` / 10^6 wide in any case): the height jumps past the level there (the ball
+    leaving the model over an edge, its rim on a vertical tangent) and the point kept is the
+    air end, the ball never above the exact drop height.  Returns the edge parameter t in
+    [0, 1] of each point, whether it ends a jump, the parameter of the bracket's end above
+    the level (the material it follows), and whether the edge settled within ``steps``
+    queries (else t is its air end).
+    """
+    n = len(p0)
+    length = np.hypot(*(p1 - p0).T)
+    f0, f1 = np.asarray(z0, float) - level, np.asarray(z1, float) - level
+    up0 = np.nan_to_num(f0, nan=-np.inf) > 0.0
+    tu, ta = np.where(up0, 0.0, 1.0), np.where(up0, 1.0, 0.0)  # above / air end
+    gu, ga = np.where(up0, f0, f1), np.where(up0, f1, f0)  # their values for the secant
+    gu_true, ga_true = gu.copy(), ga.copy()  # their exact values (NaN: no face)
+    t_hit = np.full(n, np.nan)
+    jump = np.zeros(n, bool)
+    last = np.zeros(n, np.int8)  # +1: the step before replaced the above end, -1: the air end
+    w_ago = np.full((3, n), np.inf)  # bracket widths 3, 2 and 1 steps ago
+    done = np.zeros(n, bool)
+    for k in range(steps + 1):
+        w = np.abs(tu - ta)
+        # a jump: narrow, and nothing under the ball at the air end or a rise steeper than
+        # JUMP_SLOPE across the bracket (a steep but continuous height goes on to eps)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rise = (gu_true - ga_true) / (w * length)
+        narrow = ~done & (w * length <= width) & (np.isnan(ga_true) | ~(rise <= JUMP_SLOPE))
+        narrow |= ~done & (w * length <= 1e-6 * width)
+        jump |= narrow
+        done |= narrow
+        act = np.flatnonzero(~done)
+        if len(act) == 0 or k == steps:
+            break
+        a_u, a_a, b_u, b_a = tu[act], ta[act], gu[act], ga[act]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = (a_a * b_u - a_u * b_a) / (b_u - b_a)
+        lo, hi = np.minimum(a_u, a_a), np.maximum(a_u, a_a)
+        bisect = ~np.isfinite(t) | (t <= lo) | (t >= hi) | (w[act] > 0.5 * w_ago[0, act])
+        t = np.where(bisect, 0.5 * (a_u + a_a), t)
+        w_ago[:, act] = np.vstack([w_ago[1:, act], w[act]])
+        ft = np.asarray(heights(p0[act] + t[:, None] * (p1[act] - p0[act])), float) - level[act]
+        hit = np.abs(np.nan_to_num(ft, nan=np.inf)) <= eps
+        above = np.nan_to_num(ft, nan=-np.inf) > 0.0
+        # Illinois: the end kept for the second time in a row has its value halved
+        keep_air = above & (last[act] == 1)
+        keep_up = ~above & (last[act] == -1)
+        tu[act] = np.where(above, t, a_u)
+        gu_true[act] = np.where(above, ft, gu_true[act])
+        ga_true[act] = np.where(above, ga_true[act], ft)
+        gu[act] = np.where(above, ft, np.where(keep_up, 0.5 * b_u, b_u))
+        ta[act] = np.where(above, a_a, t)
+        ga[act] = np.where(above, np.where(keep_air, 0.5 * b_a, b_a), ft)
+        last[act] = np.where(above, 1, -1)
+        t_hit[act[hit]] = t[hit]
+        done[act[hit]] = True
+    converged = np.isfinite(t_hit)
+    return np.where(converged, t_hit, ta), jump & ~converged, tu, converged | jump
+
+
+def _jump_near(query: FaceQuery, m: FloatArray, normal: FloatArray, level: FloatArray,
+               reach: FloatArray, width: float,
+               halvings: int = 12) -> tuple[FloatArray, np.ndarray]:
+    """The air-side end (mm) of the nearest change between "above the level" and "air" (at or
+    below it, or no face) from each point m along +-normal within ``reach``, bracketed to
+    ``width`` mm, and whether one was found.  Candidates at reach / 2^i on both sides in one
+    query (the nearest that differs from m is taken), then bisection."""
+    n = len(m)
+    sides = np.array([1.0, -1.0])
+    dist = reach[:, None] * 0.5 ** np.arange(halvings)  # (n, K), decreasing
+    q = m[:, None, None, :] + (sides[None, :, None, None] * dist[:, None, :, None]) * normal[
+        :, None, None, :]
+    z = query.heights(np.concatenate([m, q.reshape(-1, 2)]))[0]
+    above = np.nan_to_num(z, nan=-np.inf) > np.concatenate([level, np.repeat(level, 2 * halvings)])
+    free = ~above
+    free_m, free_q = free[:n], free[n:].reshape(n, 2, halvings)
+    change = free_q != free_m[:, None, None]
+    # the nearest candidate that differs: the last (smallest distance) one with a change
+    j = halvings - 1 - np.argmax(change[..., ::-1], axis=2)
+    has = change.any(axis=2)
+    far = np.where(has, np.take_along_axis(dist[:, None, :].repeat(2, 1), j[..., None], 2)[..., 0],
+                   np.inf)
+    pick = np.argmin(far, axis=1)
+    rows = np.arange(n)
+    found = np.isfinite(far[rows, pick])
+    jj = j[rows, pick]
+    hi = np.where(found, far[rows, pick], 0.0)  # differs from m
+    lo = np.where(jj + 1 < halvings, dist[rows, np.minimum(jj + 1, halvings - 1)], 0.0)
+    lo = np.where(found, lo, 0.0)  # same as m (every nearer candidate is)
+    side = sides[pick]
+    for _ in range(64):
+        act = np.flatnonzero(found & (hi - lo > width))
+        if len(act) == 0:
+            break
+        mid = 0.5 * (lo[act] + hi[act])
+        zq = query.heights(m[act] + (side[act] * mid)[:, None] * normal[act])[0]
+        same = ~(np.nan_to_num(zq, nan=-np.inf) > level[act]) == free_m[act]
+        lo[act] = np.where(same, mid, lo[act])
+        hi[act] = np.where(same, hi[act], mid)
+    at = np.where(free_m, lo, hi)
+    return m + (side * at)[:, None] * normal, found
+
+
+def _densify_jumps(query: FaceQuery, pts: FloatArray, starts: np.ndarray, gap: float,
+                   width: float, rounds: int = 6) -> tuple[FloatArray, np.ndarray]:
+    """Insert points on the air side of the jump between consecutive jump points (flag in
+    the fourth column) until every chord's midpoint lies within ``gap`` (XY, mm) of the
+    jump: beside a jump :func:`.waterline.densify` finds no level to project onto, and a
+    chord across a convex jump would cut into the model by its sag (the grid's chords of up
+    to R / 4 sqrt 2 on an offset of radius R or more: up to R / 64), which push_out would
+    make good by pushing the contour off the wall as far.  Each round looks along every
+    open chord's normal from its midpoint for the jump (:func:`_jump_near`)."""
+    line = np.repeat(np.arange(len(starts) - 1), np.diff(starts))
+    jump = pts[:, 3] > 0.0
+    active = (line[:-1] == line[1:]) & jump[:-1] & jump[1:]
+    for _ in range(rounds):
+        idx = np.flatnonzero(active)
+        if len(idx):
+            d = pts[idx + 1, :2] - pts[idx, :2]
+            length = np.hypot(d[:, 0], d[:, 1])
+            idx, d, length = idx[length > gap], d[length > gap], length[length > gap]
+        if len(idx) == 0:
+            break
+        m = 0.5 * (pts[idx, :2] + pts[idx + 1, :2])
+        normal = np.column_stack([-d[:, 1], d[:, 0]]) / length[:, None]
+        level = pts[idx, 2]
+        q, found = _jump_near(query, m, normal, level, 0.5 * length, width)
+        add = found & (np.hypot(*(q - m).T) > gap)
+        active[:] = False
+        if not add.any():
+            break
+        at = idx[add] + 1
+        pts = np.insert(pts, at, np.column_stack([q[add], level[add], np.ones(len(at))]), axis=0)
+        line = np.insert(line, at, line[at - 1])
+        active = np.insert(active, at, False)
+        new = at + np.arange(len(at))
+        active[new - 1] = True
+        active[new] = True
+    return pts, np.searchsorted(line, np.arange(line[-1] + 2))
 
 
 def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: float,
@@ -315,38 +485,18 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     c0, c1 = corners[keys, 0], corners[keys, 1]
     p0 = np.column_stack([xs[c0[:, 0]], ys[c0[:, 1]]])
     p1 = np.column_stack([xs[c1[:, 0]], ys[c1[:, 1]]])
-    f0 = np.nan_to_num(Z[c0[:, 0], c0[:, 1]], nan=-1e9) - zl
-    f1 = np.nan_to_num(Z[c1[:, 0], c1[:, 1]], nan=-1e9) - zl
-    # Regula falsi (Illinois) on each edge against the exact drop height; points whose value
-    # is within tolerance / 1000 of the level stop early
-    t0, t1 = np.zeros(len(keys)), np.ones(len(keys))
-    done = np.zeros(len(keys), bool)
-    last = np.full(len(keys), -1, dtype=np.int8)  # which end the previous step replaced
-    eps = 1e-3 * tool.tolerance
-    for _ in range(FALSI_STEPS):
-        act = np.flatnonzero(~done)
-        if len(act) == 0:
-            break
-        a0, a1, b0, b1 = t0[act], t1[act], f0[act], f1[act]
-        t = np.clip((a0 * b1 - a1 * b0) / np.where(b1 != b0, b1 - b0, 1.0), 0.0, 1.0)
-        # bisection next to a corner where no face lies under the ball (no value to follow)
-        t = np.where((b0 < -1e8) | (b1 < -1e8), 0.5 * (a0 + a1), t)
-        q = p0[act] + t[:, None] * (p1[act] - p0[act])
-        ft = np.nan_to_num(query.heights(q)[0], nan=-1e9) - zl[act]
-        same = np.sign(ft) == np.sign(b0)
-        # Illinois: the kept end's value is halved when the same end was kept last time
-        again = same.astype(np.int8) == last[act]
-        last[act] = same
-        t0[act], f0[act] = np.where(same, t, a0), np.where(same, ft, np.where(again, 0.5, 1) * b0)
-        t1[act], f1[act] = np.where(same, a1, t), np.where(same, np.where(again, 0.5, 1) * b1, ft)
-        done[act] = np.abs(ft) <= eps
-        # a converged point sits on the side that holds it
-        hit = np.abs(ft) <= eps
-        t0[act[hit]], f0[act[hit]] = t[hit], ft[hit]
-        t1[act[hit]], f1[act[hit]] = t[hit], ft[hit]
-    t = np.where(np.abs(f0) < np.abs(f1), t0, t1)
+    z0, z1 = Z[c0[:, 0], c0[:, 1]], Z[c1[:, 0], c1[:, 1]]
+    width = JUMP_WIDTH * tool.tolerance
+    t, jump, t_up, settled = polish_crossings(lambda q: query.heights(q)[0], p0, p1, z0, z1, zl,
+                                     1e-3 * tool.tolerance, width)
     xy = p0 + t[:, None] * (p1 - p0)
     _tip, good = _contacts(faceset, query, signs, xy)
+    if jump.any():
+        # the ball beside a jump touches what it follows on its rim: the contact that counts
+        # is the one just above the level, tilted by up to sqrt(2 width / R) from the normal
+        up = p0[jump] + t_up[jump, None] * (p1[jump] - p0[jump])
+        tilt = SURFACE_TILT + 2.0 * math.sqrt(2.0 * width / tool.radius)
+        good[jump] = _contacts(faceset, query, signs, up, tilt)[1]
     monitor(0.5)
     # split each contour to its runs on selected surface contacts; each run end next to a
     # dropped point is carried on along the level to where the contact leaves the face
@@ -388,20 +538,39 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     starts = np.cumsum([0] + [len(p) for p in pieces])
     pts, starts = densify(_FiniteQuery(query), pts, starts, 0.25 * tool.tolerance)
     monitor(0.7)
+    # the kept jump points (found by their exact XY, which densify and simplify leave alone)
+    # ride along in a fourth column: beside a jump the ball's contact is on its rim, which
+    # the final check below cannot see at the air side
+    beside = {k for k, j in zip(_xy_keys(xy), jump & good) if j}
+    pts = np.column_stack([pts, [k in beside for k in _xy_keys(pts[:, :2])]])
+    if beside:
+        pts, starts = _densify_jumps(query, pts, starts, 0.5 * tool.tolerance, width)
     keep = simplify(pts, starts, 0.5 * tool.tolerance, "planar")
     passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
     step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
-    passes, push_stats = push_out(_FiniteQuery(query), passes, step)
+    passes, push_stats = push_out(_FiniteQuery(query), passes, step, drop_dips=True)
     monitor(0.9)
     # vertices pushed off the selected faces' surface contacts end their run
     out = []
+    if not passes:
+        return [], {"chord_push": push_stats}
     allv = np.concatenate(passes)
     _tip, good = _contacts(faceset, query, signs, allv[:, :2])
+    good |= allv[:, 3] > 0.0
     starts = np.cumsum([0] + [len(p) for p in passes])
     for a, b, p in zip(starts[:-1], starts[1:], passes):
         closed = len(p) > 2 and bool(np.all(p[0] == p[-1]))
-        out.extend(p[run] for run in _runs(good[a:b], closed))
-    return out, {"chord_push": push_stats}
+        out.extend(p[run, :3] for run in _runs(good[a:b], closed))
+    crossings = {"crossings": len(t), "jumps": int(jump.sum()),
+                 "unsettled": int(np.count_nonzero(~settled))}
+    return out, {"chord_push": push_stats, "crossings": crossings}
 
 
-__all__ = ["SURFACE_TILT", "generate_faces_waterline", "level_heights"]
+def _xy_keys(xy: FloatArray) -> list:
+    """Exact (x, y) of each row as bytes (rows equal bit for bit share a key)."""
+    q = np.ascontiguousarray(np.asarray(xy, dtype=float)[:, :2])
+    return q.view(np.dtype((np.void, q.itemsize * 2))).ravel().tolist()
+
+
+__all__ = ["FALSI_STEPS", "JUMP_WIDTH", "SURFACE_TILT", "generate_faces_waterline",
+           "level_heights", "polish_crossings"]

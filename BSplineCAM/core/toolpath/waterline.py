@@ -25,7 +25,14 @@ from typing import Any
 import numpy as np
 
 from ..typing import FloatArray
-from .chords import CLEARANCE, NEGLIGIBLE, chord_excess, sample_chords
+from .chords import (
+    CLEARANCE,
+    DIP_LIMIT,
+    MAX_SLOPE,
+    NEGLIGIBLE,
+    chord_excess,
+    sample_chords,
+)
 from .common import Monitor, ToolParameters, curved_stepover, normal_curvature, simplify
 from .dropcutter import DropCutter
 
@@ -265,8 +272,15 @@ def densify(dc: DropCutter, pts: FloatArray, starts: np.ndarray, gap: float,
     return pts, starts
 
 
-def push_out(dc: DropCutter, passes: list, step: float,
-             iterations: int = 6) -> tuple[list, dict]:
+#: A waterline vertex whose exact height is farther than this from its level (mm) lies beside a
+#: jump of the height (on its air side): the gradients of its chords mean nothing.
+OFF_LEVEL = 1e-6
+#: Deepest dip (mm) of a chord beside a jump that its samples may miss (:func:`_jump_chord_excess`).
+UNSEEN_DIP = 1e-4
+
+
+def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
+             drop_dips: bool = False) -> tuple[list, dict]:
     """Move waterline vertices outwards (downhill, in XY) until no chord at the level has the
     exact drop-cutter height above it: a chord across a convex contour lies inside the offset.
 
@@ -274,18 +288,33 @@ def push_out(dc: DropCutter, passes: list, step: float,
     |grad . m| across the chord (m its unit XY normal, pointing downhill), is shifted by
     (e + CLEARANCE) / |grad . m|; a shared vertex moves along the bisector of its chords'
     normals far enough for both.  Repeated until no chord dips more than ``DIP_LIMIT``.
+
+    Where that shift would exceed a quarter of the chord (no smooth sag is that deep), the
+    height is steeper than ``MAX_SLOPE`` at the worst point or an end lies off its level by
+    more than ``OFF_LEVEL`` (beside a jump), the height may jump inside the chord (the ball's
+    rim on a wall, the model's edge: e is the jump's height and the gradient means nothing):
+    the shift is found instead by searching along both normals from the worst point for the
+    nearest point on the free side (height at most the level, or no face), halving from half
+    the chord's length (:func:`_free_distance`).
+    Every shift is thus at most half its chord, and the point count stays bounded.  With
+    ``drop_dips`` the chords still dipping after the last iteration are cut out of their
+    passes (the tool is never left below the drop height); the stats count them.
     """
     passes = [np.array(p, dtype=float) for p in passes]
     moved_max = 0.0
     worst = np.inf
     it = 0
-    for it in range(1, iterations + 1):
+    jumps = 0
+    check = None
+    for it in range(1, iterations + 2):
         s = sample_chords(dc.heights_and_slopes, passes, [p[:, 2] for p in passes], step)
+        _hide_jump_chords(s)
         check = chord_excess(dc.heights_and_slopes, s)
+        _jump_chord_excess(dc, s, check)
         worst = float(np.max(check.excess, initial=-np.inf))
-        if worst <= NEGLIGIBLE:
+        if worst <= NEGLIGIBLE or it > iterations:
             break
-        vxy, _, vline = s.vertices()
+        vxy, vzv, vline = s.vertices()
         gv = s.grad[s.vertex]
         same = np.append(vline[1:] == vline[:-1], False)
         nxt = np.minimum(np.arange(len(vxy)) + 1, len(vxy) - 1)
@@ -299,6 +328,20 @@ def push_out(dc: DropCutter, passes: list, step: float,
         rate = np.maximum(np.abs(rate), 1e-3)
         need = same & np.isfinite(check.excess) & (check.excess > NEGLIGIBLE)
         shift = np.where(need, (np.maximum(check.excess, 0.0) + CLEARANCE) / rate, 0.0)
+        cand = np.flatnonzero(need)
+        where, gw = _worst_points(s, check, cand)
+        # a vertex off its level (beside a jump: no face, or far below) makes its chords jump
+        zvx = s.z[s.vertex]
+        off = ~(np.abs(zvx - vzv) <= OFF_LEVEL)
+        steep = ~(np.abs(gw).max(axis=1, initial=0.0) <= MAX_SLOPE)
+        steep |= off[cand] | off[nxt[cand]] | (shift[cand] > 0.25 * length[cand])
+        jump = cand[steep]
+        where = where[steep]
+        if len(jump):
+            jumps += len(jump)
+            dist, side = _free_distance(dc, where, normal[jump], vzv[jump], 0.5 * length[jump])
+            shift[jump] = np.where(np.isfinite(dist), dist + CLEARANCE, 0.5 * length[jump])
+            normal[jump] *= np.where(np.isfinite(dist), side, 1.0)[:, None]
         # Vertex r takes chord r (r -> r+1) and chord r-1 (r-1 -> r) of the same line.
         prev = np.append(False, same[:-1])
         m1 = np.where(need[:, None], normal, 0.0)
@@ -327,5 +370,141 @@ def push_out(dc: DropCutter, passes: list, step: float,
         moved_max = max(moved_max, float(np.hypot(move[:, 0], move[:, 1]).max(initial=0.0)))
         new = vxy + move
         cuts = np.flatnonzero(np.diff(vline)) + 1
-        passes = [np.column_stack([q, p[:, 2]]) for q, p in zip(np.split(new, cuts), passes)]
-    return passes, {"max_push_mm": moved_max, "worst_dip_mm": worst, "iterations": it}
+        passes = [np.column_stack([q, p[:, 2:]]) for q, p in zip(np.split(new, cuts), passes)]
+    dipping = 0
+    if check is not None and worst > NEGLIGIBLE:
+        bad = np.isfinite(check.excess) & (check.excess > DIP_LIMIT)
+        dipping = int(bad.sum())
+        if drop_dips and dipping:
+            passes = _cut_chords(passes, bad)
+    return passes, {"max_push_mm": moved_max, "worst_dip_mm": worst,
+                    "iterations": min(it, iterations), "jump_chords": jumps,
+                    "dipping_chords": dipping}
+
+
+def _hide_jump_chords(s) -> None:
+    """Blank (NaN) the inner samples of the chords with an end off its level: beside a jump
+    :func:`chord_excess` would cut every interval across it down to ``MIN_SPLIT`` and learn
+    nothing (its model needs a height at both ends); :func:`_jump_chord_excess` checks them."""
+    vxy, vzv, vline = s.vertices()
+    off = ~(np.abs(s.z[s.vertex] - vzv) <= OFF_LEVEL)
+    jump = np.append((vline[1:] == vline[:-1]) & (off[:-1] | off[1:]), False)
+    rank = np.cumsum(s.vertex) - 1
+    blank = ~s.vertex & jump[rank]
+    s.z[blank] = np.nan
+    s.grad[blank] = np.nan
+
+
+def _jump_chord_excess(dc: DropCutter, s, check) -> None:
+    """Exact samples along the chords with an end off its level (beside a jump), raising
+    their excess in ``check`` where one stands higher than the chord (and making it the
+    chord's worst point).  :func:`chord_excess` examines only intervals with a height at both
+    ends: between two samples with no face under the ball (the air side of a jump) it sees
+    nothing, yet a chord across a convex jump dips into the model between them.  Beside a
+    jump the ball's side meets a wall or an edge, whose offset curves by 1 / R at most: a
+    dip between samples h apart is at most h^2 / (8 R) deep, so they are spaced for
+    ``UNSEEN_DIP``."""
+    vxy, vzv, vline = s.vertices()
+    if len(vxy) < 2:
+        return
+    off = ~(np.abs(s.z[s.vertex] - vzv) <= OFF_LEVEL)
+    same = vline[1:] == vline[:-1]
+    chords = np.flatnonzero(same & (off[:-1] | off[1:]))
+    if len(chords) == 0:
+        return
+    a, b = vxy[chords], vxy[chords + 1]
+    h = math.sqrt(8.0 * dc.radius * UNSEEN_DIP)
+    n = np.ceil(np.hypot(*(b - a).T) / h).astype(np.intp)
+    keep = n >= 2
+    chords, a, b, n = chords[keep], a[keep], b[keep], n[keep]
+    if len(chords) == 0:
+        return
+    owner = np.repeat(np.arange(len(chords)), n - 1)
+    first = np.repeat(np.cumsum(n - 1) - (n - 1), n - 1)
+    frac = (np.arange(len(owner)) - first + 1) / n[owner]
+    q = a[owner] + frac[:, None] * (b[owner] - a[owner])
+    z, g = dc.heights_and_slopes(q)
+    ex = np.where(np.isfinite(z), z - vzv[chords][owner], -np.inf)
+    order = np.lexsort((-ex, owner))
+    head = order[np.r_[True, owner[order][1:] != owner[order][:-1]]]
+    r = chords[owner[head]]
+    up = ex[head] > np.where(np.isfinite(check.excess[r]), check.excess[r], -np.inf)
+    r, at = r[up], head[up]
+    check.excess[r] = ex[at]
+    check.where[r] = q[at]
+    check.grad[r] = g[at]
+
+
+def _worst_points(s, check, chords: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    """XY (mm) of the highest point above each chord (vertex ranks) and the height's gradient
+    there: the evaluated point where :func:`chord_excess` gives one, else its highest exact
+    sample (a rough interval's)."""
+    n = len(s.pos)
+    idx = np.arange(n)
+    va = np.maximum.accumulate(np.where(s.vertex, idx, 0))
+    rank = np.cumsum(s.vertex) - 1
+    ex = np.where(np.isfinite(s.z), s.z - s.zv[va], -np.inf)
+    order = np.lexsort((-ex, rank))
+    head = order[np.r_[True, rank[order][1:] != rank[order][:-1]]]
+    best = np.full((int(s.vertex.sum()), 2), np.nan)
+    best[rank[head]] = s.xy[head]
+    grad = np.full_like(best, np.nan)
+    grad[rank[head]] = s.grad[head]
+    out, g = best[chords], grad[chords]
+    given = np.isfinite(check.where[chords]).all(axis=1)
+    out[given] = check.where[chords][given]
+    g[given] = check.grad[chords][given]
+    return out, g
+
+
+def _free_distance(dc: DropCutter, where: FloatArray, normal: FloatArray, level: FloatArray,
+                   reach: FloatArray, halvings: int = 12,
+                   bisections: int = 8) -> tuple[FloatArray, FloatArray]:
+    """Distance (mm) from each point along +-normal to the nearest point on the free side
+    (drop height at most level + NEGLIGIBLE, or no face), and the side (+1 / -1); inf where
+    neither side is free at ``reach``.  Candidates at reach / 2^i on both sides in one query,
+    the nearest free one whose farther candidates are all free taken, then bisected."""
+    m = len(where)
+    frac = 0.5 ** np.arange(halvings)
+    sides = np.array([1.0, -1.0])
+    d = reach[:, None, None] * frac[None, None, :] * np.ones((1, 2, 1))  # (m, side, i)
+    q = where[:, None, None, :] + (sides[None, :, None, None] * d[..., None]) * normal[:, None,
+                                                                                       None, :]
+    z = dc.heights_and_slopes(q.reshape(-1, 2))[0].reshape(m, 2, halvings)
+    free = ~(np.nan_to_num(z, nan=-np.inf) > level[:, None, None] + NEGLIGIBLE)
+    run = np.cumprod(free, axis=2).sum(axis=2)  # free candidates from the far end inwards
+    hi = np.where(run > 0, reach[:, None] * 0.5 ** np.maximum(run - 1, 0), np.inf)
+    lo = np.where(run < halvings, hi * 0.5, 0.0)
+    pick = np.argmin(hi, axis=1)
+    rows = np.arange(m)
+    hi, lo = hi[rows, pick], lo[rows, pick]
+    side = sides[pick]
+    ok = np.isfinite(hi)
+    for _ in range(bisections):
+        if not ok.any():
+            break
+        mid = 0.5 * (lo[ok] + hi[ok])
+        zq = dc.heights_and_slopes(where[ok] + (side[ok] * mid)[:, None] * normal[ok])[0]
+        f = ~(np.nan_to_num(zq, nan=-np.inf) > level[ok] + NEGLIGIBLE)
+        hi[ok] = np.where(f, mid, hi[ok])
+        lo[ok] = np.where(f, lo[ok], mid)
+    return hi, side
+
+
+def _cut_chords(passes: list, bad: np.ndarray) -> list:
+    """The passes without the chords flagged in ``bad`` (per vertex rank: the chord from it to
+    the next vertex of its pass); a pass is split where one goes, single points dropped."""
+    out = []
+    at = 0
+    for p in passes:
+        b = bad[at:at + len(p) - 1]
+        at += len(p)
+        if not b.any():
+            out.append(p)
+            continue
+        cuts = np.flatnonzero(b) + 1
+        for piece in np.split(np.arange(len(p)), cuts):
+            # piece runs from a vertex after a cut chord to the start of the next cut chord
+            if len(piece) >= 2:
+                out.append(p[piece])
+    return out

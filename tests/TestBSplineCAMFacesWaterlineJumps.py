@@ -1,0 +1,197 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""The faces waterline where the drop height has no face under the ball or jumps past a level
+(core/toolpath/faces_waterline.py polish_crossings, waterline.py push_out): crossings next to
+"no face" converge onto their level, a jump (the ball leaving the model over an edge) is kept
+on its air side, and the contours along a wall that drops to no face follow the wall's exact
+offset without the ball ever standing below the drop height.  Measured against closed forms
+(a ball beside a plate's edge, a ball beside a tube's rim)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from TestBSplineCAMFaceSet import cylinder_quarter, plane, rectangle
+
+from BSplineCAM.core.faces import Face
+from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.toolpath import faces_waterline
+from BSplineCAM.core.toolpath.faces_waterline import (
+    FALSI_STEPS,
+    generate_faces_waterline,
+    polish_crossings,
+)
+from BSplineCAM.core.toolpath.faceset import FaceSet
+
+R = 3.0
+TOP = 5.0  # mm, the plate's height
+EDGE = 20.0  # mm, x of the plate's edge
+CELL = 0.75  # mm, the grid edge of the waterline (R / 4)
+EPS = 2e-6  # mm, tolerance / 1000 of the CLI's default
+WIDTH = 2.5e-4  # mm, tolerance / 8 of the CLI's default
+RHO, HEIGHT = 10.0, 10.0  # mm, the tube's radius and height
+
+
+def plate() -> FaceSet:
+    ns = plane(0.0, EDGE, 0.0, 20.0, TOP)
+    return FaceSet([Face(ns, rectangle(ns))])
+
+
+def beside_edge(d: np.ndarray) -> np.ndarray:
+    """Closed form: tip height of the ball whose axis stands d mm beyond the plate's edge
+    (resting on the edge, NaN past R: nothing under the ball)."""
+    return np.where(d <= R, TOP - R + np.sqrt(np.clip(R * R - d * d, 0.0, None)), np.nan)
+
+
+def tube() -> FaceSet:
+    """A vertical circular tube (radius RHO, from z = 0 to HEIGHT, axis on z), open at both
+    ends, nothing around it: an exact rational quadratic circle ("The NURBS Book" sec. 7.5,
+    nine poles) extruded along z, u counter-clockwise so that Su x Sv points outwards."""
+    c = math.sqrt(0.5)
+    ring = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
+    w = [1.0, c, 1.0, c, 1.0, c, 1.0, c, 1.0]
+    poles = np.array([[[RHO * x, RHO * y, z] for z in (0.0, HEIGHT)] for x, y in ring])
+    weights = np.array([[wi, wi] for wi in w])
+    knots = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
+    ns = NurbsSurface(poles, knots, [0, 0, 1, 1], 2, 1, weights=weights)
+    return FaceSet([Face(ns, rectangle(ns))])
+
+
+def beside_tube(xy: np.ndarray) -> np.ndarray:
+    """Closed form: tip height of the ball over the tube, resting on its top rim (the highest
+    point within R of the axis is the rim's nearest point), NaN where the ball misses the
+    tube (more than R from the wall on either side)."""
+    d = np.abs(np.hypot(xy[:, 0], xy[:, 1]) - RHO)
+    return np.where(d < R, HEIGHT - R + np.sqrt(np.clip(R * R - d * d, 0.0, None)), np.nan)
+
+
+class Counted:
+    """The plate's drop-cutter tip heights, counting the calls (one per polish iteration)."""
+
+    def __init__(self, fs: FaceSet):
+        self.fs, self.calls = fs, 0
+
+    def __call__(self, xy):
+        self.calls += 1
+        return self.fs.drop_ball(xy, R)[0]
+
+
+@pytest.mark.parametrize("flip", [False, True])
+@pytest.mark.parametrize("where", ["anywhere", "last 1/32 of the edge"])
+def test_crossing_beside_no_face_converges_to_the_level(flip, where):
+    """Levels whose crossing lies between a corner with a face and one without: every point
+    lands within EPS of its level, at the closed-form place, within the step budget.  (The
+    former stand-in value -1e9 for "no face", halved by the Illinois rule, turned the search
+    from bisection into a secant pulled onto the no-face end: crossings stalled there.)"""
+    rng = np.random.default_rng(11 + flip)
+    n = 200
+    if where == "anywhere":
+        end_d = R + rng.uniform(1e-4, 0.74, n)
+        d_cross = np.clip(end_d - CELL * rng.uniform(0.02, 0.98, n), 0.05, R - 1e-3)
+    else:
+        d_cross = R - rng.uniform(0.005, 0.02, n)
+        end_d = np.maximum(d_cross + CELL * rng.uniform(0.0, 1.0 / 32.0, n), R + 1e-6)
+    start = np.maximum(end_d - CELL, 0.0)
+    y = rng.uniform(5.0, 15.0, n)
+    p0, p1 = np.column_stack([EDGE + start, y]), np.column_stack([EDGE + end_d, y])
+    if flip:
+        p0, p1 = p1, p0
+    level = beside_edge(d_cross)
+    drop = Counted(plate())
+    z0, z1 = beside_edge(p0[:, 0] - EDGE), beside_edge(p1[:, 0] - EDGE)
+    assert np.isnan(z1 if not flip else z0).all()  # every edge has its no-face end
+    t, jump, _t_up, settled = polish_crossings(drop, p0, p1, z0, z1, level, EPS, WIDTH)
+    assert settled.all() and not jump.any()
+    xy = p0 + t[:, None] * (p1 - p0)
+    d = xy[:, 0] - EDGE
+    z = beside_edge(d)
+    assert np.all(np.abs(z - level) <= EPS + 1e-9), np.nanmax(np.abs(z - level))
+    # |d - d_cross| is at most EPS over the closed form's slope at the nearer of the two
+    near = np.minimum(d, d_cross)
+    assert np.all(np.abs(d - d_cross) * near / np.sqrt(R * R - near * near) <= 1.01 * EPS)
+    assert drop.calls <= FALSI_STEPS
+
+
+def test_jump_past_the_level_ends_on_the_air_side():
+    """A level below the ball's lowest rest on the edge (TOP - R): the height jumps past it
+    where the ball leaves the plate (d = R); the point found is on the air side (no face under
+    the ball), at most WIDTH mm from the jump, and the bracket's other end rests on the
+    plate."""
+    rng = np.random.default_rng(5)
+    n = 50
+    end_d = R + rng.uniform(1e-4, 0.74, n)
+    p0 = np.column_stack([EDGE + end_d - CELL, np.full(n, 10.0)])
+    p1 = np.column_stack([EDGE + end_d, np.full(n, 10.0)])
+    level = np.full(n, TOP - R - 0.5)
+    drop = Counted(plate())
+    z0, z1 = beside_edge(p0[:, 0] - EDGE), beside_edge(p1[:, 0] - EDGE)
+    t, jump, t_up, settled = polish_crossings(drop, p0, p1, z0, z1, level, EPS, WIDTH)
+    assert settled.all() and jump.all()
+    d = p0[:, 0] + t * (p1[:, 0] - p0[:, 0]) - EDGE
+    d_up = p0[:, 0] + t_up * (p1[:, 0] - p0[:, 0]) - EDGE
+    assert np.all(d > R) and np.all(d - R <= WIDTH)
+    assert np.isnan(beside_edge(d)).all()
+    assert np.all(beside_edge(d_up) > level)
+    assert drop.calls <= FALSI_STEPS
+
+
+@pytest.mark.parametrize("tolerance", [0.01, 0.006])
+def test_tube_wall_is_followed_from_the_air_side(tolerance):
+    """A tube standing on nothing: below HEIGHT - R the drop height jumps from the rim's
+    HEIGHT - R to no face where the ball's side meets the wall, so every waterline is the
+    circle of radius RHO + R (the ball touching the wall) and nothing inside (the inner side
+    faces away).  Every vertex lies on the air side of the closed-form drop height (never in
+    the tube's wall), within the tolerance of the exact offset; along every chord the ball's
+    side stays out of the wall (to the UNSEEN_DIP of the chord check, 1e-4 mm); each level is
+    one closed contour around the whole tube."""
+    fs = tube()
+    tp = generate_faces_waterline(fs, 2 * R, 0.2, tolerance)
+    levels = [z for z in tp.extra["levels"] if -R < z < HEIGHT - R]
+    assert len(levels) >= 3
+    assert len(tp.passes) == len(levels)
+    for p in tp.passes:
+        assert np.ptp(p[:, 2]) == 0.0 and p[0, 2] in levels
+        assert np.array_equal(p[0], p[-1])  # closed
+        r = np.hypot(p[:, 0], p[:, 1])
+        assert not np.any(beside_tube(p[:, :2]) > p[:, 2])  # NaN: no face, the air side
+        assert np.all(r > RHO + R), (r - RHO - R).min()
+        assert np.all(r - RHO - R <= tolerance), (r - RHO - R).max()
+        a = np.sort(np.arctan2(p[:, 1], p[:, 0]))
+        assert np.diff(np.r_[a, a[0] + 2 * math.pi]).max() < 0.2  # all round
+        # chords: dense samples; the ball's side reaches RHO + R - r into the wall
+        s = np.linspace(0.0, 1.0, 257)[:, None, None]
+        q = p[:-1, None, :2] + s.transpose(1, 0, 2) * (p[1:, None, :2] - p[:-1, None, :2])
+        r = np.hypot(q[..., 0], q[..., 1])
+        assert np.all(r >= RHO + R - 1e-4), RHO + R - r.min()
+    # the certified drop-cutter agrees: no vertex below it
+    allv = np.concatenate(tp.passes)
+    drop = fs.drop_ball(allv[:, :2], R)[0]
+    assert not np.any(drop > allv[:, 2] + 1e-7)
+
+
+def test_crossings_on_a_cylinder_with_free_ends(monkeypatch):
+    """The whole operation on a quarter cylinder whose ends and feet are free edges (grid
+    corners beyond them have no face): every crossing that becomes a contour vertex (a
+    selected surface contact, not a jump) lies within tolerance / 1000 of its level."""
+    found = []
+
+    def spy(heights, p0, p1, z0, z1, level, eps, width, steps=FALSI_STEPS):
+        out = polish_crossings(heights, p0, p1, z0, z1, level, eps, width, steps)
+        found.append((p0 + out[0][:, None] * (p1 - p0), level, eps, out[1], out[3]))
+        return out
+
+    monkeypatch.setattr(faces_waterline, "polish_crossings", spy)
+    ns = cylinder_quarter(10.0, 20.0)
+    fs = FaceSet([Face(ns, rectangle(ns))])
+    tol = 0.01
+    tp = generate_faces_waterline(fs, 2 * R, 0.05, tol)
+    assert tp.passes and len(found) == 1
+    xy, level, eps, jump, settled = found[0]
+    assert eps == pytest.approx(tol / 1000) and settled.all()
+    assert math.isnan(fs.drop_ball(np.array([[0.0, -R - 0.1]]), R)[0][0])  # no-face corners
+    query = faces_waterline._MemoQuery(fs, R)
+    tip, good = faces_waterline._contacts(fs, query, faces_waterline._upward_signs(fs), xy)
+    good &= ~jump
+    assert good.sum() > 100
+    assert np.all(np.abs(tip[good] - level[good]) <= eps)
