@@ -548,7 +548,8 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     keep = simplify(pts, starts, 0.5 * tool.tolerance, "planar")
     passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
     step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
-    passes, push_stats = push_out(_FiniteQuery(query), passes, step, drop_dips=True)
+    passes, push_stats = push_out(_FiniteQuery(query), passes, step, drop_dips=True,
+                                  follow_jumps=True)
     monitor(0.9)
     # vertices pushed off the selected faces' surface contacts end their run
     out = []

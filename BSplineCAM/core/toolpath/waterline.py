@@ -280,7 +280,8 @@ UNSEEN_DIP = 1e-4
 
 
 def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
-             drop_dips: bool = False) -> tuple[list, dict]:
+             drop_dips: bool = False,
+             follow_jumps: bool = False) -> tuple[list, dict]:
     """Move waterline vertices outwards (downhill, in XY) until no chord at the level has the
     exact drop-cutter height above it: a chord across a convex contour lies inside the offset.
 
@@ -289,16 +290,19 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
     (e + CLEARANCE) / |grad . m|; a shared vertex moves along the bisector of its chords'
     normals far enough for both.  Repeated until no chord dips more than ``DIP_LIMIT``.
 
-    Where that shift would exceed a quarter of the chord (no smooth sag is that deep), the
+    With ``follow_jumps`` (the faces' waterline, whose contours follow jumps of the height),
+    where that shift would exceed a quarter of the chord (no smooth sag is that deep), the
     height is steeper than ``MAX_SLOPE`` at the worst point or an end lies off its level by
     more than ``OFF_LEVEL`` (beside a jump), the height may jump inside the chord (the ball's
     rim on a wall, the model's edge: e is the jump's height and the gradient means nothing):
     the shift is found instead by searching along both normals from the worst point for the
     nearest point on the free side (height at most the level, or no face), halving from half
-    the chord's length (:func:`_free_distance`).
-    Every shift is thus at most half its chord, and the point count stays bounded.  With
-    ``drop_dips`` the chords still dipping after the last iteration are cut out of their
-    passes (the tool is never left below the drop height); the stats count them.
+    the chord's length (:func:`_free_distance`), and the chords beside a jump are checked by
+    samples spaced for ``UNSEEN_DIP`` (:func:`_jump_chord_excess`).  Every shift is thus at
+    most half its chord, and the point count stays bounded.  Without it (one net's
+    waterline) every chord is certified by :func:`chord_excess` alone, to ``DIP_LIMIT``.
+    With ``drop_dips`` the chords still dipping after the last iteration are cut out of
+    their passes (the tool is never left below the drop height); the stats count them.
     """
     passes = [np.array(p, dtype=float) for p in passes]
     moved_max = 0.0
@@ -308,9 +312,11 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
     check = None
     for it in range(1, iterations + 2):
         s = sample_chords(dc.heights_and_slopes, passes, [p[:, 2] for p in passes], step)
-        _hide_jump_chords(s)
+        if follow_jumps:
+            _hide_jump_chords(s)
         check = chord_excess(dc.heights_and_slopes, s)
-        _jump_chord_excess(dc, s, check)
+        if follow_jumps:
+            _jump_chord_excess(dc, s, check)
         worst = float(np.max(check.excess, initial=-np.inf))
         if worst <= NEGLIGIBLE or it > iterations:
             break
@@ -335,6 +341,8 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
         off = ~(np.abs(zvx - vzv) <= OFF_LEVEL)
         steep = ~(np.abs(gw).max(axis=1, initial=0.0) <= MAX_SLOPE)
         steep |= off[cand] | off[nxt[cand]] | (shift[cand] > 0.25 * length[cand])
+        if not follow_jumps:
+            steep[:] = False
         jump = cand[steep]
         where = where[steep]
         if len(jump):
