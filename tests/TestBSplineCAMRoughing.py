@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,6 +27,7 @@ from BSplineCAM.core.toolpath.roughing import (
 )
 
 SIM_CELL = 0.2
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 CUT_EPS = 0.05  # mm: a cell counts as cut when the move lowers it by more
 
 
@@ -336,6 +338,149 @@ def test_flat_levels_clean_terraces(flat_levels):
     else:
         assert rough.levels == pytest.approx([9.0, 6.0, 5.2])
         assert left == pytest.approx(12.0 - 9.5, abs=1e-3)  # never reached: above level 9
+
+
+def _bands(levels, top, stepdown):
+    """The cutting order split into (main level, [levels of its band]) pairs: the main
+    levels lie a whole number of step-downs below the top, or are the lowest."""
+    out = []
+    for z in levels:
+        if abs((top - z) / stepdown - round((top - z) / stepdown)) < 1e-6 or z == min(levels):
+            out.append((z, []))
+        else:
+            out[-1][1].append(z)
+    return out
+
+
+@pytest.mark.parametrize("shape", ["flat", "bullnose"])
+def test_fine_stepdown_terraces_and_order(shape):
+    """Step-down 9 mm with a fine step-down of 3 mm: the levels every 9 mm are cut top-down and
+    after each the levels every 3 mm in the band above it, bottom-up; the simulated stock left
+    never lies more than the fine step above the part plus the allowances (check_common's
+    bound with stepdown = 3), as with plain 3 mm levels, for a shorter cutting length, and no
+    rapid cuts (check_common (d))."""
+    stock = Stock(-25, 25, -25, 25, 0.0, 17.0)
+    tool = Tool(8.0, "flat") if shape == "flat" else Tool(8.0, "bullnose", 1.0)
+    kw = dict(stepover=3.0, radial_allowance=0.3, axial_allowance=0.2)
+    fine = generate_roughing(hemisphere_on_plate, stock, tool, stepdown=9.0, fine_stepdown=3.0,
+                             **kw)
+    plain = generate_roughing(hemisphere_on_plate, stock, tool, stepdown=3.0, **kw)
+    bands = _bands(fine.levels, stock.z_max, 9.0)
+    mains = [z for z, _ in bands]
+    assert mains[:2] == pytest.approx([8.0, 5.2])  # 17 - 9, then the plate (5 + 0.2)
+    above = stock.z_max
+    for z, band in bands:
+        assert band == sorted(band)  # bottom-up
+        assert all(z < b < above for b in band)
+        assert np.all(np.diff([z, *band, above]) <= 3.0 + 1e-9)
+        above = z
+    assert sorted(fine.levels) == sorted(set(fine.levels))
+    sim, base = check_common(fine, stock, tool, hemisphere_on_plate, 3.0, 3.0, 0.3, 0.2,
+                             head_on=True)
+    ref, _ = check_common(plain, stock, tool, hemisphere_on_plate, 3.0, 3.0, 0.3, 0.2,
+                          head_on=True)
+    reach = np.isfinite(hemisphere_on_plate(sim.xs, sim.ys))
+    assert float((sim.height - base)[reach].max()) <= float((ref.height - base)[reach].max()) + 0.1
+    assert fine.stats["cutting_length_mm"] < 0.9 * plain.stats["cutting_length_mm"]
+
+
+def test_fine_stepdown_no_rapid_into_a_terrace_case_study():
+    """The case study roughed at an 8 mm step-down with a 2 mm fine step: the job simulation of
+    the program's text finds no rapid touching the stock.  (A rapid descent into a band
+    touched a terrace 1 mm deep while the surface estimate took a cell as cut when only its
+    centre lay within the tool.)"""
+    from BSplineCAM.core.footprint import surface_height
+    from BSplineCAM.core.surface import Surface
+
+    surf = Surface.from_json(str(EXAMPLES / "case-study.json"))
+    P = surf.evaluate_grid(np.linspace(0, 1, 101), np.linspace(0, 1, 101)).reshape(-1, 3)
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    stock = Stock(lo[0] - 2, hi[0] + 2, lo[1] - 2, hi[1] + 2, lo[2] - 2, hi[2] + 2)
+
+    def height(xs, ys):
+        return surface_height(surf, np.asarray(xs)[None, :], np.asarray(ys)[:, None])[0]
+
+    tool = Tool(10.0, "flat")
+    rough = generate_roughing(height, stock, tool, 8.0, 4.0, 0.3, 0.3, fine_stepdown=2.0)
+    job = simulate_text(rough, stock, tool, cell=0.1)
+    assert rough.stats["ramps"] + rough.stats["entries"]["helical"] > 0  # entries inside
+    assert not job.tools[1].collisions, job.tools[1].collisions[:3]
+    assert float(job.volume.sum()) > 1e5  # it does rough: over 100 cm3 removed
+
+
+@pytest.mark.parametrize("tool", [Tool(6.0, "flat"), Tool(6.0, "bullnose", 1.5),
+                                  Tool(6.0, "ball")])
+def test_surface_estimate_bounds_the_cut_over_whole_cells(tool):
+    """After a pass, the roughing's estimate of the material's top (which decides where rapids
+    may descend) lies at or above the true top over every point of every cell, sampled 7 x 7
+    per cell: a cell whose centre the tool covered but not its corners keeps its old height
+    there.  And it is no mere upper bound: the cells the tool covers whole drop to the
+    level plus the profile."""
+    from BSplineCAM.core.toolpath.roughing import _Job
+
+    cell = 0.25
+    grid = Grid.covering(-8.0, 8.0, -8.0, 8.0, cell)
+    zeros = np.zeros((grid.ny, grid.nx))
+    job = _Job(grid, zeros, zeros, tool, 2.0, 0.0, cell, Stock(-8, 8, -8, 8, 0, 10), 20.0, [],
+               None)
+    job.surface = np.full(zeros.shape, 10.0)
+    job.uncut = np.ones(zeros.shape, bool)
+    job.z = 5.0
+    path = np.array([[-6.0, -2.3], [1.1, 0.4], [5.0, 4.7]])
+    job.mark(path)
+    xs, ys = grid.centres()
+    offsets = (np.arange(7) / 6.0 - 0.5) * cell
+    truth = np.full(zeros.shape, -np.inf)
+    dist_c = None
+    for oy in offsets:
+        for ox in offsets:
+            X, Y = np.meshgrid(xs + ox, ys + oy)
+            pts = np.column_stack([X.ravel(), Y.ravel()])
+            a, b = path[:-1], path[1:]
+            d = np.full(len(pts), np.inf)
+            for p0, p1 in zip(a, b):
+                t = np.clip(((pts - p0) @ (p1 - p0)) / float((p1 - p0) @ (p1 - p0)), 0, 1)
+                d = np.minimum(d, np.hypot(*(pts - (p0 + t[:, None] * (p1 - p0))).T))
+            d = d.reshape(zeros.shape)
+            top = np.where(d <= tool.radius, 5.0 + tool.profile(np.minimum(d, tool.radius)),
+                           10.0)
+            truth = np.maximum(truth, top)
+            if ox == 0 and oy == 0:
+                dist_c = d
+    assert float((truth - job.surface).max()) <= 1e-9
+    inner = dist_c <= tool.radius - 1.5 * cell
+    assert inner.sum() > 500
+    assert np.all(job.surface[inner] < 10.0)
+    if tool.shape.value == "flat":
+        assert np.all(job.surface[inner] == 5.0)
+
+
+def test_ramp_along_a_pass_of_no_length_ends():
+    """A pass whose points coincide has nothing to ramp along: no ramp, at once (the walk back
+    and forth along it never reached its length and grew without end, on the case study at
+    an 8 mm step-down with 2 mm fine levels)."""
+    from BSplineCAM.core.toolpath.roughing import _ramp
+
+    for closed in (False, True):
+        ramp, route = _ramp(np.array([[65.5, 18.5], [65.5, 18.5]]), closed, 2.0, 0.05)
+        assert ramp.shape == (0, 3) and len(route) == 2
+
+
+@pytest.mark.parametrize("fine, word", [(0.0, "fine_stepdown"), (-1.0, "fine_stepdown"),
+                                        (4.0, "fine_stepdown"), (math.nan, "fine_stepdown")])
+def test_fine_stepdown_bad_input(fine, word):
+    with pytest.raises(ParameterError, match=word) as info:
+        generate_roughing(hemisphere_on_plate, Stock(-25, 25, -25, 25, 0.0, 17.0),
+                          Tool(8.0, "flat"), stepdown=3.0, stepover=3.0, fine_stepdown=fine)
+    assert "mm" in str(info.value)
+
+
+def test_fine_stepdown_equal_to_stepdown_is_plain():
+    stock = Stock(-25, 25, -25, 25, 0.0, 17.0)
+    a = generate_roughing(hemisphere_on_plate, stock, Tool(8.0, "flat"), 3.0, 3.0,
+                          fine_stepdown=3.0)
+    b = generate_roughing(hemisphere_on_plate, stock, Tool(8.0, "flat"), 3.0, 3.0)
+    assert a.levels == b.levels and a.moves == b.moves
 
 
 def test_tip_height_matches_brute_force():

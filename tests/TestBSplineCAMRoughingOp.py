@@ -201,6 +201,72 @@ class TestRoughingBadInput(RoughingFixture):
             self.rough.StepDown = saved
             self.doc.recompute()
 
+    def test_fine_stepdown_deeper_than_the_stepdown(self):
+        try:
+            self.rough.FineStepDown = self.rough.StepDown.Value + 0.5
+            error = self.recompute_error()
+            self.assertIn("FineStepDown", error)
+            self.assertIn("mm", error)
+        finally:
+            self.rough.FineStepDown = 0.0
+            self.doc.recompute()
+        self.assertNotIn("error", json.loads(self.rough.Report))
+
+    def test_fine_stepdown_levels_and_program(self):
+        """StepDown 6 mm with FineStepDown 2 mm: levels every 6 mm from the stock top, each
+        followed by the levels of the band above it, bottom-up, 2 mm apart at most; the
+        program, posted and simulated from the block, leaves no more than the plain 2 mm
+        levels do, gouges nothing, no rapid touches the stock, and cuts less."""
+        plain = json.loads(self.rough.Report)
+        left_plain = self.stock_left()
+        saved = self.rough.StepDown.Value
+        try:
+            self.rough.StepDown = 6.0
+            self.rough.FineStepDown = 2.0
+            self.rough.touch()
+            self.doc.recompute()
+            report = json.loads(self.rough.Report)
+            self.assertNotIn("error", report)
+            levels = report["levels"]
+            top = self.stock()[5]
+            main = [i for i, z in enumerate(levels)
+                    if abs((top - z) / 6.0 - round((top - z) / 6.0)) < 1e-6 or z == min(levels)]
+            self.assertGreaterEqual(len(main), 2)
+            above = top
+            for a, b in zip(main, main[1:] + [len(levels)]):
+                band = levels[a + 1:b]
+                self.assertEqual(band, sorted(band))
+                steps = np.diff([levels[a], *band, above])
+                self.assertTrue(np.all(steps <= 2.0 + 1e-6), (levels[a], band, above))
+                above = levels[a]
+            self.assertLess(report["cutting_length_mm"], plain["cutting_length_mm"])
+            left = self.stock_left()
+            self.assertLessEqual(left["max"], left_plain["max"] + 0.1)
+            self.assertGreaterEqual(left["min"], 0.3 - 0.05)
+            self.assertEqual(left["collisions"], 0)
+        finally:
+            self.rough.StepDown = saved
+            self.rough.FineStepDown = 0.0
+            self.rough.touch()
+            self.doc.recompute()
+
+    def stock_left(self) -> dict:
+        """The roughing's program (linuxcnc post, written afresh) simulated from the block:
+        stock left above the design (min, max) and the rapids touching the stock."""
+        self.finish.Active = False
+        try:
+            path = Path(self.tmp.name) / "rough-only.ngc"
+            cam.post_process(self.job, "linuxcnc", path, remember=False)
+        finally:
+            self.finish.Active = True
+        program = read_gcode(path.read_text())
+        result = verify_job(self.surface, program, {1: Tool(8.0, "flat")}, stock=self.stock(),
+                            cell=0.2)
+        left = result.job.snapshots[1] - result.design
+        left = left[result.inside & np.isfinite(left)]
+        return {"min": float(left.min()), "max": float(left.max()),
+                "collisions": len(result.metrics["rapid_collisions"])}
+
     def test_allowance_larger_than_the_stock(self):
         saved = self.rough.AxialAllowance.Value
         try:

@@ -37,7 +37,8 @@ class FinishingParameters:
 class RoughingParameters:
     """Roughing before the finish: the end mill (shape 'flat', 'bullnose' or 'ball',
     diameter and corner radius mm), step-down (mm), stepover (percent of the diameter), stock
-    to leave (mm), the stock block's margin around the part (mm) and flat-area levels."""
+    to leave (mm), the stock block's margin around the part (mm), flat-area levels and the
+    fine step-down (mm, 0: off) of the terraces between levels."""
 
     shape: str = "flat"
     diameter: float = 10.0
@@ -48,6 +49,7 @@ class RoughingParameters:
     axial_allowance: float = 0.3
     stock_margin: float = 2.0
     flat_levels: bool = True
+    fine_stepdown: float = 0.0
 
 
 def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc,
@@ -132,8 +134,10 @@ def stock_margin(job) -> float | None:
 
 
 def set_roughing(op, roughing: RoughingParameters) -> None:
-    """The roughing op's step-down, stepover, stock to leave and flat levels (not its tool)."""
+    """The roughing op's step-down, stepover, stock to leave, flat levels and fine step-down
+    (not its tool)."""
     op.StepDown = roughing.stepdown
+    op.FineStepDown = roughing.fine_stepdown
     op.StepOver = int(roughing.stepover_percent)
     op.RadialAllowance = roughing.radial_allowance
     op.AxialAllowance = roughing.axial_allowance
@@ -153,7 +157,7 @@ def roughing_of(op) -> RoughingParameters:
         radial_allowance=float(op.RadialAllowance.Value),
         axial_allowance=float(op.AxialAllowance.Value),
         stock_margin=RoughingParameters.stock_margin if margin is None else margin,
-        flat_levels=bool(op.FlatLevels))
+        flat_levels=bool(op.FlatLevels), fine_stepdown=float(op.FineStepDown.Value))
 
 
 def edit_roughing(op, roughing: RoughingParameters, cutting: cam.Cutting) -> None:

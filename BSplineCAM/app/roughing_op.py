@@ -38,6 +38,9 @@ PROPERTIES = (
      "Unused by roughing (every face of the job's model bounds the tool); kept so faces "
      "chosen for finishing can be shared", 0, None),
     ("App::PropertyLength", "StepDown", "Roughing", "Depth of each Z level", 0, 2.0),
+    ("App::PropertyLength", "FineStepDown", "Roughing",
+     "Terraces no thicker than this: after each StepDown level, levels this far apart in the "
+     "band above it, cut from the bottom up (0: off)", 0, 0.0),
     ("App::PropertyPercent", "StepOver", "Roughing",
      "Width of cut, percent of the tool diameter (the radial engagement never exceeds it)",
      0, 40),
@@ -130,6 +133,10 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         if edge is not None and edge > 0 and obj.StepDown.Value > edge:
             raise OpError(f"{obj.Label}: StepDown {obj.StepDown.Value:g} mm is deeper than "
                              f"the tool's cutting edge ({edge:g} mm, {tc})")
+        fine = float(obj.FineStepDown.Value)
+        if fine > obj.StepDown.Value:
+            raise OpError(f"{obj.Label}: FineStepDown {fine:g} mm is deeper than StepDown "
+                          f"({obj.StepDown.Value:g} mm)")
         stepover = 0.01 * int(obj.StepOver) * tool.diameter
         if not stepover > 0:
             raise OpError(f"{obj.Label}: StepOver must be above 0 % of the tool diameter")
@@ -139,7 +146,8 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
             radial_allowance=obj.RadialAllowance.Value,
             axial_allowance=obj.AxialAllowance.Value,
             cell=obj.Cell.Value or None, clearance_height=clearance,
-            flat_levels=bool(obj.FlatLevels), progress=progress_reporter(obj))
+            flat_levels=bool(obj.FlatLevels), fine_stepdown=fine or None,
+            progress=progress_reporter(obj))
         if not rough.moves:
             raise OpError(f"{obj.Label}: there is no stock to remove above the part")
         from ..core.toolpath.arcs import fit_arcs

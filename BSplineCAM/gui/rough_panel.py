@@ -133,6 +133,8 @@ class RoughPanel(PanelBase):
         self.diameter = spin(10.0, 0.0, 100.0, 3, " mm", 1.0)
         self.corner = spin(1.0, 0.0, 50.0, 3, " mm", 0.5)
         self.stepdown = spin(2.0, 0.0, 100.0, 3, " mm", 0.5)
+        self.fine = spin(0.0, 0.0, 100.0, 3, " mm", 0.5)
+        self.fine.setSpecialValueText("off")
         self.stepover = spin(40.0, 0.0, 100.0, 0, " %", 5.0)
         self.radial = spin(0.3, 0.0, 50.0, 3, " mm", 0.1)
         self.axial = spin(0.3, 0.0, 50.0, 3, " mm", 0.1)
@@ -147,6 +149,8 @@ class RoughPanel(PanelBase):
             ("Diameter", self.diameter, "Diameter of the end mill"),
             ("Corner radius", self.corner, "Corner radius of the bull-nose end mill"),
             ("Step-down", self.stepdown, "Depth of each Z level"),
+            ("Fine step-down", self.fine, "Terraces no thicker than this: after each level, "
+             "levels this far apart in the band above it, cut from the bottom up (off: none)"),
             ("Stepover", self.stepover, "Width of cut, percent of the diameter; the radial "
              "engagement never exceeds it"),
             ("Radial stock to leave", self.radial, "Material left on the part sideways"),
@@ -174,7 +178,7 @@ class RoughPanel(PanelBase):
         self.set_cutting(cam.controller_cutting(self.op.ToolController))
         self.shape.setCurrentIndex(SHAPES.index(params.shape))
         for box, value in ((self.diameter, params.diameter), (self.corner, params.corner_radius),
-                           (self.stepdown, params.stepdown),
+                           (self.stepdown, params.stepdown), (self.fine, params.fine_stepdown),
                            (self.stepover, params.stepover_percent),
                            (self.radial, params.radial_allowance),
                            (self.axial, params.axial_allowance), (self.margin, params.stock_margin)):
@@ -214,13 +218,17 @@ class RoughPanel(PanelBase):
         Tool(self.diameter.value(), shape, corner)  # ParameterError names the bad size
         if not self.stepdown.value() > 0:
             raise ValueError("Step-down must be above 0 mm")
+        if self.fine.value() > self.stepdown.value():
+            raise ValueError(f"Fine step-down ({self.fine.value():g} mm) must not exceed the "
+                             f"step-down ({self.stepdown.value():g} mm)")
         if not self.stepover.value() >= 1:
             raise ValueError("Stepover must be at least 1 % of the diameter")
         params = RoughingParameters(
             shape=shape, diameter=self.diameter.value(), corner_radius=corner,
             stepdown=self.stepdown.value(), stepover_percent=int(self.stepover.value()),
             radial_allowance=self.radial.value(), axial_allowance=self.axial.value(),
-            stock_margin=self.margin.value(), flat_levels=self.flat_levels.isChecked())
+            stock_margin=self.margin.value(), flat_levels=self.flat_levels.isChecked(),
+            fine_stepdown=self.fine.value())
         return params, self.cutting()
 
     def accept(self) -> bool:

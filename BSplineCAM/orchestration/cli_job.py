@@ -56,6 +56,10 @@ def register(sub) -> None:
                    help="roughing tool SHAPE:DIAMETER[:CORNER], flat, bullnose or ball, mm "
                         "(default flat:10)")
     p.add_argument("--stepdown", type=float, default=2.0, help="roughing Z step (mm, default 2)")
+    p.add_argument("--fine-stepdown", type=float, default=0.0,
+                   help="terraces no thicker than this: after each --stepdown level, levels "
+                        "this far apart in the band above it, cut bottom-up (mm, at most "
+                        "--stepdown; default 0: off)")
     p.add_argument("--stepover", type=float, default=40.0,
                    help="roughing width of cut, percent of the roughing diameter (default 40)")
     p.add_argument("--allowance", type=float, default=0.3,
@@ -110,6 +114,7 @@ def roughing_parameters(args: argparse.Namespace):
     tool = parse_tool(args.rough, "--rough")
     margin = check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
     stepdown = check_range(args.stepdown, "--stepdown", "mm", *STEPDOWN_RANGE)
+    fine = check_range(args.fine_stepdown, "--fine-stepdown", "mm", 0.0, stepdown)
     stepover = check_range(args.stepover, "--stepover", "%", *STEPOVER_RANGE)
     allowance = check_range(args.allowance, "--allowance", "mm", *ALLOWANCE_RANGE)
     radial = allowance if args.radial_allowance is None else check_range(
@@ -120,7 +125,8 @@ def roughing_parameters(args: argparse.Namespace):
         shape=tool.shape.value, diameter=tool.diameter,
         corner_radius=tool.corner_radius if tool.shape.value == "bullnose" else 0.0,
         stepdown=stepdown, stepover_percent=int(round(stepover)), radial_allowance=radial,
-        axial_allowance=axial, stock_margin=margin, flat_levels=not args.no_flat_levels)
+        axial_allowance=axial, stock_margin=margin, flat_levels=not args.no_flat_levels,
+        fine_stepdown=fine)
 
 
 def cmd_job(args: argparse.Namespace) -> int:

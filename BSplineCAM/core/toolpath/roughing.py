@@ -94,6 +94,8 @@ FLAT_SLOPE_DEG = 1.0
 #: Flat areas smaller than this many tool areas get no level of their own.
 FLAT_TOOL_AREAS = 2.0
 _EPS = 1e-6
+#: Half a cell's diagonal, in cells.
+CELL_HALF_DIAGONAL = 0.5 * math.sqrt(2.0)
 #: Footprint growth against the grid (cells): a contour point lies on a cell edge, up to one
 #: cell from the allowed centre it was interpolated from, and simplification moves it by a
 #: quarter cell more; T at a centre then bounds the true T within 1.5 cells of it.
@@ -461,6 +463,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
                       stepover: float, radial_allowance: float = 0.0,
                       axial_allowance: float = 0.0, cell: float | None = None,
                       clearance_height: float | None = None, flat_levels: bool = True,
+                      fine_stepdown: float | None = None,
                       progress: ProgressFn = None, cancel: CancelFn = None) -> Roughing:
     """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``, a
     :class:`~BSplineCAM.core.stock.Stock` block or a vertical
@@ -470,6 +473,9 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     radial width of cut, allowances (mm) left on the walls and floors, ``cell`` (mm) the
     grid (default min(stepover/10, diameter/40) within [0.05, 0.5]), ``clearance_height``
     (mm, default stock top + 5).  With ``flat_levels`` flat areas get a level of their own.
+    With ``fine_stepdown`` (mm, in (0, stepdown]) the band above each level gets levels that
+    far apart, cut bottom-up after it (:func:`_cutting_order`); ``levels`` of the result are
+    in cutting order.
     Moves are tool-tip positions; see the module docstring for the method.
     """
     started = time.perf_counter()
@@ -477,6 +483,10 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     stepdown, s, ar, aa, cell, clearance = _validate(
         height, stock, tool, stepdown, stepover, radial_allowance, axial_allowance, cell,
         clearance_height)
+    fine = None if fine_stepdown is None else check_range(
+        fine_stepdown, "fine_stepdown", "mm", 0.0, stepdown, low_open=True)
+    if fine is not None and fine >= stepdown - 1e-9:
+        fine = None  # no level between two of the step-down
     notes: list[str] = []
     R = tool.radius
     if cell is None:
@@ -522,13 +532,14 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     in_stock = stock.contains_xy(xg, yg)
     air = outside >= R * (1 + 1e-9)
     levels = _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels)
+    order = _cutting_order(levels, stock.z_max, stepdown, fine)
     Hp = np.where(has, part + aa, -np.inf)
 
     job = _Job(grid, T, Hp, tool, s, ar, cell, stock, clearance, notes, monitor)
-    job.stepdown, job.in_stock = stepdown, in_stock
-    for li, z in enumerate(levels):
-        z_above = stock.z_max if li == 0 else levels[li - 1]
-        job.level(z, z_above, in_stock, air, li, len(levels))
+    job.stepdown, job.in_stock, job.ztol = stepdown, in_stock, ztol
+    for li, (z, z_above, up) in enumerate(order):
+        job.level(z, z_above, in_stock, air, li, len(order), step_up=up)
+    levels = [z for z, _, _ in order]
     job.writer.retract()
     job.report_leftover()
 
@@ -592,6 +603,34 @@ def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> lis
     return sorted(levels, reverse=True)
 
 
+def _cutting_order(levels: list, top: float, stepdown: float, fine: float | None) -> list:
+    """(z, z_above, step_up) per level in cutting order.  Without ``fine`` the levels run
+    top-down, each below the one above.  With it the levels at the step-down from the top
+    (and the lowest) run top-down, and after each the band between it and the one above
+    gets levels every ``fine`` mm (and the flat-area levels in it), cut from the bottom up
+    (step_up True): each clears, beside the floor already cut, the terrace left there up to
+    the band's top, so a terrace is never thicker than ``fine`` and its material is cut once."""
+    if fine is None:
+        return [(z, top if i == 0 else levels[i - 1], False) for i, z in enumerate(levels)]
+    n = len(levels)
+    main = [z for k, z in enumerate(levels)
+            if k == n - 1 or abs((top - z) / stepdown - round((top - z) / stepdown)) < 1e-6]
+    extra = [z for z in levels if z not in main]
+    out = []
+    above = top
+    for z in main:
+        band = {round(z + k * fine, 9) for k in range(1, int((above - z) / fine) + 1)
+                if z + k * fine < above - 1e-3}
+        band |= {e for e in extra if z < e < above}
+        band = sorted(band)
+        band = [b for i, b in enumerate(band) if b in extra or
+                all(abs(b - e) > 1e-3 for e in extra)]
+        out.append((z, above, False))
+        out.extend((b, above, True) for b in band)
+        above = z
+    return out
+
+
 class _Job:
     """State of one roughing run: the grids, the writer and the running counts."""
 
@@ -633,9 +672,11 @@ class _Job:
     # the uncut-material grid
     def mark(self, path_xy: FloatArray) -> None:
         """Record the cut of the tool along a path at the level: cells within R of it leave
-        the uncut grid and the surface estimate drops to the level plus the profile there.
+        the uncut grid, and cells the tool covers whole (their centre within R less half a
+        diagonal) drop in the surface estimate to the level plus the profile at their
+        farthest point, so that the estimate bounds the material over the whole cell.
         Distances come from the path's samples rounded to cells (good to 3/4 cell), exact to
-        the path's segments in the band where that rounding could decide."""
+        the path's segments in the band where that rounding could decide either."""
         f = self.idx(_densify(path_xy, 0.5 * self.cell))
         i0, i1, j0, j1 = self.window(f, self.Rc + 2)
         m = np.zeros((i1 - i0, j1 - j0), bool)
@@ -644,7 +685,7 @@ class _Job:
         m[ii, jj] = True
         d = capped_distance(m, self.Rc + 1)
         dist = np.minimum(d + 0.75, self.Rc + 1.0) * self.cell  # >= the true distance
-        band = np.flatnonzero((d > self.Rc - 1.0) & (d <= self.Rc + 1.0))
+        band = np.flatnonzero((d > self.Rc - 3.0) & (d <= self.Rc + 1.0))
         if len(band):
             by, bx = np.divmod(band, j1 - j0)
             pts = self.xy(np.column_stack([bx + j0, by + i0]).astype(float))
@@ -653,8 +694,12 @@ class _Job:
         self.uncut[i0:i1, j0:j1] &= ~cut
         fl = self.floor[i0:i1, j0:j1]
         fl[cut] = np.minimum(fl[cut], self.z)
+        # the estimate bounds the material's top over the whole cell: a cell drops only where
+        # its farthest point (half a diagonal out) lies within the tool, to the profile there
+        far = dist + CELL_HALF_DIAGONAL * self.cell
+        whole = far <= self.R
         sf = self.surface[i0:i1, j0:j1]
-        sf[cut] = np.minimum(sf[cut], self.z + self.tool.profile(dist[cut]))
+        sf[whole] = np.minimum(sf[whole], self.z + self.tool.profile(far[whole]))
 
     def safe_at(self, q: FloatArray, z: float) -> float:
         """Lowest tip height (>= z) at q (xy) where the tool meets none of the material the
@@ -812,7 +857,7 @@ class _Job:
         self.mark(p)
 
     # one level
-    def level(self, z, z_above, in_stock, air, li, nlevels) -> None:
+    def level(self, z, z_above, in_stock, air, li, nlevels, step_up=False) -> None:
         tip, cell = self.T, self.cell
         if not hasattr(self, "surface"):
             self.surface = np.where(in_stock, self.stock.z_max, -np.inf)
@@ -821,6 +866,13 @@ class _Job:
         self.z = z
         labels, n = label_regions(A)
         Q = A & air
+        if step_up:
+            # a level above one already cut: only material above z is uncut, and the fronts
+            # start from the centres where the tool meets none (the floor cut below)
+            self.uncut &= self.surface > z + _EPS
+            clear = tip_height(np.where(np.isfinite(self.surface), self.surface, np.nan),
+                               cell, self.tool, 0.0, 0.0, -math.inf, self.ztol)
+            Q |= A & (clear <= z + _EPS)
         entered = np.zeros(n + 1, bool)  # index -1 -> the last slot stays False
         entered[np.unique(labels[Q])] = True
         self.outside += int(entered.sum())
@@ -929,7 +981,9 @@ class _Job:
         w.add("feed", sx, sy, z_above)
         dth = 2.0 * math.acos(max(1.0 - HELIX_CHORD_MM / rh, -1.0))
         per_turn = 2 * math.pi * rh * math.tan(math.radians(RAMP_ANGLE_DEG))
-        turns = max((z_above - z) / per_turn, 0.0)
+        # at least one turn down, so that the helix ends where it began and its last flat
+        # turn only trims the wedge the descent left (a shallow drop goes down more gently)
+        turns = max((z_above - z) / per_turn, 1.0 if z_above > z + _EPS else 0.0)
         total = 2 * math.pi * (turns + 1.0)
         n = max(8, int(math.ceil(total / dth)))
         th = np.linspace(0.0, total, n + 1)[1:]
@@ -1029,6 +1083,8 @@ class _Job:
         keep = simplify(np.column_stack([allp, np.full(len(allp), z)]), starts,
                         0.25 * self.cell, "planar")
         paths = [allp[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+        # a stretch that simplification left as one point (two equal ones) would only plunge
+        paths = [q for q in paths if len(q) > 1 and np.hypot(*np.diff(q, axis=0).T).sum() > 1e-9]
         remaining = list(range(len(paths)))
         while remaining:
             here = np.array(self.writer.pos[:2]) if self.writer.pos is not None else \
@@ -1115,8 +1171,8 @@ def _ramp(p: FloatArray, closed: bool, drop: float, slope: float) -> tuple:
     one), and the route (xy) at the level from where the ramp ends through the whole pass."""
     need = drop / slope
     n = len(p)
-    if n < 2 or need <= 0:
-        return np.empty((0, 3)), p
+    if n < 2 or need <= 0 or not np.hypot(*np.diff(p, axis=0).T).sum() > 1e-12:
+        return np.empty((0, 3)), p  # nothing to ramp along (the walk would never end)
     out = []
     length = 0.0
     i, step = 0, 1
