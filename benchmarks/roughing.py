@@ -6,6 +6,9 @@ bottom at the part's), with the same 10 mm flat end mill, step-down 2 mm, stepov
 0.3 mm to leave where the op has such a setting:
 
 * ``bsplinecam``: our Z-level roughing op (``pipeline.build_job(..., roughing=...)``);
+* ``bsplinecam_fine2``, ``bsplinecam_fine4``: the same op at ``--deep-stepdown`` (8 mm) with
+  a fine step-down (``FineStepDown``) of 2 and 4 mm: the bulk at the deep step, the terraces
+  no thicker than the fine one (its bounded width of cut is what lets the flute go deeper);
 * ``freecad_3d_pocket``: FreeCAD's 3D Pocket (0.20 ``PathScripts.PathPocket``) on the whole
   model with ``ProcessStockArea`` (it pockets the stock minus the part, level by level), its
   ``ExtraOffset`` as the sideways stock to leave (it has no vertical one; its FinishDepth is
@@ -60,9 +63,14 @@ from toolpath import post_alone, timed_recompute  # noqa: E402  (benchmarks/tool
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"
 OUT = ROOT / "build" / "bench"
-OPS = ("bsplinecam", "freecad_3d_pocket", "freecad_3d_surface_multipass")
-PEERS = OPS[1:]
-TITLES = {"bsplinecam": "BSplineCAM rough", "freecad_3d_pocket": "FC 3D Pocket",
+OPS = ("bsplinecam", "bsplinecam_fine2", "bsplinecam_fine4", "freecad_3d_pocket",
+       "freecad_3d_surface_multipass")
+OURS = OPS[:3]
+PEERS = OPS[3:]
+#: Fine step-down (mm) of our variants at the deep step-down.
+FINE = {"bsplinecam_fine2": 2.0, "bsplinecam_fine4": 4.0}
+TITLES = {"bsplinecam": "BSplineCAM rough", "bsplinecam_fine2": "ours deep+fine 2",
+          "bsplinecam_fine4": "ours deep+fine 4", "freecad_3d_pocket": "FC 3D Pocket",
           "freecad_3d_surface_multipass": "FC Surface multi"}
 #: Table rows: (label, key in a result, format).
 ROWS = (
@@ -99,10 +107,13 @@ SLACK_MM = 0.02
 
 
 
-def make_job(doc, surface: Surface, args: argparse.Namespace):
-    """Our job (roughing T1 flat, finishing T2 ball made inactive): (job, roughing op)."""
+def make_job(doc, surface: Surface, args: argparse.Namespace, name: str = "bsplinecam"):
+    """Our job (roughing T1 flat, finishing T2 ball made inactive): (job, roughing op); for
+    a fine variant at the deep step-down with its fine step-down."""
+    fine = FINE.get(name, 0.0)
     roughing = pipeline.RoughingParameters(
-        shape="flat", diameter=args.diameter, stepdown=args.stepdown,
+        shape="flat", diameter=args.diameter,
+        stepdown=args.deep_stepdown if fine else args.stepdown, fine_stepdown=fine,
         stepover_percent=args.stepover, radial_allowance=args.allowance,
         axial_allowance=args.allowance, stock_margin=args.margin)
     finishing = pipeline.FinishingParameters(tool_diameter=6.0, scallop=0.01)
@@ -180,8 +191,8 @@ def run_op(name: str, args: argparse.Namespace, result_path: Path) -> None:
     surface = Surface.from_json(CASE_STUDY)
     doc = FreeCAD.newDocument("RoughingBench")
     try:
-        job, ours = make_job(doc, surface, args)
-        if name == "bsplinecam":
+        job, ours = make_job(doc, surface, args, name)
+        if name in OURS:
             op = ours
             op.touch()  # timed from scratch, whatever the job's set-up computed already
         else:
@@ -241,6 +252,7 @@ def op_in_child(name: str, args: argparse.Namespace) -> dict:
 
 def child_options(args: argparse.Namespace) -> list[str]:
     return ["--diameter", str(args.diameter), "--stepdown", str(args.stepdown),
+            "--deep-stepdown", str(args.deep_stepdown),
             "--stepover", str(args.stepover), "--allowance", str(args.allowance),
             "--margin", str(args.margin), "--out", str(args.out)]
 
@@ -312,16 +324,19 @@ def run(args: argparse.Namespace) -> dict:
             picture = Path(args.out) / f"{name}-stock.png"
             results[name].update(measure(surface, text, stock, args, picture))
     ratios = {}
-    for name in PEERS:
-        if "machining_time_min" in results[name] and "machining_time_min" in results[OPS[0]]:
-            ratios[name] = {key: results[name][key] / results["bsplinecam"][key]
-                            for key in ("machining_time_min", "machining_time_accel_min",
-                                        "seconds")}
+    for ours in OURS:
+        for name in PEERS:
+            if "machining_time_min" in results[name] and "machining_time_min" in results[ours]:
+                ratios[f"{name}/{ours}"] = {
+                    key: results[name][key] / results[ours][key]
+                    for key in ("machining_time_min", "machining_time_accel_min", "seconds")}
     return {
         "surface": CASE_STUDY.name,
         "freecad": ".".join(map(str, compat.freecad_version())),
         "tool": {"shape": "flat", "diameter_mm": args.diameter},
         "stepdown_mm": args.stepdown,
+        "deep_stepdown_mm": args.deep_stepdown,
+        "fine_stepdown_mm": FINE,
         "stepover_percent": args.stepover,
         "allowance_mm": args.allowance,
         "stock_mm": list(stock),
@@ -345,14 +360,14 @@ def table(figures: dict) -> str:
             value = figures[name].get(key)
             cells.append("-" if value is None else fmt.format(value))
         lines.append(f"{label:28}" + "".join(f"{c:>19}" for c in cells))
-    for name in PEERS:
+    for name in OPS:
         if "failed" in figures[name]:
             lines.append(f"{TITLES[name]}: FAILED: {figures[name]['failed']}")
-        elif name in figures["ratios_peer_over_ours"]:
-            r = figures["ratios_peer_over_ours"][name]
-            lines.append(f"{TITLES[name]} / ours: machining time {r['machining_time_min']:.2f}x"
-                         f" (with acceleration {r['machining_time_accel_min']:.2f}x), compute "
-                         f"{r['seconds']:.2f}x")
+    for key, r in figures["ratios_peer_over_ours"].items():
+        peer, ours = key.split("/")
+        lines.append(f"{TITLES[peer]} / {TITLES[ours]}: machining time "
+                     f"{r['machining_time_min']:.2f}x (with acceleration "
+                     f"{r['machining_time_accel_min']:.2f}x), compute {r['seconds']:.2f}x")
     return "\n".join(lines)
 
 
@@ -360,6 +375,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--diameter", type=float, default=10.0, help="flat end mill (mm)")
     parser.add_argument("--stepdown", type=float, default=2.0, help="step-down (mm)")
+    parser.add_argument("--deep-stepdown", type=float, default=8.0,
+                        help="step-down of our fine variants (mm)")
     parser.add_argument("--stepover", type=int, default=40, help="stepover (%% of diameter)")
     parser.add_argument("--allowance", type=float, default=0.3, help="stock to leave (mm)")
     parser.add_argument("--margin", type=float, default=2.0, help="stock block margin (mm)")

@@ -1421,10 +1421,20 @@ class TestRoughingCommand(CamTestCase):
         self.assertIn("StepDown", panel.message.text())
         self.assertAlmostEqual(rough.StepDown.Value, 4.0)
         self.assertEqual(json.loads(rough.Report)["levels"], levels)
+        self.assertEqual((panel.fine.value(), panel.fine.text()), (0.0, "off"))
         panel.stepdown.setValue(3.0)
+        panel.fine.setValue(5.0)  # thicker than the step-down: refused, nothing changes
+        with message_boxes():
+            self.assertFalse(panel.accept())
+            process_events()
+        self.assertIn("Fine step-down", panel.message.text())
+        self.assertEqual(self.doc.UndoCount, undo)
+        self.assertAlmostEqual(rough.FineStepDown.Value, 0.0)
+        panel.fine.setValue(1.5)
         panel.horizontal_feed.setValue(900.0)
         self.accept_panel(panel, undo + 1)
         self.assertAlmostEqual(rough.StepDown.Value, 3.0)
+        self.assertAlmostEqual(rough.FineStepDown.Value, 1.5)
         self.assertAlmostEqual(float(rough.ToolController.HorizFeed.getValueAs("mm/min")), 900.0)
         self.assertNotEqual(json.loads(rough.Report)["levels"], levels)
         feed = rough.ToolController.HorizFeed.Value  # Path commands hold mm/s
