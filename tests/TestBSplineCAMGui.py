@@ -1294,6 +1294,7 @@ class TestRoughingCommand(CamTestCase):
         self.accept_panel(panel, undo + 1)
         rough = job.Operations.Group[0]
         self.assertTrue(rough_panel.is_roughing_op(rough))
+        self.assertTrue(rough.FlatLevels)  # the panel's default
         self.assertIs(job.Operations.Group[1], op)
         self.assertEqual(list(op.RestFrom), [rough])
         self.assertTrue(rough.Path.Commands)
@@ -1422,6 +1423,7 @@ class TestRoughingCommand(CamTestCase):
         self.assertAlmostEqual(rough.StepDown.Value, 4.0)
         self.assertEqual(json.loads(rough.Report)["levels"], levels)
         self.assertEqual((panel.fine.value(), panel.fine.text()), (0.0, "off"))
+        self.assertEqual(panel.flat_levels.isChecked(), bool(rough.FlatLevels))
         panel.stepdown.setValue(3.0)
         panel.fine.setValue(5.0)  # thicker than the step-down: refused, nothing changes
         with message_boxes():
