@@ -33,6 +33,11 @@ link or a straight descent is entered by a ramp along the pass itself at RAMP_AN
 the surface down to the level: backwards along an open pass to its start (so the pass does not
 go back over the ramp), round a closed one.
 
+With a fine step-down the levels at the step-down run top-down and after each one the band
+above it gets levels the fine step apart, cut bottom-up (:func:`_cutting_order`): on such a
+level only material above it is uncut, and Q_0 also holds the centres where the tool, by the
+surface estimate below, meets no material (the floor already cut), so its fronts start there.
+
 The stock is a block or a vertical cylinder (:mod:`..stock`, CAM's "CreateCylinder" stock):
 material lies only over its footprint, so Q_0 is every allowed centre whose tool disk misses
 that footprint (the corners of a cylinder's bounding box are air), the uncut grid and the
