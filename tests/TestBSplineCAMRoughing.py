@@ -455,6 +455,35 @@ def test_surface_estimate_bounds_the_cut_over_whole_cells(tool):
         assert np.all(job.surface[inner] == 5.0)
 
 
+def test_engaged_width_of_a_feed_against_a_band():
+    """The width of cut the lead-ins are checked by, against a band of uncut material 3 mm wide
+    beside a cleared floor (edge at y = 0), in closed form: a feed along it 3 mm in cuts 3 mm,
+    one leading into it at 10 degrees the cap's extent across the feed (more than 3 mm, so a
+    lead-in must be shallower), one head-on the tool's chord there, near the diameter."""
+    from BSplineCAM.core.toolpath.roughing import _Job
+
+    cell = 0.1
+    grid = Grid.covering(-20.0, 20.0, -20.0, 20.0, cell)
+    zeros = np.zeros((grid.ny, grid.nx))
+    job = _Job(grid, zeros, zeros, Tool(8.0, "flat"), 3.0, 0.0, cell,
+               Stock(-20, 20, -20, 20, 0, 10), 20.0, [], None)
+    xs, ys = grid.centres()
+    job.uncut = np.broadcast_to((ys > 0.0)[:, None], zeros.shape).copy()
+    # tool centres at y = -4 + 3: 3 mm into the band along x
+    along = job.engaged_width((-10.0, -1.0), (10.0, -1.0))
+    assert along == pytest.approx(3.0, abs=2 * cell)
+    # from clear (y = -4) into the band at 10 degrees, ending 3 mm in: across the feed the
+    # leading half of the cap beyond y = 0 spans its height's share plus its half chord's
+    a = math.radians(10.0)
+    dx = 3.0 / math.tan(a)
+    oblique = job.engaged_width((-dx / 2, -4.0), (dx / 2, -1.0))
+    assert oblique == pytest.approx(3.0 * math.cos(a) + math.sqrt(16.0 - 1.0) * math.sin(a),
+                                    abs=2 * cell)
+    head_on = job.engaged_width((0.0, -4.0), (0.0, -1.0))
+    assert head_on >= 2 * math.sqrt(16.0 - 1.0) - 2 * cell  # chord 3 mm deep in a 4 mm radius
+    assert job.engaged_width((0.0, -9.0), (5.0, -9.0)) == 0.0
+
+
 def test_ramp_along_a_pass_of_no_length_ends():
     """A pass whose points coincide has nothing to ramp along: no ramp, at once (the walk back
     and forth along it never reached its length and grew without end, on the case study at

@@ -88,6 +88,8 @@ RAMP_ANGLE_DEG = 3.0
 WALL_SLIVER = 0.5
 #: A ring round a helix that would stop this close (cells) short of a wall goes half way to it.
 RING_MARGIN_CELLS = 3
+#: A stay-down lead-in may join a pass this many tool diameters along it from its start.
+LEAD_IN_DIAMETERS = 3.0
 #: Gap (mm) kept above the material by rapids that travel below the clearance height.
 TRAVEL_GAP_MM = 1.0
 #: Chord error of the helices (mm).
@@ -719,9 +721,11 @@ class _Job:
         return max(float(top.max(initial=-np.inf)), z)
 
     def clear_near(self, q: FloatArray, z: float) -> FloatArray | None:
-        """A point within a tool radius of q where the tool may descend straight to z and
-        then feed to q (a valid link); the nearest of the first few found, or None."""
-        k = int(self.Rc)
+        """A point within two tool radii of q where the tool may descend straight to z and
+        then feed to q: a link meeting no uncut material, or one in {T <= z} cutting no wider
+        than the stepover (:meth:`engaged_width`, a lead-in from the floor already cut); the
+        nearest of the first few found, or None."""
+        k = int(2 * self.Rc)
         dj, di = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1))
         r = np.hypot(dj, di).ravel()
         order = np.argsort(r, kind="stable")
@@ -732,7 +736,8 @@ class _Job:
             if self.safe_at(c, z) > z + 0.01:
                 continue
             tried += 1
-            if self.link_ok((c[0], c[1], z), (q[0], q[1], z), z):
+            if self.link_ok((c[0], c[1], z), (q[0], q[1], z), z) or (
+                    self.in_region(c, q, z) and self.engaged_width(c, q) <= self.s):
                 return c
             if tried >= 6:
                 break
@@ -752,6 +757,57 @@ class _Job:
             return True
         d = capped_distance(sub, self.Rc + 2)
         return bool(np.all(_bilinear(d, f[:, 0] - j0, f[:, 1] - i0) >= self.Rc - 1.25))
+
+    def in_region(self, a, b, z) -> bool:
+        """The straight feed from a to b (xy) stays in {T <= z}."""
+        f = self.idx(_densify(np.array([a[:2], b[:2]], dtype=float), 0.5 * self.cell))
+        return not np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3)
+
+    def engaged_width(self, a, b) -> float:
+        """Largest width of cut (mm) of a feed from a to b (xy) at the level, by the uncut
+        grid: at samples a cell apart along it, the extent across the move of the uncut cells
+        in the leading half of the tool's disk, plus a cell."""
+        a = np.asarray(a[:2], dtype=float)
+        b = np.asarray(b[:2], dtype=float)
+        length = math.dist(a, b)
+        if length < 1e-9:
+            return 0.0
+        d = (b - a) / length
+        f = self.idx(np.array([a, b]))
+        i0, i1, j0, j1 = self.window(f, self.Rc + 2)
+        iy, ix = np.nonzero(self.uncut[i0:i1, j0:j1])
+        if not len(iy):
+            return 0.0
+        rel = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float)) - a
+        along = rel @ d
+        across = rel @ np.array([-d[1], d[0]])
+        worst = 0.0
+        r2 = self.R * self.R
+        for t in np.arange(0.0, length + 0.5 * self.cell, self.cell):
+            dx = along - t
+            ahead = (dx > 0) & (dx * dx + across * across <= r2)
+            if ahead.any():
+                worst = max(worst, float(across[ahead].max() - across[ahead].min()))
+        return worst + self.cell
+
+    def lead_in(self, p: FloatArray, z: float) -> int | None:
+        """Index k of a vertex of pass p (xy) that the tool, at level z nearby, may reach by
+        a straight feed cutting no wider than the stepover and staying
+        in {T <= z}: the first such vertex within LEAD_IN_DIAMETERS tool diameters along p."""
+        w = self.writer
+        if w.pos is None or abs(w.pos[2] - z) > 1e-9:
+            return None
+        here = np.array(w.pos[:2])
+        arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
+        for k in range(1, len(p)):
+            if arc[k] > LEAD_IN_DIAMETERS * self.tool.diameter:
+                break
+            q = p[k]
+            if math.dist(here, q) > 10 * self.tool.diameter:
+                continue
+            if self.in_region(here, q, z) and self.engaged_width(here, q) <= self.s:
+                return k
+        return None
 
     def travel_height(self, a: FloatArray, b: FloatArray) -> float:
         """Height (mm) at which a rapid from a to b (xy) meets no material: the highest
@@ -820,8 +876,10 @@ class _Job:
 
     def cut_path(self, p: FloatArray, z: float, z_above: float) -> None:
         """Reach the start of pass p (xy) on level z and cut it: a straight stay-down link if
-        it meets no uncut material; else lift (:meth:`descend`) and descend straight at the
-        start, or at a point within a tool radius of it followed by such a link, where the
+        it meets no uncut material, or a stay-down lead-in to a vertex a few diameters along
+        the pass that cuts within the stepover (:meth:`lead_in`); else lift (:meth:`descend`)
+        and descend straight at the start, or at a point within two tool radii of it followed
+        by such a link or lead-in (:meth:`clear_near`), where the
         surface estimate leaves the tool's disk clear down to z; else ramp down along the
         pass itself at RAMP_ANGLE_DEG from the surface: along an open pass backwards to its
         start (:meth:`back_ramp`), round a closed one from its start."""
@@ -833,6 +891,13 @@ class _Job:
                 math.dist(w.pos[:2], q[:2]) <= 10 * self.tool.diameter and \
                 self.link_ok(w.pos, q, z):
             self.link(q)
+        elif (k := self.lead_in(p, z)) is not None:
+            # a stay-down feed into the pass at k within the stepover, then the pass: round a
+            # closed one back to k, an open one back to its start and then all along it
+            here = np.array(w.pos[:2])
+            self.link((float(p[k, 0]), float(p[k, 1]), z))
+            self.mark(np.array([here, p[k]]))
+            route = np.vstack([p[k:-1], p[:k + 1]]) if closed else np.vstack([p[k::-1], p[1:]])
         elif (top := self.safe_at(p[0], z)) <= z + 0.01:
             self.descend(p[0], z, z + 1.0)
         elif (near := self.clear_near(p[0], z)) is not None:
