@@ -543,7 +543,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     Hp = np.where(has, part + aa, -np.inf)
 
     job = _Job(grid, T, Hp, tool, s, ar, cell, stock, clearance, notes, monitor)
-    job.stepdown, job.in_stock, job.ztol = stepdown, in_stock, ztol
+    job.stepdown, job.in_stock, job.ztol, job.outside_mm = stepdown, in_stock, ztol, outside
     for li, (z, z_above, up) in enumerate(order):
         job.level(z, z_above, in_stock, air, li, len(order), step_up=up)
     levels = [z for z, _, _ in order]
@@ -721,26 +721,31 @@ class _Job:
         return max(float(top.max(initial=-np.inf)), z)
 
     def clear_near(self, q: FloatArray, z: float) -> FloatArray | None:
-        """A point within two tool radii of q where the tool may descend straight to z and
-        then feed to q: a link meeting no uncut material, or one in {T <= z} cutting no wider
+        """A point within a tool radius of q, or within two where the tool reaches the stock,
+        where the tool may descend straight to z and then feed to q: a link meeting no uncut
+        material, or, from where the tool reaches the stock, one in {T <= z} cutting no wider
         than the stepover (:meth:`engaged_width`, a lead-in from the floor already cut); the
-        nearest of the first few found, or None."""
-        k = int(2 * self.Rc)
-        dj, di = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1))
-        r = np.hypot(dj, di).ravel()
-        order = np.argsort(r, kind="stable")
-        order = order[(r[order] >= 1.0) & (r[order] <= k)]
-        tried = 0
-        for o in order[:: max(1, len(order) // 60)]:
-            c = q + self.cell * np.array([dj.flat[o], di.flat[o]], dtype=float)
-            if self.safe_at(c, z) > z + 0.01:
-                continue
-            tried += 1
-            if self.link_ok((c[0], c[1], z), (q[0], q[1], z), z) or (
-                    self.in_region(c, q, z) and self.engaged_width(c, q) <= self.s):
-                return c
-            if tried >= 6:
-                break
+        nearest of the first few found in each of the two rings, or None."""
+        for reach, inner in ((1.0, 1.0), (2.0, self.Rc)):
+            k = int(reach * self.Rc)
+            dj, di = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1))
+            r = np.hypot(dj, di).ravel()
+            order = np.argsort(r, kind="stable")
+            order = order[(r[order] >= inner) & (r[order] <= k)]
+            tried = 0
+            for o in order[:: max(1, len(order) // 60)]:
+                c = q + self.cell * np.array([dj.flat[o], di.flat[o]], dtype=float)
+                if reach > 1.0 and not self.by_stock(c):
+                    continue  # beyond a radius only by the stock, not out in the air
+                if self.safe_at(c, z) > z + 0.01:
+                    continue
+                tried += 1
+                if (reach == 1.0 and self.link_ok((c[0], c[1], z), (q[0], q[1], z), z)) or (
+                        self.by_stock(c) and self.in_region(c, q, z)
+                        and self.engaged_width(c, q) <= self.s):
+                    return c
+                if tried >= 6:
+                    break
         return None
 
     def link_ok(self, p: tuple, q: tuple, z: float) -> bool:
@@ -757,6 +762,14 @@ class _Job:
             return True
         d = capped_distance(sub, self.Rc + 2)
         return bool(np.all(_bilinear(d, f[:, 0] - j0, f[:, 1] - i0) >= self.Rc - 1.25))
+
+    def by_stock(self, q) -> bool:
+        """The tool's disk at q (xy) reaches the stock's footprint (on the grid): a lead-in
+        starts there, not farther out in the air."""
+        f = np.rint(self.idx(q)[0]).astype(int)
+        ny, nx = self.T.shape
+        return bool(0 <= f[1] < ny and 0 <= f[0] < nx
+                    and self.outside_mm[f[1], f[0]] <= self.R - self.cell)
 
     def in_region(self, a, b, z) -> bool:
         """The straight feed from a to b (xy) stays in {T <= z}."""
