@@ -63,3 +63,21 @@ def test_footprint_shrinks_by_a_disk():
     inside = r <= 100
     inner = inside & ~dilate_disk(~inside, 30.0)
     assert inner[r <= 69].all() and not inner[r > 70.5].any()
+
+
+@pytest.mark.parametrize("radius", [24.0 - 4e-15, 24.0, 24.0 + 4e-15, 7.0 - 1e-12, 23.5])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_dilation_at_a_radius_a_rounding_off_a_whole_number(radius, seed):
+    """6 mm over 0.25000000000000006 mm cells is 23.999999999999996 cells: the banded dilation
+    took every cell of the grid for within it (the cap of its row distances, 24^2, lay inside
+    r^2 + 1e-9), and Verify G-code in FreeCAD 0.20 found the part's footprint shrunk by the
+    tool empty.  Now it equals thresholding the exact distance, on an empty mask (only the
+    border counts, outside set) and on a sparse one."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((90, 110)) < (0.0 if seed == 0 else 0.0005)
+    got = dilate_disk(mask, radius, outside=True)
+    k = int(np.floor(radius)) + 2
+    padded = np.pad(mask, k, constant_values=True)
+    want = (squared_distance(padded) <= radius * radius + 1e-9)[k:-k, k:-k]
+    assert np.array_equal(got, want)
+    assert not got.all()
