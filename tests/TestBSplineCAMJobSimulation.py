@@ -118,6 +118,29 @@ def test_ramp_is_an_entry_with_growing_axial_engagement() -> None:
     assert report.removed_volume_mm3 == pytest.approx(120 + 18 * math.pi, rel=5e-3)
 
 
+def test_entry_is_the_path_of_the_descent_not_its_bounding_circle() -> None:
+    """A ramp 40 mm along X down 2 mm, half the way back over it (an entry: it clears the
+    wedge the ramp left), then a step and a pass 8 mm beside the ramp's line: inside the
+    circle round the ramp's box, but off its path, so no entry and their engagement counts
+    (the old footprint, that circle, took both for entry moves and left them out)."""
+    text = program("T1 M6", "G0 X0 Y0 Z5", "G0 Z0.5", "G1 Z0 F300", "G1 X40 Z-2",
+                   "G1 X20", "G1 Y8", "G1 X30", "G0 Z5")
+    prog = read_gcode(text)
+    from BSplineCAM.core.job_simulation import entry_moves
+
+    marked = entry_moves(prog)
+    feeds = np.flatnonzero(prog.kind != 0)
+    # plunge to Z0 (no descent into the stock top), ramp, way back: entries; step, pass: not
+    assert marked[feeds[1]] and marked[feeds[2]]
+    assert not marked[feeds[3]] and not marked[feeds[4]]
+    job = simulate_job(prog, {1: FLAT10}, grid_for(-10, 50, -10, 20), (-10, 50, -10, 20, -5, 0))
+    pass_ = job.segments.move == feeds[4]
+    assert not job.entry[pass_].any()
+    assert float(job.radial[pass_].max()) == pytest.approx(8.0, abs=2 * CELL)
+    # the step sideways out of the slot cuts head-on, the full diameter; both count
+    assert job.tools[1].radial_engagement_max_mm == pytest.approx(10.0, abs=CELL)
+
+
 def two_tool_text() -> str:
     face = []
     for i, y in enumerate(range(0, 31, 5)):

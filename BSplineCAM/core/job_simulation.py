@@ -23,10 +23,11 @@ the depth threshold ``max(ENGAGEMENT_DEPTH_MM, cell / 10)``:
 * cutting length = feed moves with at least one engaged cell; air length = the other feed
   moves (mm).
 * entry = a feed move whose program move descends by more than ENTRY_DESCENT_MM (plunge,
-  ramp, helix), and the level moves right after such a run that stay inside its XY footprint
-  (the circle around the run's XY box, through its farthest point): the closing turn of a
-  helix or the way back along a ramp, which clear the wedge the descent left
-  (:func:`entry_moves`).  Entries are counted and their largest engagement reported apart; the radial
+  ramp, helix), and the level moves right after such a run that stay on its XY path (end
+  and midpoint within ENTRY_REACH_MM of it, plus the chord tolerance of arcs): the closing
+  turn of a helix or the way back along a ramp, which clear the wedge the descent left
+  (:func:`entry_moves`).  A move that leaves the path, even inside the descent's XY box,
+  is no entry.  Entries are counted and their largest engagement reported apart; the radial
   maximum and the means leave them out (a roughing strategy bounds engagement outside its
   entries only).  Means are weighted by the moves' lengths, over cutting non-entry moves.
 * material removal rate = removed volume / time (feed), over windows of consecutive cutting
@@ -69,7 +70,8 @@ from .typing import FloatArray
 
 #: A program move that descends more than this (mm) is an entry (plunge, ramp, helix).
 ENTRY_DESCENT_MM = 1e-3
-#: Slack (mm) of an entry's footprint: the chords of its arcs cut inside their circle.
+#: Slack (mm) of an entry's footprint, the path of its descent (plus the chord tolerance
+#: when arcs are linearised: a closing turn's chords and the helix's cut their circle apart).
 ENTRY_REACH_MM = 0.02
 #: Smallest height drop (mm) that engages a cell (the threshold is at least a tenth of a cell).
 ENGAGEMENT_DEPTH_MM = 0.01
@@ -77,10 +79,13 @@ ENGAGEMENT_DEPTH_MM = 0.01
 PIECE_CELLS = 32
 
 
-def entry_moves(program: Program, segments: Segments | None = None) -> np.ndarray:
+def entry_moves(program: Program, segments: Segments | None = None,
+                slack: float = ENTRY_REACH_MM) -> np.ndarray:
     """Per program move: True for the moves of an entry (see the module docstring).
-    ``segments`` (the program linearised) give the footprint of arcs (helices) by their
-    chords; without them, by their end points."""
+    ``segments`` (the program linearised) give the path of arcs (helices) by their chords;
+    without them, by their end points.  A level move after a descending run is part of the
+    entry while its end and its midpoint lie within ``slack`` (mm) of the run's XY path: it
+    goes back over the ramp or round the helix, clearing the wedge the descent left."""
     feed = np.asarray(program.kind) != 0
     start = np.asarray(program.start, dtype=float)
     end = np.asarray(program.end, dtype=float)
@@ -88,19 +93,31 @@ def entry_moves(program: Program, segments: Segments | None = None) -> np.ndarra
     n = len(out)
     runs = np.flatnonzero(np.diff(np.concatenate([[0], out.view(np.int8), [0]])))
     for a, b in zip(runs[::2].tolist(), runs[1::2].tolist()):
-        xy = np.concatenate([start[a:b, :2], end[a:b, :2]])
         if segments is not None:
             lo, hi = np.searchsorted(segments.move, [a, b])
-            xy = np.concatenate([xy, segments.start[lo:hi, :2], segments.end[lo:hi, :2]])
-        centre = 0.5 * (xy.min(axis=0) + xy.max(axis=0))
-        reach = float(np.max(np.linalg.norm(xy - centre, axis=1))) + ENTRY_REACH_MM
+            p0, p1 = segments.start[lo:hi, :2], segments.end[lo:hi, :2]
+        else:
+            p0, p1 = start[a:b, :2], end[a:b, :2]
         level = end[b - 1, 2]
         j = b
-        while (j < n and feed[j] and not out[j] and abs(end[j, 2] - level) <= ENTRY_DESCENT_MM
-               and float(np.linalg.norm(end[j, :2] - centre)) <= reach):
+        while j < n and feed[j] and not out[j] and abs(end[j, 2] - level) <= ENTRY_DESCENT_MM:
+            probe = np.array([end[j, :2], 0.5 * (start[j, :2] + end[j, :2])])
+            if float(_distance_to_segments(probe, p0, p1).max()) > slack:
+                break
             out[j] = True
             j += 1
     return out
+
+
+def _distance_to_segments(q: FloatArray, p0: FloatArray, p1: FloatArray) -> FloatArray:
+    """Distance (mm) of each point q (k, 2) to the nearest of the segments p0 -> p1 (m, 2)."""
+    d = p1 - p0
+    dd = np.einsum("ij,ij->i", d, d)
+    rel = q[:, None, :] - p0[None, :, :]
+    t = np.einsum("kij,ij->ki", rel, d) / np.where(dd > 0, dd, 1.0)
+    t = np.minimum(np.maximum(t, 0.0), 1.0)
+    gap = rel - t[:, :, None] * d[None, :, :]
+    return np.sqrt(np.einsum("kij,kij->ki", gap, gap).min(axis=1))
 
 
 def engagement_threshold(cell: float) -> float:
@@ -285,7 +302,8 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     height, in_stock = initial_height(grid, form)
     number = program.tool[seg.move] if n else np.zeros(0, np.intp)
     rapid = np.asarray(seg.rapid, bool)
-    entry = entry_moves(program, seg)[seg.move] & ~rapid if n else np.zeros(0, bool)
+    entry = entry_moves(program, seg, ENTRY_REACH_MM + tol)[seg.move] & ~rapid if n \
+        else np.zeros(0, bool)
     numbers = np.array(sorted(tools), dtype=np.intp)
     known = np.isin(number, numbers)
     radius = np.zeros(n)
