@@ -29,7 +29,7 @@ and which links may stay down; an estimate of the machined surface (level + prof
 distance, never below the true floor) decides how low the tool may rapid and descend: rapids
 between passes travel TRAVEL_GAP_MM above the highest material the estimate holds along the
 way, the clearance height only where that is higher.  A pass that cannot be reached by a clear
-link or a straight descent is entered by a ramp along the pass itself at RAMP_ANGLE_DEG from
+link or a straight descent is entered by a ramp along the pass itself at the ramp angle from
 the surface down to the level: backwards along an open pass to its start (so the pass does not
 go back over the ramp), round a closed one.
 
@@ -48,8 +48,14 @@ of a level starts out there, by a straight descent in the air beside the stock.
 Known limit: a pass running head-on into a wall, or past the end of the previous pass along a
 wall that slants across the fronts, ends with material on both sides; there the width of cut
 reaches about R + s/2 (up to 7.2 mm for a 10 mm mill at a 4 mm stepover and a 2 mm stepdown
-on examples/case-study.json).  The rings round a helix are polygons of the grid's contour,
-whose chords the simulation still measures up to about 5 mm wide there.
+on examples/case-study.json).  The rings round a helix are polygons of the grid's contour:
+a chord of a ring sweeps across more of the material than the tangent move ring_step
+assumes (on a 6.5 mm ring 1.8 mm chords, from the cell/4 simplification, cut 4.7 mm wide
+at a 4 mm stepover), so the simulation measures them up to about 4.8 mm wide there.  Fronts
+that grow outward from a round cleared region other than a helix (a fine level's fronts
+round the floor cut below it, the rest of a small closed pass after a ramp that covers
+only part of it) grow by the full stepover and cut wider still (5.3 mm on the case study's
+pocket at 8 + 4 mm).
 """
 
 from __future__ import annotations
@@ -80,8 +86,10 @@ from .common import (
 
 HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
 
-#: Ramp angle of the helical entries (degrees).
+#: Default angle (degrees) at which helical and ramped entries descend.
 RAMP_ANGLE_DEG = 3.0
+#: Steepest ramp angle accepted (degrees): steeper is a plunge, which roughing never makes.
+MAX_RAMP_ANGLE_DEG = 30.0
 #: A wall piece a front reaches is cut right after it when the material left beside it
 #: reaches deeper than this share of the stepover into the tool's disk; thinner slivers wait
 #: for the level's last pass along the wall.
@@ -471,6 +479,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
                       axial_allowance: float = 0.0, cell: float | None = None,
                       clearance_height: float | None = None, flat_levels: bool = True,
                       fine_stepdown: float | None = None,
+                      ramp_angle: float = RAMP_ANGLE_DEG,
                       progress: ProgressFn = None, cancel: CancelFn = None) -> Roughing:
     """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``, a
     :class:`~BSplineCAM.core.stock.Stock` block or a vertical
@@ -482,7 +491,8 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     (mm, default stock top + 5).  With ``flat_levels`` flat areas get a level of their own.
     With ``fine_stepdown`` (mm, in (0, stepdown]) the band above each level gets levels that
     far apart, cut bottom-up after it (:func:`_cutting_order`); ``levels`` of the result are
-    in cutting order.
+    in cutting order.  Helical and ramped entries descend at ``ramp_angle`` (degrees, in
+    (0, MAX_RAMP_ANGLE_DEG]).
     Moves are tool-tip positions; see the module docstring for the method.
     """
     started = time.perf_counter()
@@ -492,6 +502,8 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
         clearance_height)
     fine = None if fine_stepdown is None else check_range(
         fine_stepdown, "fine_stepdown", "mm", 0.0, stepdown, low_open=True)
+    ramp_angle = check_range(ramp_angle, "ramp_angle", "degrees", 0.0, MAX_RAMP_ANGLE_DEG,
+                             low_open=True)
     if fine is not None and fine >= stepdown - 1e-9:
         fine = None  # no level between two of the step-down
     notes: list[str] = []
@@ -544,6 +556,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
 
     job = _Job(grid, T, Hp, tool, s, ar, cell, stock, clearance, notes, monitor)
     job.stepdown, job.in_stock, job.ztol, job.outside_mm = stepdown, in_stock, ztol, outside
+    job.ramp_slope = math.tan(math.radians(ramp_angle))
     for li, (z, z_above, up) in enumerate(order):
         job.level(z, z_above, in_stock, air, li, len(order), step_up=up)
     levels = [z for z, _, _ in order]
@@ -574,6 +587,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     monitor(1.0)
     params = {"stepdown": stepdown, "stepover": s, "radial_allowance": ar,
               "axial_allowance": aa, "cell": cell, "flat_levels": bool(flat_levels),
+              "ramp_angle": ramp_angle,
               "tool": {"diameter": tool.diameter, "shape": tool.shape.value,
                        "corner_radius": tool.corner_radius}}
     return Roughing(moves, [float(z) for z in levels], float(clearance), stats,
@@ -894,7 +908,7 @@ class _Job:
         and descend straight at the start, or at a point within two tool radii of it followed
         by such a link or lead-in (:meth:`clear_near`), where the
         surface estimate leaves the tool's disk clear down to z; else ramp down along the
-        pass itself at RAMP_ANGLE_DEG from the surface: along an open pass backwards to its
+        pass itself at the ramp angle from the surface: along an open pass backwards to its
         start (:meth:`back_ramp`), round a closed one from its start."""
         w = self.writer
         closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
@@ -917,7 +931,7 @@ class _Job:
             self.descend(near, z, z + 1.0)
             self.link(q)
         else:
-            slope = math.tan(math.radians(RAMP_ANGLE_DEG))
+            slope = self.ramp_slope
             back = None if closed else self.back_ramp(p, z, top, slope)
             if back is not None:
                 # down along the pass backwards to its start, then the whole pass
@@ -1063,7 +1077,7 @@ class _Job:
             w.add("rapid", sx, sy, z_above + 1.0)
         w.add("feed", sx, sy, z_above)
         dth = 2.0 * math.acos(max(1.0 - HELIX_CHORD_MM / rh, -1.0))
-        per_turn = 2 * math.pi * rh * math.tan(math.radians(RAMP_ANGLE_DEG))
+        per_turn = 2 * math.pi * rh * self.ramp_slope
         # at least one turn down, so that the helix ends where it began and its last flat
         # turn only trims the wedge the descent left (a shallow drop goes down more gently)
         turns = max((z_above - z) / per_turn, 1.0 if z_above > z + _EPS else 0.0)
