@@ -9,6 +9,8 @@ bottom at the part's), with the same 10 mm flat end mill, step-down 2 mm, stepov
 * ``bsplinecam_fine2``, ``bsplinecam_fine4``: the same op at ``--deep-stepdown`` (8 mm) with
   a fine step-down (``FineStepDown``) of 2 and 4 mm: the bulk at the deep step, the terraces
   no thicker than the fine one (its bounded width of cut is what lets the flute go deeper);
+* ``bsplinecam_fine4_ramp5``: 8 + 4 mm with the entries ramped at 5 degrees (``RampAngle``;
+  FreeCAD's Adaptive op starts its helices at 5) instead of our default 3;
 * ``freecad_3d_pocket``: FreeCAD's 3D Pocket (0.20 ``PathScripts.PathPocket``) on the whole
   model with ``ProcessStockArea`` (it pockets the stock minus the part, level by level), its
   ``ExtraOffset`` as the sideways stock to leave (it has no vertical one; its FinishDepth is
@@ -63,14 +65,18 @@ from toolpath import post_alone, timed_recompute  # noqa: E402  (benchmarks/tool
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"
 OUT = ROOT / "build" / "bench"
-OPS = ("bsplinecam", "bsplinecam_fine2", "bsplinecam_fine4", "freecad_3d_pocket",
-       "freecad_3d_surface_multipass")
-OURS = OPS[:3]
-PEERS = OPS[3:]
+OPS = ("bsplinecam", "bsplinecam_fine2", "bsplinecam_fine4", "bsplinecam_fine4_ramp5",
+       "freecad_3d_pocket", "freecad_3d_surface_multipass")
+OURS = OPS[:4]
+PEERS = OPS[4:]
 #: Fine step-down (mm) of our variants at the deep step-down.
-FINE = {"bsplinecam_fine2": 2.0, "bsplinecam_fine4": 4.0}
+FINE = {"bsplinecam_fine2": 2.0, "bsplinecam_fine4": 4.0, "bsplinecam_fine4_ramp5": 4.0}
+#: Ramp angle (degrees) of a variant, if not the default: 5 is the helix angle FreeCAD's
+#: Adaptive op starts with.
+RAMP = {"bsplinecam_fine4_ramp5": 5.0}
 TITLES = {"bsplinecam": "BSplineCAM rough", "bsplinecam_fine2": "ours deep+fine 2",
-          "bsplinecam_fine4": "ours deep+fine 4", "freecad_3d_pocket": "FC 3D Pocket",
+          "bsplinecam_fine4": "ours deep+fine 4", "bsplinecam_fine4_ramp5": "ours 8+4, 5 deg",
+          "freecad_3d_pocket": "FC 3D Pocket",
           "freecad_3d_surface_multipass": "FC Surface multi"}
 #: Table rows: (label, key in a result, format).
 ROWS = (
@@ -115,7 +121,8 @@ def make_job(doc, surface: Surface, args: argparse.Namespace, name: str = "bspli
         shape="flat", diameter=args.diameter,
         stepdown=args.deep_stepdown if fine else args.stepdown, fine_stepdown=fine,
         stepover_percent=args.stepover, radial_allowance=args.allowance,
-        axial_allowance=args.allowance, stock_margin=args.margin)
+        axial_allowance=args.allowance, stock_margin=args.margin,
+        ramp_angle=RAMP.get(name, pipeline.RoughingParameters.ramp_angle))
     finishing = pipeline.FinishingParameters(tool_diameter=6.0, scallop=0.01)
     _, job, finish = pipeline.build_job(surface, finishing, cam.Cutting(), doc, roughing=roughing)
     finish.Active = False  # not computed, not posted
@@ -337,6 +344,7 @@ def run(args: argparse.Namespace) -> dict:
         "stepdown_mm": args.stepdown,
         "deep_stepdown_mm": args.deep_stepdown,
         "fine_stepdown_mm": FINE,
+        "ramp_angle_deg": RAMP,
         "stepover_percent": args.stepover,
         "allowance_mm": args.allowance,
         "stock_mm": list(stock),

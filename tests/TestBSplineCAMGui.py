@@ -1433,10 +1433,21 @@ class TestRoughingCommand(CamTestCase):
         self.assertEqual(self.doc.UndoCount, undo)
         self.assertAlmostEqual(rough.FineStepDown.Value, 0.0)
         panel.fine.setValue(1.5)
+        self.assertAlmostEqual(panel.ramp.value(), float(rough.RampAngle.Value))
+        panel.ramp.setValue(40.0)  # steeper than any ramp: refused, nothing changes
+        with message_boxes():
+            self.assertFalse(panel.accept())
+            process_events()
+        self.assertIn("Ramp angle", panel.message.text())
+        self.assertIn("degrees", panel.message.text())
+        self.assertEqual(self.doc.UndoCount, undo)
+        panel.ramp.setValue(5.0)
         panel.horizontal_feed.setValue(900.0)
         self.accept_panel(panel, undo + 1)
         self.assertAlmostEqual(rough.StepDown.Value, 3.0)
         self.assertAlmostEqual(rough.FineStepDown.Value, 1.5)
+        self.assertAlmostEqual(rough.RampAngle.Value, 5.0)
+        self.assertEqual(json.loads(rough.Report)["ramp_angle_deg"], 5.0)
         self.assertAlmostEqual(float(rough.ToolController.HorizFeed.getValueAs("mm/min")), 900.0)
         self.assertNotEqual(json.loads(rough.Report)["levels"], levels)
         feed = rough.ToolController.HorizFeed.Value  # Path commands hold mm/s

@@ -212,6 +212,52 @@ class TestRoughingBadInput(RoughingFixture):
             self.doc.recompute()
         self.assertNotIn("error", json.loads(self.rough.Report))
 
+    def test_ramp_angle_sets_the_ramps(self):
+        """RampAngle 6 degrees: the report says so and the posted program's roughing ramps
+        (T1's straight descending feeds over 0.5 mm in XY) are at most 6 degrees steep, the
+        steepest within 10 % of it (at the default 3 none is steeper than 3.15)."""
+        import math
+
+        def steepest() -> float:
+            program = read_gcode(self.program_now().read_text(), "linuxcnc")
+            d = program.end - program.start
+            xy = np.hypot(d[:, 0], d[:, 1])
+            # moves over 0.5 mm: the post's 4 decimals leave a shorter one's slope inexact
+            ramp = (program.tool == 1) & (program.kind == 1) & (d[:, 2] < -1e-4) & (xy > 0.5)
+            self.assertTrue(ramp.any())
+            return float(np.degrees(np.arctan(-d[ramp, 2] / xy[ramp])).max())
+
+        self.assertLessEqual(steepest(), 3.0 * 1.05)
+        try:
+            self.rough.RampAngle = 6.0
+            self.rough.touch()
+            self.doc.recompute()
+            self.assertEqual(json.loads(self.rough.Report)["ramp_angle_deg"], 6.0)
+            self.assertTrue(6.0 * 0.9 <= steepest() <= 6.0 * 1.05)
+        finally:
+            self.rough.RampAngle = 3.0
+            self.rough.touch()
+            self.doc.recompute()
+        self.assertTrue(math.isclose(json.loads(self.rough.Report)["ramp_angle_deg"], 3.0))
+
+    def program_now(self) -> Path:
+        """The job posted afresh (linuxcnc), after a change to an op."""
+        path = Path(self.tmp.name) / "now.ngc"
+        cam.post_process(self.job, "linuxcnc", path, remember=False)
+        return path
+
+    def test_ramp_angle_out_of_range(self):
+        for bad in (0.0, 45.0):
+            try:
+                self.rough.RampAngle = bad
+                error = self.recompute_error()
+                self.assertIn("RampAngle", error)
+                self.assertIn("degrees", error)
+            finally:
+                self.rough.RampAngle = 3.0
+                self.doc.recompute()
+        self.assertNotIn("error", json.loads(self.rough.Report))
+
     def test_fine_stepdown_levels_and_program(self):
         """StepDown 6 mm with FineStepDown 2 mm: levels every 6 mm from the stock top, each
         followed by the levels of the band above it, bottom-up, 2 mm apart at most; the

@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass
 
 from ..core import Surface
+from ..core.toolpath.roughing import RAMP_ANGLE_DEG
 from . import cam, compat
 
 FreeCAD = compat.ensure_freecad()
@@ -38,7 +39,8 @@ class RoughingParameters:
     """Roughing before the finish: the end mill (shape 'flat', 'bullnose' or 'ball',
     diameter and corner radius mm), step-down (mm), stepover (percent of the diameter), stock
     to leave (mm), the stock block's margin around the part (mm), flat-area levels and the
-    fine step-down (mm, 0: off) of the terraces between levels."""
+    fine step-down (mm, 0: off) of the terraces between levels, the entries' ramp angle
+    (degrees)."""
 
     shape: str = "flat"
     diameter: float = 10.0
@@ -50,6 +52,7 @@ class RoughingParameters:
     stock_margin: float = 2.0
     flat_levels: bool = True
     fine_stepdown: float = 0.0
+    ramp_angle: float = RAMP_ANGLE_DEG
 
 
 def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc,
@@ -134,14 +137,15 @@ def stock_margin(job) -> float | None:
 
 
 def set_roughing(op, roughing: RoughingParameters) -> None:
-    """The roughing op's step-down, stepover, stock to leave, flat levels and fine step-down
-    (not its tool)."""
+    """The roughing op's step-down, stepover, stock to leave, flat levels, fine step-down and
+    ramp angle (not its tool)."""
     op.StepDown = roughing.stepdown
     op.FineStepDown = roughing.fine_stepdown
     op.StepOver = int(roughing.stepover_percent)
     op.RadialAllowance = roughing.radial_allowance
     op.AxialAllowance = roughing.axial_allowance
     op.FlatLevels = bool(roughing.flat_levels)
+    op.RampAngle = roughing.ramp_angle
 
 
 def roughing_of(op) -> RoughingParameters:
@@ -157,7 +161,8 @@ def roughing_of(op) -> RoughingParameters:
         radial_allowance=float(op.RadialAllowance.Value),
         axial_allowance=float(op.AxialAllowance.Value),
         stock_margin=RoughingParameters.stock_margin if margin is None else margin,
-        flat_levels=bool(op.FlatLevels), fine_stepdown=float(op.FineStepDown.Value))
+        flat_levels=bool(op.FlatLevels), fine_stepdown=float(op.FineStepDown.Value),
+        ramp_angle=float(op.RampAngle.Value))
 
 
 def edit_roughing(op, roughing: RoughingParameters, cutting: cam.Cutting) -> None:

@@ -16,6 +16,7 @@ import json
 
 import numpy as np
 
+from ..core.toolpath.roughing import MAX_RAMP_ANGLE_DEG, RAMP_ANGLE_DEG
 from . import compat
 from .finishing_op import (
     FreeCAD,
@@ -41,6 +42,9 @@ PROPERTIES = (
     ("App::PropertyLength", "FineStepDown", "Roughing",
      "Terraces no thicker than this: after each StepDown level, levels this far apart in the "
      "band above it, cut from the bottom up (0: off)", 0, 0.0),
+    ("App::PropertyAngle", "RampAngle", "Roughing",
+     f"Angle (degrees, above 0, at most {MAX_RAMP_ANGLE_DEG:g}) at which helical and ramped "
+     "entries descend into the material", 0, RAMP_ANGLE_DEG),
     ("App::PropertyPercent", "StepOver", "Roughing",
      "Width of cut, percent of the tool diameter (the radial engagement never exceeds it)",
      0, 40),
@@ -137,6 +141,10 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         if fine > obj.StepDown.Value:
             raise OpError(f"{obj.Label}: FineStepDown {fine:g} mm is deeper than StepDown "
                           f"({obj.StepDown.Value:g} mm)")
+        ramp = float(obj.RampAngle.Value)
+        if not 0.0 < ramp <= MAX_RAMP_ANGLE_DEG:
+            raise OpError(f"{obj.Label}: RampAngle {ramp:g} degrees must lie above 0 and at "
+                          f"most {MAX_RAMP_ANGLE_DEG:g} degrees (a plunge is never made)")
         stepover = 0.01 * int(obj.StepOver) * tool.diameter
         if not stepover > 0:
             raise OpError(f"{obj.Label}: StepOver must be above 0 % of the tool diameter")
@@ -146,7 +154,7 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
             radial_allowance=obj.RadialAllowance.Value,
             axial_allowance=obj.AxialAllowance.Value,
             cell=obj.Cell.Value or None, clearance_height=clearance,
-            flat_levels=bool(obj.FlatLevels), fine_stepdown=fine or None,
+            flat_levels=bool(obj.FlatLevels), fine_stepdown=fine or None, ramp_angle=ramp,
             progress=progress_reporter(obj))
         if not rough.moves:
             raise OpError(f"{obj.Label}: there is no stock to remove above the part")
@@ -172,6 +180,7 @@ def rough_report(rough, commands, tool) -> dict:
     out.update({
         "strategy": "roughing",
         "levels": [round(float(z), 6) for z in rough.levels],
+        "ramp_angle_deg": float(rough.parameters["ramp_angle"]),
         "tool": {"shape": tool.shape.value, "diameter_mm": tool.diameter,
                  "corner_radius_mm": tool.corner_radius},
         "cutting_length_mm": round(feed_length(commands), 6),

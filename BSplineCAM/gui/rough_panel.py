@@ -19,6 +19,7 @@ import FreeCADGui
 from PySide import QtGui
 
 from ..app import compat
+from ..core.toolpath.roughing import MAX_RAMP_ANGLE_DEG, RAMP_ANGLE_DEG
 from . import progress_bar, results_panel
 from .cam_commands import (
     FinishOpViewProvider,
@@ -136,6 +137,7 @@ class RoughPanel(PanelBase):
         self.fine = spin(0.0, 0.0, 100.0, 3, " mm", 0.5)
         self.fine.setSpecialValueText("off")
         self.stepover = spin(40.0, 0.0, 100.0, 0, " %", 5.0)
+        self.ramp = spin(RAMP_ANGLE_DEG, 0.0, 90.0, 1, " °", 0.5)
         self.radial = spin(0.3, 0.0, 50.0, 3, " mm", 0.1)
         self.axial = spin(0.3, 0.0, 50.0, 3, " mm", 0.1)
         self.margin = spin(2.0, 0.0, 1000.0, 2, " mm", 1.0)
@@ -153,6 +155,8 @@ class RoughPanel(PanelBase):
              "levels this far apart in the band above it, cut from the bottom up (off: none)"),
             ("Stepover", self.stepover, "Width of cut, percent of the diameter; the radial "
              "engagement never exceeds it"),
+            ("Ramp angle", self.ramp, "Helical and ramped entries descend at this angle "
+             f"(above 0, at most {MAX_RAMP_ANGLE_DEG:g} degrees)"),
             ("Radial stock to leave", self.radial, "Material left on the part sideways"),
             ("Axial stock to leave", self.axial, "Material left on the part vertically"),
             ("Stock margin", self.margin, "The job's stock block around the part, sideways "
@@ -180,6 +184,7 @@ class RoughPanel(PanelBase):
         for box, value in ((self.diameter, params.diameter), (self.corner, params.corner_radius),
                            (self.stepdown, params.stepdown), (self.fine, params.fine_stepdown),
                            (self.stepover, params.stepover_percent),
+                           (self.ramp, params.ramp_angle),
                            (self.radial, params.radial_allowance),
                            (self.axial, params.axial_allowance), (self.margin, params.stock_margin)):
             box.setValue(value)
@@ -223,12 +228,15 @@ class RoughPanel(PanelBase):
                              f"step-down ({self.stepdown.value():g} mm)")
         if not self.stepover.value() >= 1:
             raise ValueError("Stepover must be at least 1 % of the diameter")
+        if not 0.0 < self.ramp.value() <= MAX_RAMP_ANGLE_DEG:
+            raise ValueError(f"Ramp angle ({self.ramp.value():g} degrees) must lie above 0 and "
+                             f"at most {MAX_RAMP_ANGLE_DEG:g} degrees")
         params = RoughingParameters(
             shape=shape, diameter=self.diameter.value(), corner_radius=corner,
             stepdown=self.stepdown.value(), stepover_percent=int(self.stepover.value()),
             radial_allowance=self.radial.value(), axial_allowance=self.axial.value(),
             stock_margin=self.margin.value(), flat_levels=self.flat_levels.isChecked(),
-            fine_stepdown=self.fine.value())
+            fine_stepdown=self.fine.value(), ramp_angle=self.ramp.value())
         return params, self.cutting()
 
     def accept(self) -> bool:

@@ -24,6 +24,7 @@ from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
 from ..core.toolpath import check_request
 from ..core.toolpath.common import Strategy, check_range
+from ..core.toolpath.roughing import MAX_RAMP_ANGLE_DEG, RAMP_ANGLE_DEG
 from . import rs274
 from .cli_verify import add_machine_options, check_machine_limits
 from .pipeline_run import (
@@ -62,6 +63,10 @@ def register(sub) -> None:
                         "--stepdown; default 0: off)")
     p.add_argument("--stepover", type=float, default=40.0,
                    help="roughing width of cut, percent of the roughing diameter (default 40)")
+    p.add_argument("--ramp-angle", type=float, default=RAMP_ANGLE_DEG,
+                   help="angle at which the roughing's helical and ramped entries descend "
+                        f"(degrees, above 0, at most {MAX_RAMP_ANGLE_DEG:g}; default "
+                        f"{RAMP_ANGLE_DEG:g})")
     p.add_argument("--allowance", type=float, default=0.3,
                    help="stock to leave after roughing, radial and axial (mm, default 0.3)")
     p.add_argument("--radial-allowance", type=float, default=None,
@@ -116,6 +121,8 @@ def roughing_parameters(args: argparse.Namespace):
     stepdown = check_range(args.stepdown, "--stepdown", "mm", *STEPDOWN_RANGE)
     fine = check_range(args.fine_stepdown, "--fine-stepdown", "mm", 0.0, stepdown)
     stepover = check_range(args.stepover, "--stepover", "%", *STEPOVER_RANGE)
+    ramp = check_range(args.ramp_angle, "--ramp-angle", "degrees", 0.0, MAX_RAMP_ANGLE_DEG,
+                       low_open=True)
     allowance = check_range(args.allowance, "--allowance", "mm", *ALLOWANCE_RANGE)
     radial = allowance if args.radial_allowance is None else check_range(
         args.radial_allowance, "--radial-allowance", "mm", *ALLOWANCE_RANGE)
@@ -126,7 +133,7 @@ def roughing_parameters(args: argparse.Namespace):
         corner_radius=tool.corner_radius if tool.shape.value == "bullnose" else 0.0,
         stepdown=stepdown, stepover_percent=int(round(stepover)), radial_allowance=radial,
         axial_allowance=axial, stock_margin=margin, flat_levels=not args.no_flat_levels,
-        fine_stepdown=fine)
+        fine_stepdown=fine, ramp_angle=ramp)
 
 
 def cmd_job(args: argparse.Namespace) -> int:

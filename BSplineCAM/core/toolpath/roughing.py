@@ -54,8 +54,8 @@ assumes (on a 6.5 mm ring 1.8 mm chords, from the cell/4 simplification, cut 4.7
 at a 4 mm stepover), so the simulation measures them up to about 4.8 mm wide there.  Fronts
 that grow outward from a round cleared region other than a helix (a fine level's fronts
 round the floor cut below it, the rest of a small closed pass after a ramp that covers
-only part of it) grow by the full stepover and cut wider still (5.3 mm on the case study's
-pocket at 8 + 4 mm).
+only part of it) grow by the full stepover and cut wider still (on the case study's
+pocket at 8 + 4 mm: up to 5.9 mm).
 """
 
 from __future__ import annotations
