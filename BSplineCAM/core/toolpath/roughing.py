@@ -48,13 +48,12 @@ of a level starts out there, by a straight descent in the air beside the stock.
 Known limit: a pass running head-on into a wall, or past the end of the previous pass along a
 wall that slants across the fronts, ends with material on both sides; there the width of cut
 reaches about R + s/2 (up to 7.2 mm for a 10 mm mill at a 4 mm stepover and a 2 mm stepdown
-on examples/case-study.json).  The rings round a helix are polygons of the grid's contour:
-a chord of a ring sweeps across more of the material than the tangent move ring_step
-assumes (on a 6.5 mm ring 1.8 mm chords, from the cell/4 simplification, cut 4.7 mm wide
-at a 4 mm stepover), so the simulation measures them up to about 4.8 mm wide there.  Fronts
-that grow outward from a round cleared region other than a helix (a fine level's fronts
-round the floor cut below it, the rest of a small closed pass after a ramp that covers
-only part of it) grow by the full stepover and cut wider still (on the case study's
+on examples/case-study.json).  Rings round a helix are cut on their exact circle (the
+radius their grid contour has) in chords within RING_CHORD_MM: the grid's contour wanders
+by about a cell, and a chord of it pointing outwards cut up to 6.2 mm wide at a 4 mm
+stepover.  Fronts that grow outward from a round cleared region other than a helix (a fine
+level's fronts round the floor cut below it, the rest of a small closed pass after a ramp
+that covers only part of it) grow by the full stepover and cut wider (on the case study's
 pocket at 8 + 4 mm: up to 5.9 mm).
 """
 
@@ -104,6 +103,10 @@ TRAVEL_GAP_MM = 1.0
 HELIX_CHORD_MM = 0.01
 #: Largest number of grid cells; a finer cell is coarsened with a note.
 MAX_CELLS = 4_000_000
+#: Largest gap (mm) between a ring round a helix and the chords it is cut in: a chord of a
+#: ring sweeps across more of the material than the tangent move ring_step assumes (1.8 mm
+#: chords on a 6.5 mm ring cut 4.7 mm wide at a 4 mm stepover; 0.7 mm chords 4.3 mm).
+RING_CHORD_MM = 0.02
 #: Slope below which an area counts as flat (degrees) for the extra levels.
 FLAT_SLOPE_DEG = 1.0
 #: Flat areas smaller than this many tool areas get no level of their own.
@@ -986,7 +989,8 @@ class _Job:
             self.allowed |= mask
             cx, cy, rh = centre
             Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
-            rings.append([mask, rh, capped_distance(mask, self.s / cell + 2) * cell <= self.s])
+            rings.append([mask, rh, capped_distance(mask, self.s / cell + 2) * cell <= self.s,
+                          (cx, cy)])
         frac0 = (li + 0.05) / nlevels
         # growing fronts.  On a level at a flat floor T - z is 0 over whole areas, where a
         # front's contour would run through the cells' centres (stairs of cell-long moves
@@ -1032,7 +1036,9 @@ class _Job:
             if Qn.sum() <= Q.sum():
                 break
             k += 1
-            self.cut_contours(F, z, z_above, front=dQ - step, reached=dQ)
+            # the rings still round: their front pieces go on the exact circle
+            circles = [(ring[0], ring[3], ring[1]) for ring in rings if ring[1] is not None]
+            self.cut_contours(F, z, z_above, front=dQ - step, reached=dQ, circles=circles)
             Q = Qn
         # walls
         F = tip - z
@@ -1098,14 +1104,17 @@ class _Job:
         self.mark(np.array([[cx, cy], [cx, cy]]))
         return float(cx), float(cy), rh
 
-    def cut_contours(self, F, z, z_above, front, reached=None) -> None:
+    def cut_contours(self, F, z, z_above, front, reached=None, circles=()) -> None:
         """Cut the contour F = 0 where the tool meets uncut material.
 
         With ``front`` (distance to the cleared centres less the step, mm) and ``reached``
         (that distance) the contour is a new front: its front pieces are cut first (climb),
         then the pieces on the walls {T = z} that the front newly reached, each from its end
         nearer the new front towards the old one, so that the strip beside it is already cut.
-        Without, the contour is the level's final wall pass.
+        Without, the contour is the level's final wall pass.  ``circles``: (component mask,
+        centre (x, y), radius) of the rings round a helix; front pieces of a ring within a
+        cell of its circle (the grid's contour of it) are put on it and cut in chords within
+        RING_CHORD_MM of it.
         """
         lines = marching_squares(F)
         if not lines:
@@ -1147,8 +1156,44 @@ class _Job:
                 d = _bilinear(front, piece[:, 0], piece[:, 1])
                 closed_piece = len(piece) > 2 and bool(np.allclose(piece[0], piece[-1]))
                 walls.append(piece if closed_piece or d[0] >= d[-1] else piece[::-1])
-        self.emit(fronts, z, z_above)
+        if circles and fronts:
+            circles = self.fit_circles(fronts, circles)
+            fronts = [self.on_circles(p, circles) for p in fronts]
+        self.emit(fronts, z, z_above, circles)
         self.emit(self.deep_walls(walls), z, z_above)
+
+    def fit_circles(self, pieces: list, circles: list) -> list:
+        """The rings' circles at the radius their contour has: the median distance from the
+        centre of the front points within three cells of the ring's nominal radius (the
+        grid's distance fronts fall short of it by up to about 0.1 mm a ring)."""
+        every = np.concatenate(pieces)
+        ny, nx = self.T.shape
+        ii = np.clip(np.rint(every[:, 1]).astype(int), 0, ny - 1)
+        jj = np.clip(np.rint(every[:, 0]).astype(int), 0, nx - 1)
+        out = []
+        for mask, centre, radius in circles:
+            c = self.idx(np.array([centre]))[0]
+            dist = np.hypot(*(every - c).T) * self.cell
+            near = (np.abs(dist - radius) <= 3 * self.cell) & mask[ii, jj]
+            if near.any():
+                out.append((mask, centre, float(np.median(dist[near]))))
+        return out
+
+    def on_circles(self, piece: FloatArray, circles: list) -> FloatArray:
+        """The piece (fractional indices) with its points within a cell of a ring's
+        circle, in the ring's component, moved radially onto the circle."""
+        piece = piece.copy()
+        ny, nx = self.T.shape
+        ii = np.clip(np.rint(piece[:, 1]).astype(int), 0, ny - 1)
+        jj = np.clip(np.rint(piece[:, 0]).astype(int), 0, nx - 1)
+        for mask, centre, radius in circles:
+            c = self.idx(np.array([centre]))[0]
+            rel = piece - c
+            dist = np.hypot(rel[:, 0], rel[:, 1])
+            rc = radius / self.cell
+            near = (np.abs(dist - rc) <= 1.0) & mask[ii, jj] & (dist > 0)
+            piece[near] = c + rel[near] * (rc / dist[near])[:, None]
+        return piece
 
     def deep_walls(self, walls: list) -> list:
         """The wall pieces (fractional indices) along which the material still uncut after the
@@ -1168,10 +1213,11 @@ class _Job:
                 keep.append(piece)
         return keep
 
-    def emit(self, stretches: list, z: float, z_above: float) -> None:
+    def emit(self, stretches: list, z: float, z_above: float, circles=()) -> None:
         """Simplify the stretches (fractional indices) within cell/4 and cut them, nearest
         next first; an open stretch is cut in its own direction, a closed one from its
-        vertex nearest the tool."""
+        vertex nearest the tool.  A chord between two points on one of the ``circles`` (see
+        :meth:`cut_contours`) is cut as an arc in chords within RING_CHORD_MM of it."""
         if not stretches:
             return
         pts = [self.xy(p) for p in stretches]
@@ -1180,6 +1226,9 @@ class _Job:
         keep = simplify(np.column_stack([allp, np.full(len(allp), z)]), starts,
                         0.25 * self.cell, "planar")
         paths = [allp[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+        if circles:
+            paths = [_arc_fill(q, [(c, r) for _, c, r in circles], RING_CHORD_MM)
+                     for q in paths]
         # a stretch that simplification left as one point (two equal ones) would only plunge
         paths = [q for q in paths if len(q) > 1 and np.hypot(*np.diff(q, axis=0).T).sum() > 1e-9]
         remaining = list(range(len(paths)))
@@ -1260,6 +1309,28 @@ def ring_step(rho: float, R: float, s: float) -> float:
     c = 1.0 - s / R
     grown = -c * R + math.sqrt(c * c * R * R + (rho + R) ** 2 - R * R)
     return float(min(max(grown - rho, 0.0), s))
+
+
+def _arc_fill(path: FloatArray, circles: list, sag: float) -> FloatArray:
+    """The path (xy, mm) with each chord whose two ends lie on one of ``circles`` ((centre,
+    radius), mm) replaced by the shorter arc between them in chords within ``sag`` of it."""
+    if len(path) < 2:
+        return path
+    out = [path[0]]
+    for a, b in zip(path[:-1], path[1:]):
+        for (cx, cy), r in circles:
+            ra, rb = math.hypot(a[0] - cx, a[1] - cy), math.hypot(b[0] - cx, b[1] - cy)
+            if abs(ra - r) > 1e-6 * max(r, 1.0) or abs(rb - r) > 1e-6 * max(r, 1.0):
+                continue
+            ta, tb = math.atan2(a[1] - cy, a[0] - cx), math.atan2(b[1] - cy, b[0] - cx)
+            d = (tb - ta + math.pi) % (2 * math.pi) - math.pi
+            step = 2.0 * math.acos(max(1.0 - sag / r, -1.0))
+            n = int(math.ceil(abs(d) / step)) if step > 0 else 1
+            for t in np.arange(1, n) / n:
+                out.append(np.array([cx + r * math.cos(ta + t * d), cy + r * math.sin(ta + t * d)]))
+            break
+        out.append(b)
+    return np.array(out)
 
 
 def _ramp(p: FloatArray, closed: bool, drop: float, slope: float) -> tuple:
