@@ -201,16 +201,21 @@ class TestRoughingBadInput(RoughingFixture):
             self.rough.StepDown = saved
             self.doc.recompute()
 
-    def test_fine_stepdown_deeper_than_the_stepdown(self):
+    def assert_refused(self, name: str, value: float, restore: float, unit: str) -> None:
+        """Property ``name`` set to ``value``: the op's error names it and ``unit``; set
+        back to ``restore``, the op computes again."""
         try:
-            self.rough.FineStepDown = self.rough.StepDown.Value + 0.5
+            setattr(self.rough, name, value)
             error = self.recompute_error()
-            self.assertIn("FineStepDown", error)
-            self.assertIn("mm", error)
+            self.assertIn(name, error)
+            self.assertIn(unit, error)
         finally:
-            self.rough.FineStepDown = 0.0
+            setattr(self.rough, name, restore)
             self.doc.recompute()
         self.assertNotIn("error", json.loads(self.rough.Report))
+
+    def test_fine_stepdown_deeper_than_the_stepdown(self):
+        self.assert_refused("FineStepDown", self.rough.StepDown.Value + 0.5, 0.0, "mm")
 
     def test_ramp_angle_sets_the_ramps(self):
         """RampAngle 6 degrees: the report says so and the posted program's roughing ramps
@@ -248,15 +253,7 @@ class TestRoughingBadInput(RoughingFixture):
 
     def test_ramp_angle_out_of_range(self):
         for bad in (0.0, 45.0):
-            try:
-                self.rough.RampAngle = bad
-                error = self.recompute_error()
-                self.assertIn("RampAngle", error)
-                self.assertIn("degrees", error)
-            finally:
-                self.rough.RampAngle = 3.0
-                self.doc.recompute()
-        self.assertNotIn("error", json.loads(self.rough.Report))
+            self.assert_refused("RampAngle", bad, 3.0, "degrees")
 
     def test_fine_stepdown_levels_and_program(self):
         """StepDown 6 mm with FineStepDown 2 mm: levels every 6 mm from the stock top, each
