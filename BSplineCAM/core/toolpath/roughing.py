@@ -553,8 +553,8 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     # circle): the fronts start from the air around it, where the tool's disk meets none
     in_stock = stock.contains_xy(xg, yg)
     air = outside >= R * (1 + 1e-9)
-    levels = _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels)
-    order = _cutting_order(levels, stock.z_max, stepdown, fine)
+    levels, main = _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels)
+    order = _cutting_order(levels, main, stock.z_max, fine)
     Hp = np.where(has, part + aa, -np.inf)
 
     job = _Job(grid, T, Hp, tool, s, ar, cell, stock, clearance, notes, monitor)
@@ -597,8 +597,9 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
                     TipHeight(grid, T), params)
 
 
-def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> list:
-    """Stock top - k stepdown down to the lowest level needed, plus flat-area heights."""
+def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> tuple:
+    """(levels, main): stock top - k stepdown down to the lowest level needed (``main``,
+    top-down) plus the flat-area heights (``levels``, all of them, top-down)."""
     reach = T[in_stock]
     low = max(float(reach.min()) if reach.size else stock.z_min, stock.z_min)
     top = stock.z_max
@@ -609,6 +610,7 @@ def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> lis
         k += 1
     if low < top - 1e-6:
         levels.append(low)
+    main = list(levels)
     if flat_levels:
         finite = np.isfinite(part)
         filled = np.where(finite, part, 0.0)
@@ -624,21 +626,18 @@ def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> lis
                 h = float(np.median(part[labels == comp])) + aa
                 if low + 1e-3 < h < top - 1e-3 and all(abs(h - z) > 1e-3 for z in levels):
                     levels.append(h)
-    return sorted(levels, reverse=True)
+    return sorted(levels, reverse=True), main
 
 
-def _cutting_order(levels: list, top: float, stepdown: float, fine: float | None) -> list:
+def _cutting_order(levels: list, main: list, top: float, fine: float | None) -> list:
     """(z, z_above, step_up) per level in cutting order.  Without ``fine`` the levels run
-    top-down, each below the one above.  With it the levels at the step-down from the top
-    (and the lowest) run top-down, and after each the band between it and the one above
+    top-down, each below the one above.  With it the ``main`` levels (at the step-down from
+    the top, and the lowest) run top-down, and after each the band between it and the one above
     gets levels every ``fine`` mm (and the flat-area levels in it), cut from the bottom up
     (step_up True): each clears, beside the floor already cut, the terrace left there up to
     the band's top, so a terrace is never thicker than ``fine`` and its material is cut once."""
     if fine is None:
         return [(z, top if i == 0 else levels[i - 1], False) for i, z in enumerate(levels)]
-    n = len(levels)
-    main = [z for k, z in enumerate(levels)
-            if k == n - 1 or abs((top - z) / stepdown - round((top - z) / stepdown)) < 1e-6]
     extra = [z for z in levels if z not in main]
     out = []
     above = top
