@@ -921,10 +921,9 @@ def test_radial_engagement_round_a_helix_in_a_bowl():
 def test_rings_round_a_helix_are_cut_on_their_circle():
     """A bowl twice the size roughed with a 10 mm flat at 4 mm: on each level entered by a
     helix, the rings round it clear of the wall are cut on exact circles round the helix's
-    centre (the grid's
-    contour of a ring wanders by about a cell, and a chord pointing outwards measured up to
-    6.2 mm wide on the case study's pocket; polygon chords of 1.8 mm 4.7 mm), in chords
-    within RING_CHORD_MM.  (Here the rings are entered by ramps round them, so the job
+    centre (the grid's contour of a ring wanders by about a cell, and a chord pointing
+    outwards measured up to 6.2 mm wide on the case study's pocket; polygon chords of 1.8 mm
+    4.7 mm), in chords within RING_CHORD_MM.  (Here the rings are entered by ramps round them, so the job
     simulation counts them as entries: the case study's figures are in the README.)"""
     from BSplineCAM.core.toolpath.roughing import RING_CHORD_MM
 
