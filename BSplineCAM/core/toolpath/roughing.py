@@ -654,6 +654,18 @@ def _cutting_order(levels: list, main: list, top: float, fine: float | None) -> 
     return out
 
 
+@dataclass
+class _Ring:
+    """Fronts round a helical entry: its component, its centre (x, y mm), the radius of its
+    last front (mm; None once it met a wall and grows by the stepover) and the component's
+    cells within a stepover of the rim (where a front nears a wall)."""
+
+    mask: np.ndarray
+    centre: tuple
+    radius: float | None
+    near_rim: np.ndarray
+
+
 class _Job:
     """State of one roughing run: the grids, the writer and the running counts."""
 
@@ -976,7 +988,7 @@ class _Job:
         entered[np.unique(labels[Q])] = True
         self.outside += int(entered.sum())
         self.allowed = A & entered[labels]
-        rings = []  # (component mask, radius of its front) of the components entered by helix
+        rings: list[_Ring] = []  # the components entered by a helix
         for comp in range(n):
             if entered[comp]:
                 continue
@@ -988,8 +1000,8 @@ class _Job:
             self.allowed |= mask
             cx, cy, rh = centre
             Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
-            rings.append([mask, rh, capped_distance(mask, self.s / cell + 2) * cell <= self.s,
-                          (cx, cy)])
+            rings.append(_Ring(mask, (cx, cy), rh,
+                               capped_distance(mask, self.s / cell + 2) * cell <= self.s))
         frac0 = (li + 0.05) / nlevels
         # growing fronts.  On a level at a flat floor T - z is 0 over whole areas, where a
         # front's contour would run through the cells' centres (stairs of cell-long moves
@@ -1009,26 +1021,26 @@ class _Job:
                 # a ring round a helix grows by the step that keeps the arc of the tool's
                 # edge in the material that of a straight pass (see the module docstring
                 # for the rings that near a wall)
-                if ring[1] is None:
+                if ring.radius is None:
                     continue
-                ds = ring_step(ring[1], self.R, self.s)
-                near = ~A & ring[2]
+                ds = ring_step(ring.radius, self.R, self.s)
+                near = ~A & ring.near_rim
                 if near.any():
                     # nearest wall, and the farthest point of the component's rim
                     gap = float(dQ[near].min())
-                    far = float(dQ[rim & ring[0]].max(initial=math.inf))
+                    far = float(dQ[rim & ring.mask].max(initial=math.inf))
                 else:
                     gap = far = math.inf
                 margin = RING_MARGIN_CELLS * cell
                 if far <= ds or gap <= ds - margin:
                     # the ring reaches the wall all round by no more than ds, or it meets
                     # the wall on one side (a long pocket) and grows by the stepover on
-                    ring[1] = None
+                    ring.radius = None
                     continue
                 if gap <= ds + margin:
                     ds = 0.5 * gap  # not along the wall: half way there first
-                step[ring[0]] = ds
-                ring[1] += ds
+                step[ring.mask] = ds
+                ring.radius += ds
             F = np.maximum(dQ - step, wall)
             F[A & ~self.allowed] = 1.0
             Qn = F <= 0.0
@@ -1036,7 +1048,7 @@ class _Job:
                 break
             k += 1
             # the rings still round: their front pieces go on the exact circle
-            circles = [(ring[0], ring[3], ring[1]) for ring in rings if ring[1] is not None]
+            circles = [r for r in rings if r.radius is not None]
             self.cut_contours(F, z, z_above, front=dQ - step, reached=dQ, circles=circles)
             Q = Qn
         # walls
@@ -1081,7 +1093,7 @@ class _Job:
         if z_above + 1.0 < w.clear:
             w.add("rapid", sx, sy, z_above + 1.0)
         w.add("feed", sx, sy, z_above)
-        dth = 2.0 * math.acos(max(1.0 - HELIX_CHORD_MM / rh, -1.0))
+        dth = _chord_angle(rh, HELIX_CHORD_MM)
         per_turn = 2 * math.pi * rh * self.ramp_slope
         # at least one turn down, so that the helix ends where it began and its last flat
         # turn only trims the wedge the descent left (a shallow drop goes down more gently)
@@ -1111,9 +1123,9 @@ class _Job:
         then the pieces on the walls {T = z} that the front newly reached, each from its end
         nearer the new front towards the old one, so that the strip beside it is already cut.
         Without, the contour is the level's final wall pass.  ``circles``: (component mask,
-        centre (x, y), radius) of the rings round a helix; front pieces of a ring within a
-        cell of its circle (the grid's contour of it) are put on it and cut in chords within
-        RING_CHORD_MM of it.
+        the rings round a helix still round (:class:`_Ring`); front pieces of a ring within a
+        cell of its circle (the grid's contour of it) are put on it (:meth:`on_circles`) and
+        cut in chords within RING_CHORD_MM of it.
         """
         lines = marching_squares(F)
         if not lines:
@@ -1156,43 +1168,35 @@ class _Job:
                 closed_piece = len(piece) > 2 and bool(np.allclose(piece[0], piece[-1]))
                 walls.append(piece if closed_piece or d[0] >= d[-1] else piece[::-1])
         if circles and fronts:
-            circles = self.fit_circles(fronts, circles)
-            fronts = [self.on_circles(p, circles) for p in fronts]
+            fronts, circles = self.on_circles(fronts, circles)
         self.emit(fronts, z, z_above, circles)
         self.emit(self.deep_walls(walls), z, z_above)
 
-    def fit_circles(self, pieces: list, circles: list) -> list:
-        """The rings' circles at the radius their contour has: the median distance from the
-        centre of the front points within three cells of the ring's nominal radius (the
-        grid's distance fronts fall short of it by up to about 0.1 mm a ring)."""
+    def on_circles(self, pieces: list, rings: list) -> tuple:
+        """The front pieces (fractional indices) with those of each ring put on its circle,
+        and the circles ((centre (x, y), radius) mm).  The circle's radius is the one the
+        ring's contour has: the median distance from the centre of its points within three
+        cells of the ring's radius (the grid's distance fronts fall short of it by up to
+        about 0.1 mm a ring); its points within a cell of it are moved onto it radially."""
         every = np.concatenate(pieces)
         ny, nx = self.T.shape
-        ii = np.clip(np.rint(every[:, 1]).astype(int), 0, ny - 1)
-        jj = np.clip(np.rint(every[:, 0]).astype(int), 0, nx - 1)
-        out = []
-        for mask, centre, radius in circles:
-            c = self.idx(np.array([centre]))[0]
-            dist = np.hypot(*(every - c).T) * self.cell
-            near = (np.abs(dist - radius) <= 3 * self.cell) & mask[ii, jj]
-            if near.any():
-                out.append((mask, centre, float(np.median(dist[near]))))
-        return out
-
-    def on_circles(self, piece: FloatArray, circles: list) -> FloatArray:
-        """The piece (fractional indices) with its points within a cell of a ring's
-        circle, in the ring's component, moved radially onto the circle."""
-        piece = piece.copy()
-        ny, nx = self.T.shape
-        ii = np.clip(np.rint(piece[:, 1]).astype(int), 0, ny - 1)
-        jj = np.clip(np.rint(piece[:, 0]).astype(int), 0, nx - 1)
-        for mask, centre, radius in circles:
-            c = self.idx(np.array([centre]))[0]
-            rel = piece - c
+        inside = [ring.mask[np.clip(np.rint(every[:, 1]).astype(int), 0, ny - 1),
+                            np.clip(np.rint(every[:, 0]).astype(int), 0, nx - 1)]
+                  for ring in rings]
+        starts = np.cumsum([0] + [len(p) for p in pieces])
+        circles = []
+        for ring, mine in zip(rings, inside):
+            c = self.idx(np.array([ring.centre]))[0]
+            rel = every - c
             dist = np.hypot(rel[:, 0], rel[:, 1])
-            rc = radius / self.cell
-            near = (np.abs(dist - rc) <= 1.0) & mask[ii, jj] & (dist > 0)
-            piece[near] = c + rel[near] * (rc / dist[near])[:, None]
-        return piece
+            near = (np.abs(dist * self.cell - ring.radius) <= 3 * self.cell) & mine
+            if not near.any():
+                continue
+            rc = float(np.median(dist[near]))
+            snap = (np.abs(dist - rc) <= 1.0) & mine & (dist > 0)
+            every[snap] = c + rel[snap] * (rc / dist[snap])[:, None]
+            circles.append((ring.centre, rc * self.cell))
+        return [every[a:b] for a, b in zip(starts[:-1], starts[1:])], circles
 
     def deep_walls(self, walls: list) -> list:
         """The wall pieces (fractional indices) along which the material still uncut after the
@@ -1216,7 +1220,8 @@ class _Job:
         """Simplify the stretches (fractional indices) within cell/4 and cut them, nearest
         next first; an open stretch is cut in its own direction, a closed one from its
         vertex nearest the tool.  A chord between two points on one of the ``circles`` (see
-        :meth:`cut_contours`) is cut as an arc in chords within RING_CHORD_MM of it."""
+        :meth:`on_circles`, (centre, radius) mm) is cut as an arc in chords within
+        RING_CHORD_MM of it."""
         if not stretches:
             return
         pts = [self.xy(p) for p in stretches]
@@ -1226,8 +1231,7 @@ class _Job:
                         0.25 * self.cell, "planar")
         paths = [allp[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
         if circles:
-            paths = [_arc_fill(q, [(c, r) for _, c, r in circles], RING_CHORD_MM)
-                     for q in paths]
+            paths = [_arc_fill(q, circles, RING_CHORD_MM) for q in paths]
         # a stretch that simplification left as one point (two equal ones) would only plunge
         paths = [q for q in paths if len(q) > 1 and np.hypot(*np.diff(q, axis=0).T).sum() > 1e-9]
         remaining = list(range(len(paths)))
@@ -1310,6 +1314,12 @@ def ring_step(rho: float, R: float, s: float) -> float:
     return float(min(max(grown - rho, 0.0), s))
 
 
+def _chord_angle(radius: float, sag: float) -> float:
+    """Angle (radians) of the chords of a circle of ``radius`` that lie within ``sag`` of it
+    (mm)."""
+    return 2.0 * math.acos(max(1.0 - sag / radius, -1.0))
+
+
 def _arc_fill(path: FloatArray, circles: list, sag: float) -> FloatArray:
     """The path (xy, mm) with each chord whose two ends lie on one of ``circles`` ((centre,
     radius), mm) replaced by the shorter arc between them in chords within ``sag`` of it."""
@@ -1323,7 +1333,7 @@ def _arc_fill(path: FloatArray, circles: list, sag: float) -> FloatArray:
                 continue
             ta, tb = math.atan2(a[1] - cy, a[0] - cx), math.atan2(b[1] - cy, b[0] - cx)
             d = (tb - ta + math.pi) % (2 * math.pi) - math.pi
-            step = 2.0 * math.acos(max(1.0 - sag / r, -1.0))
+            step = _chord_angle(r, sag)
             n = int(math.ceil(abs(d) / step)) if step > 0 else 1
             for t in np.arange(1, n) / n:
                 out.append(np.array([cx + r * math.cos(ta + t * d), cy + r * math.sin(ta + t * d)]))
