@@ -239,6 +239,15 @@ def test_flat_end_mill_hemisphere_boss():
     assert rough.levels[0] == pytest.approx(14.0)
     st = rough.stats
     assert st["entries"]["helical"] == 0 and st["entries"]["outside"] >= 1
+    # passes that no stay-down link reaches but that start beside the floor already cut are
+    # entered by a straight descent on that floor and a lead-in cutting within the stepover
+    # (check_common: no descent into material steeper than the ramp; the job simulation:
+    # no move wider than 1.1 s, also where a lead-in joins a pass further along and runs
+    # back to its start), not by a ramp from the top: 28 ramps before (26 lead-ins and 4
+    # ramps now), each 57 mm of feed at 3 mm and 3 degrees
+    assert st["entries"]["lead_in"] >= 15 and st["entries"]["ramp"] <= 10, st["entries"]
+    radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+    assert collisions == 0 and float(radial.max()) <= 1.1 * 3.0 + SIM_CELL
     assert st["passes"] > 0 and st["cutting_length_mm"] > 0
     assert not [n for n in st["notes"] if "smaller tool" in n]
     # every move below the stock top stays under the clearance, rapids at clearance or down
@@ -521,6 +530,34 @@ def test_engaged_width_of_a_feed_against_a_band():
     head_on = job.engaged_width((0.0, -4.0), (0.0, -1.0))
     assert head_on >= 2 * math.sqrt(16.0 - 1.0) - 2 * cell  # chord 3 mm deep in a 4 mm radius
     assert job.engaged_width((0.0, -9.0), (5.0, -9.0)) == 0.0
+    # the whole swath of the oblique feed, as the job simulation measures a move: from the
+    # capsule's left edge (R across) to the point of its end cap where the band begins
+    # (y = 0: R sin(phi + a) = 1, across R sin(phi))
+    whole = job.engaged_width((-dx / 2, -4.0), (dx / 2, -1.0), whole=True)
+    assert whole == pytest.approx(4.0 - 4.0 * math.sin(math.asin(0.25) - a) + cell, abs=cell)
+
+
+def test_run_back_to_a_pass_start_is_checked_move_by_move():
+    """A lead-in that joins a pass further along runs back to its start: along the band the
+    run cuts 3 mm; with a block of uncut material beyond the start (the corner a front leaves
+    at a wall) the last move meets it head-on and the run is refused."""
+    from BSplineCAM.core.toolpath.roughing import _Job
+
+    cell = 0.1
+    grid = Grid.covering(-20.0, 20.0, -20.0, 20.0, cell)
+    zeros = np.zeros((grid.ny, grid.nx))
+    job = _Job(grid, zeros, zeros, Tool(8.0, "flat"), 3.0, 0.0, cell,
+               Stock(-20, 20, -20, 20, 0, 10), 20.0, [], None)
+    job.z = 0.0
+    job.surface = np.full(zeros.shape, 10.0)
+    xs, ys = grid.centres()
+    band = np.broadcast_to((ys > 0.0)[:, None], zeros.shape)
+    run = np.array([[12.0, -6.0], [5.0, -1.0], [0.0, -1.0], [-5.0, -1.0]])
+    job.uncut = band.copy()
+    assert job.runs_within(run)
+    assert np.array_equal(job.uncut, band)  # the trial is undone
+    job.uncut = band | ((xs[None, :] < -6.0) & (ys[:, None] > -6.0))
+    assert not job.runs_within(run)
 
 
 def test_ramp_along_a_pass_of_no_length_ends():

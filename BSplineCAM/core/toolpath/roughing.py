@@ -29,9 +29,16 @@ and which links may stay down; an estimate of the machined surface (level + prof
 distance, never below the true floor) decides how low the tool may rapid and descend: rapids
 between passes travel TRAVEL_GAP_MM above the highest material the estimate holds along the
 way, the clearance height only where that is higher.  A pass that cannot be reached by a clear
-link or a straight descent is entered by a ramp along the pass itself at the ramp angle from
-the surface down to the level: backwards along an open pass to its start (so the pass does not
-go back over the ramp), round a closed one.
+link or a straight descent at its start is entered from the floor already cut when it can be:
+a straight descent where the tool's disk is clear down to the level, within
+LEAD_IN_REACH_RADII tool radii of the pass's start, and a feed to a vertex within
+LEAD_IN_DIAMETERS tool diameters along the pass whose whole swath is no wider than the
+stepover (the pass then runs back to its start and on).  Otherwise it is entered by a ramp
+along the pass itself at the ramp angle from the surface down to the level: backwards along an
+open pass to its start (so the pass does not go back over the ramp), round a closed one.  (A
+ramp that reaches its depth at a wall ends in a slot the full diameter wide that the
+simulation counts as entry; a lead-in that runs back to a start at a wall ends in the same
+head-on cut as a pass into a wall, counted: below.)
 
 With a fine step-down the levels at the step-down run top-down and after each one the band
 above it gets levels the fine step apart, cut bottom-up (:func:`_cutting_order`): on such a
@@ -97,6 +104,13 @@ WALL_SLIVER = 0.5
 RING_MARGIN_CELLS = 3
 #: A stay-down lead-in may join a pass this many tool diameters along it from its start.
 LEAD_IN_DIAMETERS = 3.0
+#: A lead-in from the floor already cut (a straight descent in the cleared region, then a
+#: feed to a vertex of the pass within LEAD_IN_DIAMETERS) starts within this many tool radii
+#: of the pass's start, on a lattice this share of the radius apart, and at most
+#: LEAD_IN_TRIES such feeds are measured (:meth:`_Job.cleared_lead_in`).
+LEAD_IN_REACH_RADII = 2.5
+LEAD_IN_LATTICE = 0.25
+LEAD_IN_TRIES = 40
 #: Gap (mm) kept above the material by rapids that travel below the clearance height.
 TRAVEL_GAP_MM = 1.0
 #: Chord error of the helices (mm).
@@ -578,7 +592,8 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
         "levels": len(levels),
         "passes": job.passes,
         "cutting_length_mm": cut,
-        "entries": {"helical": job.helical, "outside": job.outside, "ramp": job.ramps},
+        "entries": {"helical": job.helical, "outside": job.outside, "ramp": job.ramps,
+                    "lead_in": job.lead_ins},
         "entry_spans": job.entry_spans,
         "link_moves": job.links,
         "retracts": job.writer.retracts,
@@ -680,6 +695,7 @@ class _Job:
         self.helical = 0
         self.outside = 0
         self.ramps = 0
+        self.lead_ins = 0  # straight descents on the floor already cut, then a lead-in
         self.lifts = 0
         self.entry_spans: list = []
         self.links: list[int] = []
@@ -738,15 +754,28 @@ class _Job:
 
     def safe_at(self, q: FloatArray, z: float) -> float:
         """Lowest tip height (>= z) at q (xy) where the tool meets none of the material the
-        surface estimate holds, the cells taken 3/4 cell nearer for their size (the profile
-        of a bull-nose or ball rises steeply at its rim)."""
-        f = self.idx(q)[0]
-        i0, i1, j0, j1 = self.window(f[None, :], self.Rc + 2)
-        jj, ii = np.meshgrid(np.arange(j0, j1), np.arange(i0, i1))
-        r = np.hypot(jj - f[0], ii - f[1]) * self.cell - 0.75 * self.cell
-        inside = r <= self.R
-        top = self.surface[i0:i1, j0:j1][inside] - self.tool.profile(np.maximum(r[inside], 0))
-        return max(float(top.max(initial=-np.inf)), z)
+        surface estimate holds (:meth:`safe_heights` of one point)."""
+        return float(self.safe_heights(np.asarray(q, dtype=float)[None, :], z)[0])
+
+    def safe_heights(self, qs: FloatArray, z: float) -> FloatArray:
+        """:meth:`safe_at` of each point of qs (n, 2): the highest cell of the surface estimate
+        within the tool's disk less the tool's profile there, the cells taken 3/4 cell nearer
+        for their size (the profile of a bull-nose or ball rises steeply at its rim), at
+        least z."""
+        f = self.idx(np.asarray(qs, dtype=float))
+        base = np.floor(f).astype(int)
+        k = int(math.ceil(self.Rc + 0.75)) + 1
+        o = np.arange(-k, k + 2)
+        oj, oi = (a.ravel() for a in np.meshgrid(o, o))
+        jj = base[:, 0:1] + oj[None, :]
+        ii = base[:, 1:2] + oi[None, :]
+        r = np.hypot(jj - f[:, 0:1], ii - f[:, 1:2]) * self.cell - 0.75 * self.cell
+        ny, nx = self.surface.shape
+        inside = (r <= self.R) & (jj >= 0) & (jj < nx) & (ii >= 0) & (ii < ny)
+        top = np.full(r.shape, -np.inf)
+        top[inside] = self.surface[ii[inside], jj[inside]] - self.tool.profile(
+            np.maximum(r[inside], 0.0))
+        return np.maximum(top.max(axis=1), z)
 
     def clear_near(self, q: FloatArray, z: float) -> FloatArray | None:
         """A point within a tool radius of q, or within two where the tool reaches the stock,
@@ -761,12 +790,11 @@ class _Job:
             order = np.argsort(r, kind="stable")
             order = order[(r[order] >= inner) & (r[order] <= k)]
             tried = 0
-            for o in order[:: max(1, len(order) // 60)]:
-                c = q + self.cell * np.array([dj.flat[o], di.flat[o]], dtype=float)
+            order = order[:: max(1, len(order) // 60)]
+            C = q + self.cell * np.column_stack([dj.flat[order], di.flat[order]]).astype(float)
+            for c in C[self.safe_heights(C, z) <= z + 0.01]:
                 if reach > 1.0 and not self.by_stock(c):
                     continue  # beyond a radius only by the stock, not out in the air
-                if self.safe_at(c, z) > z + 0.01:
-                    continue
                 tried += 1
                 if (reach == 1.0 and self.link_ok((c[0], c[1], z), (q[0], q[1], z), z)) or (
                         self.by_stock(c) and self.in_region(c, q, z)
@@ -804,10 +832,13 @@ class _Job:
         f = self.idx(_densify(np.array([a[:2], b[:2]], dtype=float), 0.5 * self.cell))
         return not np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3)
 
-    def engaged_width(self, a, b) -> float:
+    def engaged_width(self, a, b, whole: bool = False) -> float:
         """Largest width of cut (mm) of a feed from a to b (xy) at the level, by the uncut
         grid: at samples a cell apart along it, the extent across the move of the uncut cells
-        in the leading half of the tool's disk, plus a cell."""
+        in the leading half of the tool's disk, plus a cell.  With ``whole``, the extent of
+        all the uncut cells the move sweeps (within R of it, ahead of its start), as the job
+        simulation measures a move: a move entering a band at a slant cuts a swath wider
+        than any one position's width."""
         a = np.asarray(a[:2], dtype=float)
         b = np.asarray(b[:2], dtype=float)
         length = math.dist(a, b)
@@ -824,6 +855,12 @@ class _Job:
         across = rel @ np.array([-d[1], d[0]])
         worst = 0.0
         r2 = self.R * self.R
+        if whole:
+            swept = (along > 0) & (np.abs(across) <= self.R) & (along <= length) | (
+                (along > length) & ((along - length) ** 2 + across * across <= r2))
+            if not swept.any():
+                return 0.0
+            return float(across[swept].max() - across[swept].min()) + self.cell
         for t in np.arange(0.0, length + 0.5 * self.cell, self.cell):
             dx = along - t
             ahead = (dx > 0) & (dx * dx + across * across <= r2)
@@ -849,6 +886,68 @@ class _Job:
             if self.in_region(here, q, z) and self.engaged_width(here, q) <= self.s:
                 return k
         return None
+
+    def cleared_lead_in(self, p: FloatArray, z: float) -> tuple | None:
+        """A straight descent and a lead-in into pass p (xy) on level z from the floor already
+        cut: a point c within LEAD_IN_REACH_RADII tool radii of the pass's start where the
+        surface estimate leaves the tool's disk clear down to z, and the index k of a vertex
+        within LEAD_IN_DIAMETERS tool diameters along p, such that the feed from c to p[k]
+        stays in {T <= z} and cuts no wider than the stepover (:meth:`engaged_width`).  The
+        shortest feed among the pairs measured (at most LEAD_IN_TRIES, shortest first);
+        (c, k) or None."""
+        arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
+        ks = np.flatnonzero(arc <= LEAD_IN_DIAMETERS * self.tool.diameter)
+        ks = ks[:: max(1, len(ks) // 8)]
+        step = max(self.cell, LEAD_IN_LATTICE * self.R)
+        reach = LEAD_IN_REACH_RADII * self.R
+        n = int(reach / step)
+        g = np.arange(-n, n + 1) * step
+        off = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+        off = off[np.hypot(off[:, 0], off[:, 1]) <= reach]
+        C = p[0] + off
+        C = C[self.safe_heights(C, z) <= z + 0.01]
+        if not len(C):
+            return None
+        dist = np.hypot(C[:, None, 0] - p[ks][None, :, 0], C[:, None, 1] - p[ks][None, :, 1])
+        # the start first; a lead-in further along runs back to the start, which it may
+        # only where that run cuts within the stepover too (it would end head-on into a
+        # wall the pass starts at)
+        ok_back: dict = {}
+        for group in (ks == 0, ks > 0):
+            sub = np.where(group[None, :], dist, np.inf)
+            for flat in np.argsort(sub, axis=None, kind="stable")[:LEAD_IN_TRIES]:
+                if not np.isfinite(sub.flat[flat]):
+                    break
+                ci, kj = divmod(int(flat), len(ks))
+                c, k = C[ci], int(ks[kj])
+                if dist[ci, kj] <= 1e-9 or ok_back.get(k) is False or \
+                        not self.in_region(c, p[k], z) or \
+                        self.engaged_width(c, p[k], whole=True) > self.s:
+                    continue
+                if k > 0 and not ok_back.setdefault(k, self.runs_within(
+                        np.vstack([c, p[k::-1]]))):
+                    continue
+                return c, k
+        return None
+
+    def runs_within(self, path: FloatArray) -> bool:
+        """Every feed of path (xy) after its first cuts no wider than 1.1 stepover, the bound
+        the passes keep (:meth:`engaged_width` of its whole swath, a cell over the width
+        along a pass), each measured after the feeds before it have cut (a trial on the
+        grids, undone)."""
+        f = self.idx(path)
+        i0, i1, j0, j1 = self.window(f, self.Rc + 3)
+        saved = [(g, g[i0:i1, j0:j1].copy()) for g in (self.uncut, self.floor, self.surface)]
+        try:
+            self.mark(path[:2])
+            for a, b in zip(path[1:-1], path[2:]):
+                if self.engaged_width(a, b, whole=True) > 1.1 * self.s:
+                    return False
+                self.mark(np.array([a, b]))
+            return True
+        finally:
+            for g, view in saved:
+                g[i0:i1, j0:j1] = view
 
     def travel_height(self, a: FloatArray, b: FloatArray) -> float:
         """Height (mm) at which a rapid from a to b (xy) meets no material: the highest
@@ -921,9 +1020,11 @@ class _Job:
         the pass that cuts within the stepover (:meth:`lead_in`); else lift (:meth:`descend`)
         and descend straight at the start, or at a point within two tool radii of it followed
         by such a link or lead-in (:meth:`clear_near`), where the
-        surface estimate leaves the tool's disk clear down to z; else ramp down along the
-        pass itself at the ramp angle from the surface: along an open pass backwards to its
-        start (:meth:`back_ramp`), round a closed one from its start."""
+        surface estimate leaves the tool's disk clear down to z, or on the floor already cut
+        farther out, followed by a lead-in to a vertex along the pass
+        (:meth:`cleared_lead_in`); else ramp down along the pass itself at the ramp angle from
+        the surface: along an open pass backwards to its start (:meth:`back_ramp`), round a
+        closed one from its start."""
         w = self.writer
         closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
         q = (float(p[0, 0]), float(p[0, 1]), z)
@@ -944,6 +1045,13 @@ class _Job:
         elif (near := self.clear_near(p[0], z)) is not None:
             self.descend(near, z, z + 1.0)
             self.link(q)
+        elif (lead := self.cleared_lead_in(p, z)) is not None:
+            c, k = lead
+            self.descend(c, z, z + 1.0)
+            self.link((float(p[k, 0]), float(p[k, 1]), z))
+            self.mark(np.array([c, p[k]]))
+            self.lead_ins += 1
+            route = np.vstack([p[k:-1], p[:k + 1]]) if closed else np.vstack([p[k::-1], p[1:]])
         else:
             slope = self.ramp_slope
             back = None if closed else self.back_ramp(p, z, top, slope)
