@@ -767,6 +767,9 @@ class _Job:
         k = int(math.ceil(self.Rc + 0.75)) + 1
         o = np.arange(-k, k + 2)
         oj, oi = (a.ravel() for a in np.meshgrid(o, o))
+        # only offsets that can reach the disk (the point lies within 1.5 cells of its base)
+        reach = np.hypot(oj, oi) <= self.Rc + 0.75 + 1.5
+        oj, oi = oj[reach], oi[reach]
         jj = base[:, 0:1] + oj[None, :]
         ii = base[:, 1:2] + oi[None, :]
         r = np.hypot(jj - f[:, 0:1], ii - f[:, 1:2]) * self.cell - 0.75 * self.cell
@@ -776,6 +779,27 @@ class _Job:
         top[inside] = self.surface[ii[inside], jj[inside]] - self.tool.profile(
             np.maximum(r[inside], 0.0))
         return np.maximum(top.max(axis=1), z)
+
+    def clear_at(self, qs: FloatArray, z: float) -> np.ndarray:
+        """Which points of qs (n, 2) the tool may descend straight to z at: :meth:`safe_heights`
+        within 0.01 mm of z, taken without measuring where the nearest cell of the estimate
+        above that lies farther than the tool's reach (its distance on the grid less the
+        point's offset from its cell's centre)."""
+        qs = np.asarray(qs, dtype=float)
+        f = self.idx(qs)
+        i0, i1, j0, j1 = self.window(f, self.Rc + 3)
+        high = self.surface[i0:i1, j0:j1] > z + 0.01
+        ok = np.ones(len(qs), bool)
+        if not high.any():
+            return ok
+        d = capped_distance(high, self.Rc + 3)
+        jj = np.clip(np.rint(f[:, 0]).astype(int) - j0, 0, j1 - j0 - 1)
+        ii = np.clip(np.rint(f[:, 1]).astype(int) - i0, 0, i1 - i0 - 1)
+        far = (d[ii, jj] - CELL_HALF_DIAGONAL - 0.75) * self.cell > self.R
+        near = ~far
+        if near.any():
+            ok[near] = self.safe_heights(qs[near], z) <= z + 0.01
+        return ok
 
     def clear_near(self, q: FloatArray, z: float) -> FloatArray | None:
         """A point within a tool radius of q, or within two where the tool reaches the stock,
@@ -792,7 +816,7 @@ class _Job:
             tried = 0
             order = order[:: max(1, len(order) // 60)]
             C = q + self.cell * np.column_stack([dj.flat[order], di.flat[order]]).astype(float)
-            for c in C[self.safe_heights(C, z) <= z + 0.01]:
+            for c in C[self.clear_at(C, z)]:
                 if reach > 1.0 and not self.by_stock(c):
                     continue  # beyond a radius only by the stock, not out in the air
                 tried += 1
@@ -905,7 +929,7 @@ class _Job:
         off = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
         off = off[np.hypot(off[:, 0], off[:, 1]) <= reach]
         C = p[0] + off
-        C = C[self.safe_heights(C, z) <= z + 0.01]
+        C = C[self.clear_at(C, z)]
         if not len(C):
             return None
         dist = np.hypot(C[:, None, 0] - p[ks][None, :, 0], C[:, None, 1] - p[ks][None, :, 1])
