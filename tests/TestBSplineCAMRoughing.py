@@ -537,6 +537,45 @@ def test_engaged_width_of_a_feed_against_a_band():
     assert whole == pytest.approx(4.0 - 4.0 * math.sin(math.asin(0.25) - a) + cell, abs=cell)
 
 
+def test_stairs_along_a_shallow_wall_are_straightened_inwards():
+    """A wall whose allowed side x <= w(y) steps by a cell every 5 mm (the tip height of a
+    3 degree slope rises in one-cell plateaus): its contour runs in stairs, each jog a short
+    move sideways into the material.  The pass keeps its first and last moves, drops the
+    jogs in between, and never runs outside the contour (checked against the contour's own
+    polyline, y-monotone), nor more than a cell inside it."""
+    from BSplineCAM.core.toolpath.roughing import _Job, marching_squares
+
+    cell = 0.2
+    grid = Grid.covering(-20.0, 20.0, -20.0, 20.0, cell)
+    zeros = np.zeros((grid.ny, grid.nx))
+    job = _Job(grid, zeros, zeros, Tool(8.0, "flat"), 3.0, 0.0, cell,
+               Stock(-20, 20, -20, 20, 0, 10), 20.0, [], None)
+    xs, ys = grid.centres()
+    wall = cell * np.floor((-3.0 - 0.04 * ys) / cell)
+    field = xs[None, :] - wall[:, None]
+    job.uncut = field > 0.0  # material beyond the contour, as before a front's pass
+    lines = [job.xy(q) for q in marching_squares(field)]
+    line = max(lines, key=len)
+    line = line[(line[:, 1] > -15) & (line[:, 1] < 15)]
+    line = line[np.argsort(line[:, 1])]
+    short = np.hypot(*np.diff(line, axis=0).T) < 1.5 * cell
+    assert short.sum() >= 5  # the stairs' jogs
+    path = job.inner_chords(line, field)
+    assert len(path) < len(line) / 3
+    assert np.allclose(path[[0, 1, -2, -1]], line[[0, 1, -2, -1]])
+    assert all(any(np.allclose(v, w) for w in line) for v in path)  # vertices of the contour
+    # along the new path, never right of the contour (the material's side), at most a cell
+    # left of it
+    t = np.linspace(0.0, 1.0, 41)[:, None]
+    dense = np.concatenate([a + t * (b - a) for a, b in zip(path[:-1], path[1:])])
+    contour_x = np.interp(dense[:, 1], line[:, 1], line[:, 0])
+    assert np.all(dense[:, 0] <= contour_x + 1e-6)
+    assert np.all(dense[:, 0] >= contour_x - cell - 1e-6)
+    # no jog left but at the ends
+    jogs = np.hypot(*np.diff(path[1:-1], axis=0).T) < 1.5 * cell
+    assert not jogs.any()
+
+
 def test_run_back_to_a_pass_start_is_checked_move_by_move():
     """A lead-in that joins a pass further along runs back to its start: along the band the
     run cuts 3 mm; with a block of uncut material beyond the start (the corner a front leaves

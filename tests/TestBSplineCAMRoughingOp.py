@@ -372,9 +372,10 @@ class TestCylinderStock(unittest.TestCase):
         self.assertNotIn("error", report)
         self.assertTrue(self.rough.Path.Commands)
         stock = self.rough.Proxy.stock_block(self.rough)
-        # every feed ends within the tool's reach of the cylinder (links join such ends,
-        # inside the same disk): nothing clears the box's corners
-        reach = stock.radius + 4.0 + 0.5
+        # every feed ends within two tool radii of the cylinder: passes end within the tool's
+        # reach (links join such ends, inside the same disk), a lead-in descends at most a
+        # diameter out in the air; nothing clears the box's corners
+        reach = stock.radius + 8.0 + 0.5
         far = [c for c in self.rough.Path.Commands if c.Name in ("G1", "G2", "G3")
                and "X" in c.Parameters and "Y" in c.Parameters
                and np.hypot(c.Parameters["X"] - stock.x, c.Parameters["Y"] - stock.y) > reach]

@@ -16,7 +16,13 @@ import json
 
 import numpy as np
 
-from ..core.toolpath.roughing import MAX_RAMP_ANGLE_DEG, RAMP_ANGLE_DEG
+from ..core.errors import ParameterError
+from ..core.toolpath.roughing import (
+    MAX_RAMP_ANGLE_DEG,
+    RAMP_ANGLE_DEG,
+    check_fine_stepdown,
+    check_ramp_angle,
+)
 from . import compat
 from .finishing_op import (
     FreeCAD,
@@ -137,14 +143,12 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         if edge is not None and edge > 0 and obj.StepDown.Value > edge:
             raise OpError(f"{obj.Label}: StepDown {obj.StepDown.Value:g} mm is deeper than "
                              f"the tool's cutting edge ({edge:g} mm, {tc})")
-        fine = float(obj.FineStepDown.Value)
-        if fine > obj.StepDown.Value:
-            raise OpError(f"{obj.Label}: FineStepDown {fine:g} mm is deeper than StepDown "
-                          f"({obj.StepDown.Value:g} mm)")
-        ramp = float(obj.RampAngle.Value)
-        if not 0.0 < ramp <= MAX_RAMP_ANGLE_DEG:
-            raise OpError(f"{obj.Label}: RampAngle {ramp:g} degrees must lie above 0 and at "
-                          f"most {MAX_RAMP_ANGLE_DEG:g} degrees (a plunge is never made)")
+        try:
+            fine = check_fine_stepdown(float(obj.FineStepDown.Value), "FineStepDown",
+                                       float(obj.StepDown.Value))
+            ramp = check_ramp_angle(float(obj.RampAngle.Value), "RampAngle")
+        except ParameterError as exc:
+            raise OpError(f"{obj.Label}: {exc}") from None
         stepover = 0.01 * int(obj.StepOver) * tool.diameter
         if not stepover > 0:
             raise OpError(f"{obj.Label}: StepOver must be above 0 % of the tool diameter")
@@ -154,7 +158,7 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
             radial_allowance=obj.RadialAllowance.Value,
             axial_allowance=obj.AxialAllowance.Value,
             cell=obj.Cell.Value or None, clearance_height=clearance,
-            flat_levels=bool(obj.FlatLevels), fine_stepdown=fine or None, ramp_angle=ramp,
+            flat_levels=bool(obj.FlatLevels), fine_stepdown=fine, ramp_angle=ramp,
             progress=progress_reporter(obj))
         if not rough.moves:
             raise OpError(f"{obj.Label}: there is no stock to remove above the part")

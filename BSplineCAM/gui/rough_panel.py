@@ -19,7 +19,12 @@ import FreeCADGui
 from PySide import QtGui
 
 from ..app import compat
-from ..core.toolpath.roughing import MAX_RAMP_ANGLE_DEG, RAMP_ANGLE_DEG
+from ..core.toolpath.roughing import (
+    MAX_RAMP_ANGLE_DEG,
+    RAMP_ANGLE_DEG,
+    check_fine_stepdown,
+    check_ramp_angle,
+)
 from . import progress_bar, results_panel
 from .cam_commands import (
     FinishOpViewProvider,
@@ -223,14 +228,11 @@ class RoughPanel(PanelBase):
         Tool(self.diameter.value(), shape, corner)  # ParameterError names the bad size
         if not self.stepdown.value() > 0:
             raise ValueError("Step-down must be above 0 mm")
-        if self.fine.value() > self.stepdown.value():
-            raise ValueError(f"Fine step-down ({self.fine.value():g} mm) must not exceed the "
-                             f"step-down ({self.stepdown.value():g} mm)")
+        check_fine_stepdown(self.fine.value(), "Fine step-down (at most the step-down)",
+                            self.stepdown.value())
         if not self.stepover.value() >= 1:
             raise ValueError("Stepover must be at least 1 % of the diameter")
-        if not 0.0 < self.ramp.value() <= MAX_RAMP_ANGLE_DEG:
-            raise ValueError(f"Ramp angle ({self.ramp.value():g} degrees) must lie above 0 and "
-                             f"at most {MAX_RAMP_ANGLE_DEG:g} degrees")
+        check_ramp_angle(self.ramp.value(), "Ramp angle")
         params = RoughingParameters(
             shape=shape, diameter=self.diameter.value(), corner_radius=corner,
             stepdown=self.stepdown.value(), stepover_percent=int(self.stepover.value()),

@@ -24,7 +24,12 @@ from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
 from ..core.toolpath import check_request
 from ..core.toolpath.common import Strategy, check_range
-from ..core.toolpath.roughing import MAX_RAMP_ANGLE_DEG, RAMP_ANGLE_DEG
+from ..core.toolpath.roughing import (
+    MAX_RAMP_ANGLE_DEG,
+    RAMP_ANGLE_DEG,
+    check_fine_stepdown,
+    check_ramp_angle,
+)
 from . import rs274
 from .cli_verify import add_machine_options, check_machine_limits
 from .pipeline_run import (
@@ -119,10 +124,9 @@ def roughing_parameters(args: argparse.Namespace):
     tool = parse_tool(args.rough, "--rough")
     margin = check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
     stepdown = check_range(args.stepdown, "--stepdown", "mm", *STEPDOWN_RANGE)
-    fine = check_range(args.fine_stepdown, "--fine-stepdown", "mm", 0.0, stepdown)
+    fine = check_fine_stepdown(args.fine_stepdown, "--fine-stepdown", stepdown) or 0.0
     stepover = check_range(args.stepover, "--stepover", "%", *STEPOVER_RANGE)
-    ramp = check_range(args.ramp_angle, "--ramp-angle", "degrees", 0.0, MAX_RAMP_ANGLE_DEG,
-                       low_open=True)
+    ramp = check_ramp_angle(args.ramp_angle, "--ramp-angle")
     allowance = check_range(args.allowance, "--allowance", "mm", *ALLOWANCE_RANGE)
     radial = allowance if args.radial_allowance is None else check_range(
         args.radial_allowance, "--radial-allowance", "mm", *ALLOWANCE_RANGE)

@@ -21,7 +21,10 @@ within that step all round, and by s once it meets a wall on one side only.  The
 from the new front towards the old one, where the material left beside them reaches deeper than
 WALL_SLIVER s into the tool's disk, and a last pass follows the level's walls and takes the
 thinner slivers.  Contours come from marching squares on the distance field, at sub-cell
-precision.
+precision.  Along a shallow wall the tip height rises in one-cell plateaus and its contour
+runs in stairs, each jog a short move sideways into the material: a pass takes the chords
+across them that stay inside its contour (within STAIR_CELLS cells) and sweep no wider than
+the moves they replace.
 
 Two grids of the level follow the cut: the material still uncut (a cell is cut once a pass
 comes within the tool radius, distances exact near that radius) decides which stretches cut
@@ -111,6 +114,8 @@ LEAD_IN_DIAMETERS = 3.0
 LEAD_IN_REACH_RADII = 2.5
 LEAD_IN_LATTICE = 0.25
 LEAD_IN_TRIES = 40
+#: At most this many lead-ins whose route is measured (:meth:`_Job.runs_within`) per pass.
+LEAD_IN_ROUTES = 8
 #: Gap (mm) kept above the material by rapids that travel below the clearance height.
 TRAVEL_GAP_MM = 1.0
 #: Chord error of the helices (mm).
@@ -121,6 +126,9 @@ MAX_CELLS = 4_000_000
 #: ring sweeps across more of the material than the tangent move ring_step assumes (1.8 mm
 #: chords on a 6.5 mm ring cut 4.7 mm wide at a 4 mm stepover; 0.7 mm chords 4.3 mm).
 RING_CHORD_MM = 0.02
+#: Largest distance (cells) by which a pass may run inside its contour where that straightens
+#: out the contour's stairs (:meth:`_Job.inner_chords`).
+STAIR_CELLS = 1.0
 #: Slope below which an area counts as flat (degrees) for the extra levels.
 FLAT_SLOPE_DEG = 1.0
 #: Flat areas smaller than this many tool areas get no level of their own.
@@ -519,8 +527,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
         clearance_height)
     fine = None if fine_stepdown is None else check_range(
         fine_stepdown, "fine_stepdown", "mm", 0.0, stepdown, low_open=True)
-    ramp_angle = check_range(ramp_angle, "ramp_angle", "degrees", 0.0, MAX_RAMP_ANGLE_DEG,
-                             low_open=True)
+    ramp_angle = check_ramp_angle(ramp_angle, "ramp_angle")
     if fine is not None and fine >= stepdown - 1e-9:
         fine = None  # no level between two of the step-down
     notes: list[str] = []
@@ -610,6 +617,20 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
                        "corner_radius": tool.corner_radius}}
     return Roughing(moves, [float(z) for z in levels], float(clearance), stats,
                     TipHeight(grid, T), params)
+
+
+def check_ramp_angle(value, argument: str) -> float:
+    """The entries' ramp angle (degrees) in (0, MAX_RAMP_ANGLE_DEG]; else ParameterError naming
+    ``argument`` (the caller's name for it: the op's property, the CLI's option, the panel's
+    field)."""
+    return check_range(value, argument, "degrees", 0.0, MAX_RAMP_ANGLE_DEG, low_open=True)
+
+
+def check_fine_stepdown(value, argument: str, stepdown: float) -> float | None:
+    """The fine step-down (mm) in [0, stepdown], 0 meaning none (None); else ParameterError
+    naming ``argument``."""
+    fine = check_range(value, argument, "mm", 0.0, stepdown)
+    return fine if fine > 0.0 else None
 
 
 def _levels(part, T, in_stock, stock, stepdown, aa, cell, R, flat_levels) -> tuple:
@@ -913,12 +934,13 @@ class _Job:
 
     def cleared_lead_in(self, p: FloatArray, z: float) -> tuple | None:
         """A straight descent and a lead-in into pass p (xy) on level z from the floor already
-        cut: a point c within LEAD_IN_REACH_RADII tool radii of the pass's start where the
-        surface estimate leaves the tool's disk clear down to z, and the index k of a vertex
-        within LEAD_IN_DIAMETERS tool diameters along p, such that the feed from c to p[k]
-        stays in {T <= z} and cuts no wider than the stepover (:meth:`engaged_width`).  The
-        shortest feed among the pairs measured (at most LEAD_IN_TRIES, shortest first);
-        (c, k) or None."""
+        cut: a point c within LEAD_IN_REACH_RADII tool radii of the pass's start and a tool
+        diameter of the stock's footprint, where the surface estimate leaves the tool's disk
+        clear down to z, and the index k of a vertex within LEAD_IN_DIAMETERS tool diameters
+        along p, such that the feed from c to p[k] stays in {T <= z} and its whole swath is no
+        wider than the stepover (:meth:`engaged_width`); for k > 0 the run back to the start
+        as well (:meth:`runs_within`).  The start is tried first, then the vertices along; in
+        each, the shortest feeds first, at most LEAD_IN_TRIES of them; (c, k) or None."""
         arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
         ks = np.flatnonzero(arc <= LEAD_IN_DIAMETERS * self.tool.diameter)
         ks = ks[:: max(1, len(ks) // 8)]
@@ -929,14 +951,20 @@ class _Job:
         off = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
         off = off[np.hypot(off[:, 0], off[:, 1]) <= reach]
         C = p[0] + off
-        C = C[self.clear_at(C, z)]
+        # by the stock, not farther out in the air than a tool diameter beyond its rim
+        f = np.rint(self.idx(C)).astype(int)
+        ny, nx = self.T.shape
+        inside = (f[:, 0] >= 0) & (f[:, 0] < nx) & (f[:, 1] >= 0) & (f[:, 1] < ny)
+        f = f[inside]
+        C = C[inside][self.outside_mm[f[:, 1], f[:, 0]] <= 2 * self.R]
+        C = C[self.clear_at(C, z)] if len(C) else C
         if not len(C):
             return None
         dist = np.hypot(C[:, None, 0] - p[ks][None, :, 0], C[:, None, 1] - p[ks][None, :, 1])
-        # the start first; a lead-in further along runs back to the start, which it may
-        # only where that run cuts within the stepover too (it would end head-on into a
-        # wall the pass starts at)
-        ok_back: dict = {}
+        # the start first, then further along (whence the route runs back to the start); the
+        # route's first moves, up to a diameter past where the lead-in joined it, must cut
+        # within 1.1 stepover too (a start at a wall could be met head-on)
+        checked = 0
         for group in (ks == 0, ks > 0):
             sub = np.where(group[None, :], dist, np.inf)
             for flat in np.argsort(sub, axis=None, kind="stable")[:LEAD_IN_TRIES]:
@@ -944,14 +972,17 @@ class _Job:
                     break
                 ci, kj = divmod(int(flat), len(ks))
                 c, k = C[ci], int(ks[kj])
-                if dist[ci, kj] <= 1e-9 or ok_back.get(k) is False or \
-                        not self.in_region(c, p[k], z) or \
+                if dist[ci, kj] <= 1e-9 or not self.in_region(c, p[k], z) or \
                         self.engaged_width(c, p[k], whole=True) > self.s:
                     continue
-                if k > 0 and not ok_back.setdefault(k, self.runs_within(
-                        np.vstack([c, p[k::-1]]))):
-                    continue
-                return c, k
+                route = _lead_route(p, k)
+                length = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
+                m = int(np.searchsorted(length, 2.0 * arc[k] + self.tool.diameter))
+                if self.runs_within(np.vstack([c, route[:m + 1]])):
+                    return c, k
+                checked += 1
+                if checked >= LEAD_IN_ROUTES:
+                    return None
         return None
 
     def runs_within(self, path: FloatArray) -> bool:
@@ -1063,7 +1094,7 @@ class _Job:
             here = np.array(w.pos[:2])
             self.link((float(p[k, 0]), float(p[k, 1]), z))
             self.mark(np.array([here, p[k]]))
-            route = np.vstack([p[k:-1], p[:k + 1]]) if closed else np.vstack([p[k::-1], p[1:]])
+            route = _lead_route(p, k)
         elif (top := self.safe_at(p[0], z)) <= z + 0.01:
             self.descend(p[0], z, z + 1.0)
         elif (near := self.clear_near(p[0], z)) is not None:
@@ -1075,7 +1106,7 @@ class _Job:
             self.link((float(p[k, 0]), float(p[k, 1]), z))
             self.mark(np.array([c, p[k]]))
             self.lead_ins += 1
-            route = np.vstack([p[k:-1], p[:k + 1]]) if closed else np.vstack([p[k::-1], p[1:]])
+            route = _lead_route(p, k)
         else:
             slope = self.ramp_slope
             back = None if closed else self.back_ramp(p, z, top, slope)
@@ -1301,8 +1332,8 @@ class _Job:
                 walls.append(piece if closed_piece or d[0] >= d[-1] else piece[::-1])
         if circles and fronts:
             fronts, circles = self.on_circles(fronts, circles)
-        self.emit(fronts, z, z_above, circles)
-        self.emit(self.deep_walls(walls), z, z_above)
+        self.emit(fronts, z, z_above, circles, field=F)
+        self.emit(self.deep_walls(walls), z, z_above, field=F)
 
     def on_circles(self, pieces: list, rings: list) -> tuple:
         """The front pieces (fractional indices) with those of each ring put on its circle,
@@ -1348,12 +1379,14 @@ class _Job:
                 keep.append(piece)
         return keep
 
-    def emit(self, stretches: list, z: float, z_above: float, circles=()) -> None:
-        """Simplify the stretches (fractional indices) within cell/4 and cut them, nearest
-        next first; an open stretch is cut in its own direction, a closed one from its
-        vertex nearest the tool.  A chord between two points on one of the ``circles`` (see
-        :meth:`on_circles`, (centre, radius) mm) is cut as an arc in chords within
-        RING_CHORD_MM of it."""
+    def emit(self, stretches: list, z: float, z_above: float, circles=(),
+             field: FloatArray | None = None) -> None:
+        """Simplify the stretches (fractional indices) within cell/4, and with ``field`` (the
+        F whose contour they are) straighten them inwards (:meth:`inner_chords`), and cut
+        them, nearest next first; an open stretch is cut in its own direction, a closed one
+        from its vertex nearest the tool.  A chord between two points on one of the
+        ``circles`` (see :meth:`on_circles`, (centre, radius) mm) is cut as an arc in chords
+        within RING_CHORD_MM of it."""
         if not stretches:
             return
         pts = [self.xy(p) for p in stretches]
@@ -1362,6 +1395,8 @@ class _Job:
         keep = simplify(np.column_stack([allp, np.full(len(allp), z)]), starts,
                         0.25 * self.cell, "planar")
         paths = [allp[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
+        if field is not None:
+            paths = [self.inner_chords(q, field) for q in paths]
         if circles:
             paths = [_arc_fill(q, circles, RING_CHORD_MM) for q in paths]
         # a stretch that simplification left as one point (two equal ones) would only plunge
@@ -1386,6 +1421,59 @@ class _Job:
             if len(p) > 2 and np.allclose(p[0], p[-1]) and best_i:
                 p = np.concatenate([p[best_i:-1], p[:best_i + 1]])
             self.cut_path(p, z, z_above)
+
+    def inner_chords(self, path: FloatArray, field: FloatArray) -> FloatArray:
+        """Path (xy) with the vertices dropped that a chord between two others passes on the
+        inner side of, within STAIR_CELLS cells: the chord stays where ``field`` (the F of
+        the contour: distance to the cleared centres less the step, or the wall term) is at
+        most 0, so it cuts no wider than the contour and keeps as far from the walls.  The
+        contour of a tip height that rises in one-cell plateaus along a shallow wall runs in
+        stairs of a cell; each stair's jog is a short move sideways into the material
+        (4.5 mm wide at a 3.2 mm stepover on a 3 degree slope)."""
+        n = len(path)
+        if n < 3:
+            return path
+        if not np.allclose(path[0], path[-1]) and n > 4:
+            # an open path keeps its first and last moves: where it ends at a wall the last
+            # one is the head-on cut, which a long move running into it would only widen
+            # (the job simulation measures the whole swath of a move)
+            return np.vstack([path[:1], self._chords_within(path[1:-1], field), path[-1:]])
+        return self._chords_within(path, field)
+
+    def _chords_within(self, path: FloatArray, field: FloatArray) -> FloatArray:
+        """:meth:`inner_chords` of the whole path, its ends kept."""
+        n = len(path)
+        if n < 3:
+            return path
+        limit = STAIR_CELLS * self.cell
+        out = [path[0]]
+        i = 0
+        while i < n - 1:
+            j = i + 1
+            while j + 1 < n:
+                a, b = path[i], path[j + 1]
+                ab = b - a
+                L2 = float(ab @ ab)
+                if L2 < 1e-18:
+                    break
+                mid = path[i + 1:j + 1]
+                t = np.clip((mid - a) @ ab / L2, 0.0, 1.0)
+                dev = np.hypot(*(mid - a - t[:, None] * ab).T)
+                if dev.max() > limit:
+                    break
+                f = self.idx(_densify(np.array([a, b]), 0.5 * self.cell))
+                if np.any(_bilinear(field, f[:, 0], f[:, 1]) > 1e-3):
+                    break
+                j += 1
+            # a chord that would sweep wider than the moves it replaces (a run along a wall
+            # taken into the head-on cut at its end) gives back vertices
+            while j > i + 1 and self.engaged_width(path[i], path[j], whole=True) > max(
+                    self.s, *(self.engaged_width(path[k], path[k + 1], whole=True)
+                              for k in range(i, j))):
+                j -= 1
+            out.append(path[j])
+            i = j
+        return np.array(out)
 
     def report_leftover(self) -> None:
         cell = self.cell
@@ -1444,6 +1532,13 @@ def ring_step(rho: float, R: float, s: float) -> float:
     c = 1.0 - s / R
     grown = -c * R + math.sqrt(c * c * R * R + (rho + R) ** 2 - R * R)
     return float(min(max(grown - rho, 0.0), s))
+
+
+def _lead_route(p: FloatArray, k: int) -> FloatArray:
+    """The route that cuts pass p (xy) from its vertex k, where a lead-in joins it: round a
+    closed pass back to k, along an open one back to its start and then all along it."""
+    closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
+    return np.vstack([p[k:-1], p[:k + 1]]) if closed else np.vstack([p[k::-1], p[1:]])
 
 
 def _chord_angle(radius: float, sag: float) -> float:
