@@ -57,14 +57,14 @@ of a level starts out there, by a straight descent in the air beside the stock.
 
 Known limit: a pass running head-on into a wall, or past the end of the previous pass along a
 wall that slants across the fronts, ends with material on both sides; there the width of cut
-reaches about R + s/2 (up to 7.2 mm for a 10 mm mill at a 4 mm stepover and a 2 mm stepdown
+reaches about R + s/2 (up to 7.4 mm for a 10 mm mill at a 4 mm stepover and a 2 mm stepdown
 on examples/case-study.json).  Rings round a helix are cut on their exact circle (the
 radius their grid contour has) in chords within RING_CHORD_MM: the grid's contour wanders
 by about a cell, and a chord of it pointing outwards cut up to 6.2 mm wide at a 4 mm
 stepover.  Fronts that grow outward from a round cleared region other than a helix (a fine
 level's fronts round the floor cut below it, the rest of a small closed pass after a ramp
 that covers only part of it) grow by the full stepover and cut wider (on the case study's
-pocket at 8 + 4 mm: up to 5.9 mm).
+pocket at 8 + 4 mm: up to 5.8 mm).
 """
 
 from __future__ import annotations
