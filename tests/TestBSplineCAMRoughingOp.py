@@ -251,6 +251,33 @@ class TestRoughingBadInput(RoughingFixture):
         cam.post_process(self.job, "linuxcnc", path, remember=False)
         return path
 
+    def test_document_saved_before_ramp_angle_opens(self):
+        """A document saved before the op had RampAngle opens with it at the default 3
+        degrees (ensure_properties on restore) and recomputes to the same program."""
+        path = Path(self.tmp.name) / "before-ramp-angle.FCStd"
+        before = [(c.Name, dict(c.Parameters)) for c in self.rough.Path.Commands]
+        self.rough.removeProperty("RampAngle")
+        try:
+            self.doc.saveCopy(str(path))
+        finally:
+            self.rough.Proxy.ensure_properties(self.rough)
+            self.rough.RampAngle = 3.0
+        older = FreeCAD.openDocument(str(path))
+        try:
+            op = older.getObject(self.rough.Name)
+            self.assertAlmostEqual(float(op.RampAngle.Value), 3.0)
+            op.touch()
+            older.recompute()
+            report = json.loads(op.Report)
+            self.assertNotIn("error", report)
+            self.assertEqual(report["ramp_angle_deg"], 3.0)
+            after = [(c.Name, dict(c.Parameters)) for c in op.Path.Commands]
+            self.assertEqual([n for n, _ in after], [n for n, _ in before])
+            worst = max(abs(a[k] - b[k]) for (_, a), (_, b) in zip(after, before) for k in a)
+            self.assertLess(worst, 1e-6)
+        finally:
+            FreeCAD.closeDocument(older.Name)
+
     def test_ramp_angle_out_of_range(self):
         for bad in (0.0, 45.0):
             self.assert_refused("RampAngle", bad, 3.0, "degrees")
