@@ -11,6 +11,8 @@ bottom at the part's), with the same 10 mm flat end mill, step-down 2 mm, stepov
   no thicker than the fine one (its bounded width of cut is what lets the flute go deeper);
 * ``bsplinecam_fine4_ramp5``: 8 + 4 mm with the entries ramped at 5 degrees (``RampAngle``;
   FreeCAD's Adaptive op starts its helices at 5) instead of our default 3;
+* ``bsplinecam_fine4_load``: 8 + 4 mm at a 25 % stepover, the fair load: 2.5 mm wide by 8 mm
+  deep is the 20 mm^2 cross-section of cut of the 3D Pocket's full-width slot 2 mm deep;
 * ``freecad_3d_pocket``: FreeCAD's 3D Pocket (0.20 ``PathScripts.PathPocket``) on the whole
   model with ``ProcessStockArea`` (it pockets the stock minus the part, level by level), its
   ``ExtraOffset`` as the sideways stock to leave (it has no vertical one; its FinishDepth is
@@ -66,16 +68,21 @@ FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"
 OUT = ROOT / "build" / "bench"
 OPS = ("bsplinecam", "bsplinecam_fine2", "bsplinecam_fine4", "bsplinecam_fine4_ramp5",
-       "freecad_3d_pocket", "freecad_3d_surface_multipass")
-OURS = OPS[:4]
-PEERS = OPS[4:]
+       "bsplinecam_fine4_load", "freecad_3d_pocket", "freecad_3d_surface_multipass")
+OURS = OPS[:5]
+PEERS = OPS[5:]
 #: Fine step-down (mm) of our variants at the deep step-down.
-FINE = {"bsplinecam_fine2": 2.0, "bsplinecam_fine4": 4.0, "bsplinecam_fine4_ramp5": 4.0}
+FINE = {"bsplinecam_fine2": 2.0, "bsplinecam_fine4": 4.0, "bsplinecam_fine4_ramp5": 4.0,
+        "bsplinecam_fine4_load": 4.0}
+#: Stepover (% of the diameter) of a variant, if not --stepover: the fair load's 25 % x 8 mm
+#: deep is the Pocket's full 10 mm width x 2 mm.
+STEPOVER = {"bsplinecam_fine4_load": 25}
 #: Ramp angle (degrees) of a variant, if not the default: 5 is the helix angle FreeCAD's
 #: Adaptive op starts with.
 RAMP = {"bsplinecam_fine4_ramp5": 5.0}
 TITLES = {"bsplinecam": "BSplineCAM rough", "bsplinecam_fine2": "ours deep+fine 2",
           "bsplinecam_fine4": "ours deep+fine 4", "bsplinecam_fine4_ramp5": "ours 8+4, 5 deg",
+          "bsplinecam_fine4_load": "ours 8+4, 25 %",
           "freecad_3d_pocket": "FC 3D Pocket",
           "freecad_3d_surface_multipass": "FC Surface multi"}
 #: Table rows: (label, key in a result, format).
@@ -120,7 +127,7 @@ def make_job(doc, surface: Surface, args: argparse.Namespace, name: str = "bspli
     roughing = pipeline.RoughingParameters(
         shape="flat", diameter=args.diameter,
         stepdown=args.deep_stepdown if fine else args.stepdown, fine_stepdown=fine,
-        stepover_percent=args.stepover, radial_allowance=args.allowance,
+        stepover_percent=STEPOVER.get(name, args.stepover), radial_allowance=args.allowance,
         axial_allowance=args.allowance, stock_margin=args.margin,
         ramp_angle=RAMP.get(name, pipeline.RoughingParameters.ramp_angle))
     finishing = pipeline.FinishingParameters(tool_diameter=6.0, scallop=0.01)
@@ -345,6 +352,7 @@ def run(args: argparse.Namespace) -> dict:
         "deep_stepdown_mm": args.deep_stepdown,
         "fine_stepdown_mm": FINE,
         "ramp_angle_deg": RAMP,
+        "stepover_percent_of_variant": STEPOVER,
         "stepover_percent": args.stepover,
         "allowance_mm": args.allowance,
         "stock_mm": list(stock),

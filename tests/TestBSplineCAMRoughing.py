@@ -243,8 +243,8 @@ def test_flat_end_mill_hemisphere_boss():
     # entered by a straight descent on that floor and a lead-in cutting within the stepover
     # (check_common: no descent into material steeper than the ramp; the job simulation:
     # no move wider than 1.1 s, also where a lead-in joins a pass further along and runs
-    # back to its start), not by a ramp from the top: 28 ramps before (26 lead-ins and 4
-    # ramps now), each 57 mm of feed at 3 mm and 3 degrees
+    # back to its start), not by a ramp from the top: 28 ramps before (4 now), each 57 mm of
+    # feed at 3 mm and 3 degrees
     assert st["entries"]["lead_in"] >= 15 and st["entries"]["ramp"] <= 10, st["entries"]
     radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
     assert collisions == 0 and float(radial.max()) <= 1.1 * 3.0 + SIM_CELL

@@ -822,33 +822,6 @@ class _Job:
             ok[near] = self.safe_heights(qs[near], z) <= z + 0.01
         return ok
 
-    def clear_near(self, q: FloatArray, z: float) -> FloatArray | None:
-        """A point within a tool radius of q, or within two where the tool reaches the stock,
-        where the tool may descend straight to z and then feed to q: a link meeting no uncut
-        material, or, from where the tool reaches the stock, one in {T <= z} cutting no wider
-        than the stepover (:meth:`engaged_width`, a lead-in from the floor already cut); the
-        nearest of the first few found in each of the two rings, or None."""
-        for reach, inner in ((1.0, 1.0), (2.0, self.Rc)):
-            k = int(reach * self.Rc)
-            dj, di = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1))
-            r = np.hypot(dj, di).ravel()
-            order = np.argsort(r, kind="stable")
-            order = order[(r[order] >= inner) & (r[order] <= k)]
-            tried = 0
-            order = order[:: max(1, len(order) // 60)]
-            C = q + self.cell * np.column_stack([dj.flat[order], di.flat[order]]).astype(float)
-            for c in C[self.clear_at(C, z)]:
-                if reach > 1.0 and not self.by_stock(c):
-                    continue  # beyond a radius only by the stock, not out in the air
-                tried += 1
-                if (reach == 1.0 and self.link_ok((c[0], c[1], z), (q[0], q[1], z), z)) or (
-                        self.by_stock(c) and self.in_region(c, q, z)
-                        and self.engaged_width(c, q) <= self.s):
-                    return c
-                if tried >= 6:
-                    break
-        return None
-
     def link_ok(self, p: tuple, q: tuple, z: float) -> bool:
         """A feed from p to q at level z stays in {T <= z} and its tool meets no uncut
         material (within the grid's rounding of the cut region)."""
@@ -863,14 +836,6 @@ class _Job:
             return True
         d = capped_distance(sub, self.Rc + 2)
         return bool(np.all(_bilinear(d, f[:, 0] - j0, f[:, 1] - i0) >= self.Rc - 1.25))
-
-    def by_stock(self, q) -> bool:
-        """The tool's disk at q (xy) reaches the stock's footprint (on the grid): a lead-in
-        starts there, not farther out in the air."""
-        f = np.rint(self.idx(q)[0]).astype(int)
-        ny, nx = self.T.shape
-        return bool(0 <= f[1] < ny and 0 <= f[0] < nx
-                    and self.outside_mm[f[1], f[0]] <= self.R - self.cell)
 
     def in_region(self, a, b, z) -> bool:
         """The straight feed from a to b (xy) stays in {T <= z}."""
@@ -1073,13 +1038,11 @@ class _Job:
         """Reach the start of pass p (xy) on level z and cut it: a straight stay-down link if
         it meets no uncut material, or a stay-down lead-in to a vertex a few diameters along
         the pass that cuts within the stepover (:meth:`lead_in`); else lift (:meth:`descend`)
-        and descend straight at the start, or at a point within two tool radii of it followed
-        by such a link or lead-in (:meth:`clear_near`), where the
-        surface estimate leaves the tool's disk clear down to z, or on the floor already cut
-        farther out, followed by a lead-in to a vertex along the pass
-        (:meth:`cleared_lead_in`); else ramp down along the pass itself at the ramp angle from
-        the surface: along an open pass backwards to its start (:meth:`back_ramp`), round a
-        closed one from its start."""
+        and descend straight at the start where the surface estimate leaves the tool's disk
+        clear down to z, or on the floor already cut near it, followed by a lead-in to the
+        start or a vertex along the pass (:meth:`cleared_lead_in`); else ramp down along the
+        pass itself at the ramp angle from the surface: along an open pass backwards to its
+        start (:meth:`back_ramp`), round a closed one from its start."""
         w = self.writer
         closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
         q = (float(p[0, 0]), float(p[0, 1]), z)
@@ -1097,9 +1060,6 @@ class _Job:
             route = _lead_route(p, k)
         elif (top := self.safe_at(p[0], z)) <= z + 0.01:
             self.descend(p[0], z, z + 1.0)
-        elif (near := self.clear_near(p[0], z)) is not None:
-            self.descend(near, z, z + 1.0)
-            self.link(q)
         elif (lead := self.cleared_lead_in(p, z)) is not None:
             c, k = lead
             self.descend(c, z, z + 1.0)
