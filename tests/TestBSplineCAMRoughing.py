@@ -576,6 +576,40 @@ def test_stairs_along_a_shallow_wall_are_straightened_inwards():
     assert not jogs.any()
 
 
+@pytest.mark.parametrize("tool", [Tool(8.0, "flat"), Tool(8.0, "bullnose", 1.5), Tool(6.0)])
+def test_safe_heights_and_clear_points_against_brute_force(tool):
+    """safe_heights (the lowest tip height at a point that meets none of the surface
+    estimate, its cells taken 3/4 cell nearer) against a loop over every cell, and clear_at
+    (which skips measuring points whose nearest cell above the level lies beyond the tool or
+    under its flat bottom) against safe_heights itself, on a random estimate of bumps."""
+    from BSplineCAM.core.toolpath.roughing import _Job
+
+    cell = 0.25
+    grid = Grid.covering(-10.0, 10.0, -10.0, 10.0, cell)
+    zeros = np.zeros((grid.ny, grid.nx))
+    job = _Job(grid, zeros, zeros, tool, 3.0, 0.0, cell, Stock(-10, 10, -10, 10, 0, 10), 20.0,
+               [], None)
+    rng = np.random.default_rng(7)
+    xs, ys = grid.centres()
+    X, Y = np.meshgrid(xs, ys)
+    surface = np.full(X.shape, 2.0)
+    for cx, cy, h in rng.uniform([-9, -9, 0.5], [9, 9, 4.0], (6, 3)):
+        surface = np.where(np.hypot(X - cx, Y - cy) < 1.2, 2.0 + h, surface)
+    surface[rng.random(X.shape) < 0.002] = -np.inf  # air
+    job.surface = surface
+    z = 2.0
+    pts = rng.uniform(-11.0, 11.0, (300, 2))
+    fast = job.safe_heights(pts, z)
+    for (px, py), got in zip(pts, fast):
+        r = np.hypot(X - px, Y - py) - 0.75 * cell
+        inside = r <= tool.radius
+        top = surface[inside] - tool.profile(np.maximum(r[inside], 0.0))
+        assert got == pytest.approx(max(float(top.max(initial=-np.inf)), z), abs=1e-9)
+    clear = job.clear_at(pts, z)
+    assert np.array_equal(clear, fast <= z + 0.01)
+    assert 20 < clear.sum() < 280  # both kinds of point
+
+
 def test_run_back_to_a_pass_start_is_checked_move_by_move():
     """A lead-in that joins a pass further along runs back to its start: along the band the
     run cuts 3 mm; with a block of uncut material beyond the start (the corner a front leaves

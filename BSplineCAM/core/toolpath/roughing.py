@@ -803,9 +803,9 @@ class _Job:
 
     def clear_at(self, qs: FloatArray, z: float) -> np.ndarray:
         """Which points of qs (n, 2) the tool may descend straight to z at: :meth:`safe_heights`
-        within 0.01 mm of z, taken without measuring where the nearest cell of the estimate
-        above that lies farther than the tool's reach (its distance on the grid less the
-        point's offset from its cell's centre)."""
+        within 0.01 mm of z, measured only where the nearest cell of the estimate above that
+        (its distance on the grid, give or take the point's offset from its cell's centre)
+        lies neither beyond the tool's reach (clear) nor under its flat bottom (not)."""
         qs = np.asarray(qs, dtype=float)
         f = self.idx(qs)
         i0, i1, j0, j1 = self.window(f, self.Rc + 3)
@@ -814,10 +814,19 @@ class _Job:
         if not high.any():
             return ok
         d = capped_distance(high, self.Rc + 3)
-        jj = np.clip(np.rint(f[:, 0]).astype(int) - j0, 0, j1 - j0 - 1)
-        ii = np.clip(np.rint(f[:, 1]).astype(int) - i0, 0, i1 - i0 - 1)
-        far = (d[ii, jj] - CELL_HALF_DIAGONAL - 0.75) * self.cell > self.R
-        near = ~far
+        jr = np.rint(f[:, 0]).astype(int) - j0
+        ir = np.rint(f[:, 1]).astype(int) - i0
+        # a point off the grid has no cell of its own there: measured
+        on = (jr >= 0) & (jr < j1 - j0) & (ir >= 0) & (ir < i1 - i0)
+        dq = np.where(on, d[np.clip(ir, 0, i1 - i0 - 1), np.clip(jr, 0, j1 - j0 - 1)], np.nan)
+        far = (dq - CELL_HALF_DIAGONAL - 0.75) * self.cell > self.R
+        # such a cell within the tool's flat bottom (where its profile is 0) blocks it
+        tool = self.tool
+        flat = {"flat": self.R, "bullnose": self.R - tool.corner_radius}.get(tool.shape.value,
+                                                                             0.0)
+        blocked = (dq + CELL_HALF_DIAGONAL - 0.75) * self.cell <= flat
+        ok[blocked] = False
+        near = ~(far | blocked)  # NaN (off the grid) is neither
         if near.any():
             ok[near] = self.safe_heights(qs[near], z) <= z + 0.01
         return ok
