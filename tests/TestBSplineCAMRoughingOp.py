@@ -92,6 +92,9 @@ class TestRoughingJob(RoughingFixture):
             self.assertTrue(op.Path.Commands, op.Label)
         levels = json.loads(self.rough.Report)["levels"]
         self.assertEqual(levels, sorted(levels, reverse=True))
+        entries = json.loads(self.rough.Report)["entries"]
+        self.assertEqual(set(entries), {"helical", "outside", "ramp", "lead_in"})
+        self.assertGreater(entries["outside"] + entries["helical"], 0)
         self.assertIn("rest", json.loads(self.finish.Report))
 
     def test_every_post_passes_rs274_with_two_tool_changes(self):

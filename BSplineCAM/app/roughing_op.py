@@ -185,6 +185,9 @@ def rough_report(rough, commands, tool) -> dict:
         "strategy": "roughing",
         "levels": [round(float(z), 6) for z in rough.levels],
         "ramp_angle_deg": float(rough.parameters["ramp_angle"]),
+        # how the passes were entered: from the air, by helices, by ramps, or by a straight
+        # descent on the floor already cut and a lead-in
+        "entries": dict(rough.stats.get("entries", {})),
         "tool": {"shape": tool.shape.value, "diameter_mm": tool.diameter,
                  "corner_radius_mm": tool.corner_radius},
         "cutting_length_mm": round(feed_length(commands), 6),

@@ -912,9 +912,11 @@ class _Job:
         diameter of the stock's footprint, where the surface estimate leaves the tool's disk
         clear down to z, and the index k of a vertex within LEAD_IN_DIAMETERS tool diameters
         along p, such that the feed from c to p[k] stays in {T <= z} and its whole swath is no
-        wider than the stepover (:meth:`engaged_width`); for k > 0 the run back to the start
-        as well (:meth:`runs_within`).  The start is tried first, then the vertices along; in
-        each, the shortest feeds first, at most LEAD_IN_TRIES of them; (c, k) or None."""
+        wider than the stepover (:meth:`engaged_width`), and the route's first moves after it
+        (for k > 0 back to the start and on), up to a diameter past p[k], within 1.1 stepover
+        (:meth:`runs_within`, at most LEAD_IN_ROUTES routes).  The start is tried first, then
+        the vertices along; in each, the shortest feeds first, at most LEAD_IN_TRIES of them;
+        (c, k) or None."""
         arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
         ks = np.flatnonzero(arc <= LEAD_IN_DIAMETERS * self.tool.diameter)
         ks = ks[:: max(1, len(ks) // 8)]
@@ -1395,10 +1397,11 @@ class _Job:
         """Path (xy) with the vertices dropped that a chord between two others passes on the
         inner side of, within STAIR_CELLS cells: the chord stays where ``field`` (the F of
         the contour: distance to the cleared centres less the step, or the wall term) is at
-        most 0, so it cuts no wider than the contour and keeps as far from the walls.  The
-        contour of a tip height that rises in one-cell plateaus along a shallow wall runs in
-        stairs of a cell; each stair's jog is a short move sideways into the material
-        (4.5 mm wide at a 3.2 mm stepover on a 3 degree slope)."""
+        most 0, so it cuts no wider than the contour and keeps as far from the walls, and its
+        whole swath (:meth:`engaged_width`) is no wider than the stepover or the widest of the
+        moves it replaces.  The contour of a tip height that rises in one-cell plateaus along
+        a shallow wall runs in stairs of a cell; each stair's jog is a short move sideways
+        into the material (4.5 mm wide at a 3.2 mm stepover on a 3 degree slope)."""
         n = len(path)
         if n < 3:
             return path
