@@ -1009,6 +1009,29 @@ def test_fronts_round_a_helix_grow_by_the_ring_step():
     assert not np.any(np.abs(radii - (rh + 4.0)) <= 0.25 * cell)
 
 
+def cone_pocket(xs, ys):
+    """A conical pocket: floor at z 2 within r 4 mm, 45 degree walls up to z 14."""
+    X, Y = np.meshgrid(xs, ys)
+    h = np.clip(2.0 + (np.hypot(X, Y) - 4.0), 2.0, 14.0)
+    return np.where((np.abs(X) <= 25) & (np.abs(Y) <= 25), h, np.nan)
+
+
+def test_fine_levels_grow_rings_out_of_the_floor_cut_below():
+    """At 8 + 4 mm in a conical pocket, a fine level's fronts grow outwards from the pocket's
+    floor cut below it, as rings: by ring_step of the radius of a disc of the floor's area,
+    not by the full stepover (which cut up to 4.59 mm wide, 59 moves over 1.1 stepover,
+    against 4.12 mm and 33 moves now).  The rest of the excess is where the rings meet the
+    walls head-on (see the module's known limits)."""
+    stock = Stock(-25, 25, -25, 25, 0.0, 15.0)
+    tool = Tool(8.0, "flat")
+    rough = generate_roughing(cone_pocket, stock, tool, stepdown=8.0, stepover=3.2,
+                              radial_allowance=0.3, axial_allowance=0.2, fine_stepdown=4.0)
+    radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+    assert collisions == 0
+    over = radial > 1.1 * 3.2 + SIM_CELL
+    assert float(radial.max()) <= 4.3 and over.sum() <= 45, (radial.max(), over.sum())
+
+
 def test_radial_engagement_round_a_helix_in_a_bowl():
     """Each level of a bowl is a round pocket entered by a helix; the rings round it, the
     last one on the bowl's wall, keep the radial engagement outside entries, measured by the
