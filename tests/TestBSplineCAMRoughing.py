@@ -192,6 +192,19 @@ def _in_entry(rough, i):
     return any(a <= i < b for a, b in rough.stats["entry_spans"])
 
 
+def bare_job(cell: float, half: float, tool: Tool = Tool(8.0, "flat"), stepover: float = 3.0):
+    """A roughing run's state (core.toolpath.roughing._Job) on a flat grid of ``cell`` mm over
+    [-half, half]^2, its grids to be set by the test: (job, cell centres x, y)."""
+    from BSplineCAM.core.toolpath.roughing import _Job
+
+    grid = Grid.covering(-half, half, -half, half, cell)
+    zeros = np.zeros((grid.ny, grid.nx))
+    job = _Job(grid, zeros, zeros, tool, stepover, 0.0, cell,
+               Stock(-half, half, -half, half, 0, 10), 20.0, [], None)
+    xs, ys = grid.centres()
+    return job, xs, ys
+
+
 # -- parts ----------------------------------------------------------------------------------
 def hemisphere_on_plate(xs, ys):
     X, Y = np.meshgrid(xs, ys)
@@ -508,15 +521,9 @@ def test_engaged_width_of_a_feed_against_a_band():
     beside a cleared floor (edge at y = 0), in closed form: a feed along it 3 mm in cuts 3 mm,
     one leading into it at 10 degrees the cap's extent across the feed (more than 3 mm, so a
     lead-in must be shallower), one head-on the tool's chord there, near the diameter."""
-    from BSplineCAM.core.toolpath.roughing import _Job
-
     cell = 0.1
-    grid = Grid.covering(-20.0, 20.0, -20.0, 20.0, cell)
-    zeros = np.zeros((grid.ny, grid.nx))
-    job = _Job(grid, zeros, zeros, Tool(8.0, "flat"), 3.0, 0.0, cell,
-               Stock(-20, 20, -20, 20, 0, 10), 20.0, [], None)
-    xs, ys = grid.centres()
-    job.uncut = np.broadcast_to((ys > 0.0)[:, None], zeros.shape).copy()
+    job, xs, ys = bare_job(cell, 20.0)
+    job.uncut = np.broadcast_to((ys > 0.0)[:, None], (len(ys), len(xs))).copy()
     # tool centres at y = -4 + 3: 3 mm into the band along x
     along = job.engaged_width((-10.0, -1.0), (10.0, -1.0))
     assert along == pytest.approx(3.0, abs=2 * cell)
@@ -543,14 +550,10 @@ def test_stairs_along_a_shallow_wall_are_straightened_inwards():
     move sideways into the material.  The pass keeps its first and last moves, drops the
     jogs in between, and never runs outside the contour (checked against the contour's own
     polyline, y-monotone), nor more than a cell inside it."""
-    from BSplineCAM.core.toolpath.roughing import _Job, marching_squares
+    from BSplineCAM.core.toolpath.roughing import marching_squares
 
     cell = 0.2
-    grid = Grid.covering(-20.0, 20.0, -20.0, 20.0, cell)
-    zeros = np.zeros((grid.ny, grid.nx))
-    job = _Job(grid, zeros, zeros, Tool(8.0, "flat"), 3.0, 0.0, cell,
-               Stock(-20, 20, -20, 20, 0, 10), 20.0, [], None)
-    xs, ys = grid.centres()
+    job, xs, ys = bare_job(cell, 20.0)
     wall = cell * np.floor((-3.0 - 0.04 * ys) / cell)
     field = xs[None, :] - wall[:, None]
     job.uncut = field > 0.0  # material beyond the contour, as before a front's pass
@@ -582,15 +585,9 @@ def test_safe_heights_and_clear_points_against_brute_force(tool):
     estimate, its cells taken 3/4 cell nearer) against a loop over every cell, and clear_at
     (which skips measuring points whose nearest cell above the level lies beyond the tool or
     under its flat bottom) against safe_heights itself, on a random estimate of bumps."""
-    from BSplineCAM.core.toolpath.roughing import _Job
-
     cell = 0.25
-    grid = Grid.covering(-10.0, 10.0, -10.0, 10.0, cell)
-    zeros = np.zeros((grid.ny, grid.nx))
-    job = _Job(grid, zeros, zeros, tool, 3.0, 0.0, cell, Stock(-10, 10, -10, 10, 0, 10), 20.0,
-               [], None)
+    job, xs, ys = bare_job(cell, 10.0, tool)
     rng = np.random.default_rng(7)
-    xs, ys = grid.centres()
     X, Y = np.meshgrid(xs, ys)
     surface = np.full(X.shape, 2.0)
     for cx, cy, h in rng.uniform([-9, -9, 0.5], [9, 9, 4.0], (6, 3)):
@@ -614,17 +611,11 @@ def test_run_back_to_a_pass_start_is_checked_move_by_move():
     """A lead-in that joins a pass further along runs back to its start: along the band the
     run cuts 3 mm; with a block of uncut material beyond the start (the corner a front leaves
     at a wall) the last move meets it head-on and the run is refused."""
-    from BSplineCAM.core.toolpath.roughing import _Job
-
     cell = 0.1
-    grid = Grid.covering(-20.0, 20.0, -20.0, 20.0, cell)
-    zeros = np.zeros((grid.ny, grid.nx))
-    job = _Job(grid, zeros, zeros, Tool(8.0, "flat"), 3.0, 0.0, cell,
-               Stock(-20, 20, -20, 20, 0, 10), 20.0, [], None)
+    job, xs, ys = bare_job(cell, 20.0)
     job.z = 0.0
-    job.surface = np.full(zeros.shape, 10.0)
-    xs, ys = grid.centres()
-    band = np.broadcast_to((ys > 0.0)[:, None], zeros.shape)
+    job.surface = np.full((len(ys), len(xs)), 10.0)
+    band = np.broadcast_to((ys > 0.0)[:, None], job.surface.shape)
     run = np.array([[12.0, -6.0], [5.0, -1.0], [0.0, -1.0], [-5.0, -1.0]])
     job.uncut = band.copy()
     assert job.runs_within(run)
