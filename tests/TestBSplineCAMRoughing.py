@@ -518,30 +518,26 @@ def test_surface_estimate_bounds_the_cut_over_whole_cells(tool):
 
 def test_engaged_width_of_a_feed_against_a_band():
     """The width of cut the lead-ins are checked by, against a band of uncut material 3 mm wide
-    beside a cleared floor (edge at y = 0), in closed form: a feed along it 3 mm in cuts 3 mm,
-    one leading into it at 10 degrees the cap's extent across the feed (more than 3 mm, so a
-    lead-in must be shallower), one head-on the tool's chord there, near the diameter."""
+    beside a cleared floor (edge at y = 0), in closed form, the whole swath of a move as the
+    job simulation measures it: a feed along the band 3 mm in cuts 3 mm; one leading into it
+    at 10 degrees spans from the capsule's left edge (R across) to the point of its end cap
+    where the band begins (y = 0: R sin(phi + a) = 1, across R sin(phi)), more than 3 mm, so
+    a lead-in must be shallower; one head-on the tool's chord there, near the diameter."""
     cell = 0.1
     job, xs, ys = bare_job(cell, 20.0)
     job.uncut = np.broadcast_to((ys > 0.0)[:, None], (len(ys), len(xs))).copy()
     # tool centres at y = -4 + 3: 3 mm into the band along x
     along = job.engaged_width((-10.0, -1.0), (10.0, -1.0))
     assert along == pytest.approx(3.0, abs=2 * cell)
-    # from clear (y = -4) into the band at 10 degrees, ending 3 mm in: across the feed the
-    # leading half of the cap beyond y = 0 spans its height's share plus its half chord's
+    # from clear (y = -4) into the band at 10 degrees, ending 3 mm in
     a = math.radians(10.0)
     dx = 3.0 / math.tan(a)
     oblique = job.engaged_width((-dx / 2, -4.0), (dx / 2, -1.0))
-    assert oblique == pytest.approx(3.0 * math.cos(a) + math.sqrt(16.0 - 1.0) * math.sin(a),
-                                    abs=2 * cell)
+    assert oblique == pytest.approx(4.0 - 4.0 * math.sin(math.asin(0.25) - a) + cell, abs=cell)
+    assert oblique > 3.0 + 2 * cell
     head_on = job.engaged_width((0.0, -4.0), (0.0, -1.0))
     assert head_on >= 2 * math.sqrt(16.0 - 1.0) - 2 * cell  # chord 3 mm deep in a 4 mm radius
     assert job.engaged_width((0.0, -9.0), (5.0, -9.0)) == 0.0
-    # the whole swath of the oblique feed, as the job simulation measures a move: from the
-    # capsule's left edge (R across) to the point of its end cap where the band begins
-    # (y = 0: R sin(phi + a) = 1, across R sin(phi))
-    whole = job.engaged_width((-dx / 2, -4.0), (dx / 2, -1.0), whole=True)
-    assert whole == pytest.approx(4.0 - 4.0 * math.sin(math.asin(0.25) - a) + cell, abs=cell)
 
 
 def test_stairs_along_a_shallow_wall_are_straightened_inwards():
@@ -1021,6 +1017,20 @@ def test_fine_levels_grow_rings_out_of_the_floor_cut_below():
     assert collisions == 0
     over = radial > 1.1 * 3.2 + SIM_CELL
     assert float(radial.max()) <= 4.3 and over.sum() <= 45, (radial.max(), over.sum())
+
+
+def test_stay_down_lead_ins_are_measured_by_their_whole_swath():
+    """A stay-down lead-in into a pass is taken only where its whole swath is within the
+    stepover, as the job simulation measures a move: on the bull-nose bowl with 0.3 / 0.2 mm
+    allowances one measured position by position cut 3.61 mm at a 3 mm stepover (2.83 mm
+    now, by the job simulation)."""
+    stock = Stock(-20, 20, -20, 20, 0.0, 10.0)
+    tool = Tool(8.0, "bullnose", 1.0)
+    rough = generate_roughing(bowl, stock, tool, stepdown=2.0, stepover=3.0,
+                              radial_allowance=0.3, axial_allowance=0.2)
+    radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+    assert collisions == 0
+    assert float(radial.max()) <= 1.1 * 3.0 + SIM_CELL, float(radial.max())
 
 
 def test_radial_engagement_round_a_helix_in_a_bowl():

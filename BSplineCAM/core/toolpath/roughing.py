@@ -854,13 +854,11 @@ class _Job:
         f = self.idx(_densify(np.array([a[:2], b[:2]], dtype=float), 0.5 * self.cell))
         return not np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3)
 
-    def engaged_width(self, a, b, whole: bool = False) -> float:
-        """Largest width of cut (mm) of a feed from a to b (xy) at the level, by the uncut
-        grid: at samples a cell apart along it, the extent across the move of the uncut cells
-        in the leading half of the tool's disk, plus a cell.  With ``whole``, the extent of
-        all the uncut cells the move sweeps (within R of it, ahead of its start), as the job
-        simulation measures a move: a move entering a band at a slant cuts a swath wider
-        than any one position's width."""
+    def engaged_width(self, a, b) -> float:
+        """Width of cut (mm) of a feed from a to b (xy) at the level, by the uncut grid, as the
+        job simulation measures a move: the extent across the move of all the uncut cells it
+        sweeps (within R of it, ahead of its start), plus a cell.  A move entering a band at a
+        slant cuts a swath wider than the width at any one of its positions."""
         a = np.asarray(a[:2], dtype=float)
         b = np.asarray(b[:2], dtype=float)
         length = math.dist(a, b)
@@ -875,20 +873,11 @@ class _Job:
         rel = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float)) - a
         along = rel @ d
         across = rel @ np.array([-d[1], d[0]])
-        worst = 0.0
-        r2 = self.R * self.R
-        if whole:
-            swept = (along > 0) & (np.abs(across) <= self.R) & (along <= length) | (
-                (along > length) & ((along - length) ** 2 + across * across <= r2))
-            if not swept.any():
-                return 0.0
-            return float(across[swept].max() - across[swept].min()) + self.cell
-        for t in np.arange(0.0, length + 0.5 * self.cell, self.cell):
-            dx = along - t
-            ahead = (dx > 0) & (dx * dx + across * across <= r2)
-            if ahead.any():
-                worst = max(worst, float(across[ahead].max() - across[ahead].min()))
-        return worst + self.cell
+        swept = (along > 0) & (np.abs(across) <= self.R) & (along <= length) | (
+            (along > length) & ((along - length) ** 2 + across * across <= self.R * self.R))
+        if not swept.any():
+            return 0.0
+        return float(across[swept].max() - across[swept].min()) + self.cell
 
     def lead_in(self, p: FloatArray, z: float) -> int | None:
         """Index k of a vertex of pass p (xy) that the tool, at level z nearby, may reach by
@@ -952,7 +941,7 @@ class _Job:
                 ci, kj = divmod(int(flat), len(ks))
                 c, k = C[ci], int(ks[kj])
                 if dist[ci, kj] <= 1e-9 or not self.in_region(c, p[k], z) or \
-                        self.engaged_width(c, p[k], whole=True) > self.s:
+                        self.engaged_width(c, p[k]) > self.s:
                     continue
                 route = _lead_route(p, k)
                 length = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
@@ -975,7 +964,7 @@ class _Job:
         try:
             self.mark(path[:2])
             for a, b in zip(path[1:-1], path[2:]):
-                if self.engaged_width(a, b, whole=True) > 1.1 * self.s:
+                if self.engaged_width(a, b) > 1.1 * self.s:
                     return False
                 self.mark(np.array([a, b]))
             return True
@@ -1468,8 +1457,8 @@ class _Job:
                 j += 1
             # a chord that would sweep wider than the moves it replaces (a run along a wall
             # taken into the head-on cut at its end) gives back vertices
-            while j > i + 1 and self.engaged_width(path[i], path[j], whole=True) > max(
-                    self.s, *(self.engaged_width(path[k], path[k + 1], whole=True)
+            while j > i + 1 and self.engaged_width(path[i], path[j]) > max(
+                    self.s, *(self.engaged_width(path[k], path[k + 1])
                               for k in range(i, j))):
                 j -= 1
             out.append(path[j])
