@@ -125,7 +125,8 @@ def check_common(rough, stock, tool, part_fn, stepdown, stepover, ar, aa, head_o
     # head-on), a pass ends with its front half over the terrace above the slope, which the
     # previous pass's end only half covered: within a tool radius of the wall the width is
     # then at most R + s/2 (the crescent between two end disks s apart, each at most s
-    # thick).
+    # thick).  On a level whose fronts were bent towards the walls the zone next to a wall
+    # is the bending layer, where two bent fronts closing in cut a little over s.
     widths = [(i, w) for i, w in sim.engagement if not _in_entry(rough, i)]
     assert widths, "no cutting feed moves"
     at_wall = [w for i, w in widths if _ends_at_wall(rough, i)]
@@ -145,11 +146,17 @@ def check_common(rough, stock, tool, part_fn, stepdown, stepover, ar, aa, head_o
 
 def _ends_at_wall(rough, i):
     """The move ends within a tool radius (plus the allowance and the grid's growth) of
-    tip heights above its level: its tool reaches over the wall's contour."""
+    tip heights above its level: its tool reaches over the wall's contour.  On a level cut
+    with the fronts bent towards the walls (``bent_levels``), within the bending layer
+    (WALL_LAYER_RADII tool radii) and a tool radius."""
+    from BSplineCAM.core.toolpath.roughing import WALL_LAYER_RADII
+
     tip = rough.tip_height
     g = tip.grid
     m = rough.moves[i]
-    reach = (rough.parameters["tool"]["diameter"] / 2 + rough.parameters["radial_allowance"]
+    R = rough.parameters["tool"]["diameter"] / 2
+    bent = any(abs(m.z - z) < 1e-9 for z in rough.stats["bent_levels"])
+    reach = (R * (1 + WALL_LAYER_RADII * bent) + rough.parameters["radial_allowance"]
              ) / g.cell + 4
     j = (m.x - g.x0) / g.cell - 0.5
     k = (m.y - g.y0) / g.cell - 0.5
@@ -477,19 +484,14 @@ def test_surface_estimate_bounds_the_cut_over_whole_cells(tool):
     per cell: a cell whose centre the tool covered but not its corners keeps its old height
     there.  And it is no mere upper bound: the cells the tool covers whole drop to the
     level plus the profile."""
-    from BSplineCAM.core.toolpath.roughing import _Job
-
     cell = 0.25
-    grid = Grid.covering(-8.0, 8.0, -8.0, 8.0, cell)
-    zeros = np.zeros((grid.ny, grid.nx))
-    job = _Job(grid, zeros, zeros, tool, 2.0, 0.0, cell, Stock(-8, 8, -8, 8, 0, 10), 20.0, [],
-               None)
+    job, xs, ys = bare_job(cell, 8.0, tool, stepover=2.0)
+    zeros = np.zeros(job.T.shape)
     job.surface = np.full(zeros.shape, 10.0)
     job.uncut = np.ones(zeros.shape, bool)
     job.z = 5.0
     path = np.array([[-6.0, -2.3], [1.1, 0.4], [5.0, 4.7]])
     job.mark(path)
-    xs, ys = grid.centres()
     offsets = (np.arange(7) / 6.0 - 0.5) * cell
     truth = np.full(zeros.shape, -np.inf)
     dist_c = None
@@ -780,6 +782,44 @@ def test_radial_engagement_bound_head_on_boss(fraction):
     assert float(radial.max()) >= 0.9 * s
     over = radial > 1.1 * s + SIM_CELL
     assert not over.any(), f"{int(over.sum())} moves wider than 1.1 s, up to {radial.max():.2f}"
+
+
+def boss_near_corner(xs, ys):
+    """A hemisphere of radius 12 mm on a plate at z = 2, centred at (-10, -10) in a 60 mm
+    square: the fronts from the block's far sides sweep along it."""
+    X, Y = np.meshgrid(xs, ys)
+    r2 = (X + 10.0) ** 2 + (Y + 10.0) ** 2
+    h = np.where(r2 <= 144.0, 2.0 + np.sqrt(np.maximum(144.0 - r2, 0.0)), 2.0)
+    return np.where((np.abs(X) <= 30) & (np.abs(Y) <= 30), h, np.nan)
+
+
+def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
+    """Fronts from the far sides of the block run head-on into the boss near its corner:
+    with the plain fronts only (ENGAGEMENT_LIMIT infinite, never retried) the job
+    simulation measures cuts up to R + s/2 wide there; with the levels cut again with bent
+    fronts where that happens, the widest cut outside entries is at least 1.5 mm narrower
+    and fewer moves cut wider than 1.1 s, with no rapid touching the stock."""
+    from BSplineCAM.core.toolpath import roughing
+
+    stock = Stock(-30, 30, -30, 30, 0.0, 15.0)
+    tool = Tool(10.0, "flat")
+    s = 4.0
+
+    def run():
+        rough = generate_roughing(boss_near_corner, stock, tool, stepdown=2.0, stepover=s,
+                                  radial_allowance=0.3, axial_allowance=0.3)
+        radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+        assert collisions == 0
+        return rough, radial, int((radial > 1.1 * s + SIM_CELL).sum())
+
+    bent, radial, over = run()
+    monkeypatch.setattr(roughing, "ENGAGEMENT_LIMIT", math.inf)
+    plain, radial_plain, over_plain = run()
+    assert plain.stats["bent_levels"] == []
+    assert len(bent.stats["bent_levels"]) >= 3
+    assert float(radial_plain.max()) >= tool.radius + s / 2 - 0.5  # the head-on ends
+    assert float(radial.max()) <= float(radial_plain.max()) - 1.5
+    assert over < over_plain
 
 
 # -- a cylinder stock (CAM's "CreateCylinder") ------------------------------------------------

@@ -144,7 +144,8 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
             raise OpError(f"{obj.Label}: StepDown {obj.StepDown.Value:g} mm is deeper than "
                              f"the tool's cutting edge ({edge:g} mm, {tc})")
         try:
-            fine = check_fine_stepdown(float(obj.FineStepDown.Value), "FineStepDown",
+            fine = check_fine_stepdown(float(obj.FineStepDown.Value),
+                                       "FineStepDown (at most StepDown)",
                                        float(obj.StepDown.Value))
             ramp = check_ramp_angle(float(obj.RampAngle.Value), "RampAngle")
         except ParameterError as exc:

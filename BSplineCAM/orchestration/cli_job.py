@@ -124,7 +124,8 @@ def roughing_parameters(args: argparse.Namespace):
     tool = parse_tool(args.rough, "--rough")
     margin = check_range(args.stock_margin, "--stock-margin", "mm", *STOCK_MARGIN_RANGE)
     stepdown = check_range(args.stepdown, "--stepdown", "mm", *STEPDOWN_RANGE)
-    fine = check_fine_stepdown(args.fine_stepdown, "--fine-stepdown", stepdown) or 0.0
+    fine = check_fine_stepdown(args.fine_stepdown, "--fine-stepdown (at most --stepdown)",
+                               stepdown) or 0.0
     stepover = check_range(args.stepover, "--stepover", "%", *STEPOVER_RANGE)
     ramp = check_ramp_angle(args.ramp_angle, "--ramp-angle")
     allowance = check_range(args.allowance, "--allowance", "mm", *ALLOWANCE_RANGE)
