@@ -1171,7 +1171,8 @@ class _Job:
             if b > first:
                 entry[max(a, first):b] = True
         cap = reach / self.cell
-        near = capped_distance(self.T > z + _EPS, cap + 1) <= cap
+        tip = self.T
+        near = capped_distance(tip > z + _EPS, cap + 1) <= cap
         ny, nx = near.shape
         saved = self.uncut, self.floor, self.surface
         self.uncut = self.level_uncut.copy()
