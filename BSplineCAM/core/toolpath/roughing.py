@@ -65,7 +65,7 @@ the walls: they bend and come to the wall at a slant, and the narrower cut is ke
 (:meth:`_Job.level_best`).  Known limit: bent fronts cut a little wider than s where they
 bend and where two of them close in on each other beside a wall: on the case study at 2 mm
 the widest cut went from 7.4 to 4.9 mm (moves over 1.1 s plus a cell: 27 -> 11), at the
-cost of about 2.5 times the compute.  Rings round a helix are cut on their exact circle (the
+cost of about 3 times the compute (a level over the bound is cut three times).  Rings round a helix are cut on their exact circle (the
 radius their grid contour has) in chords within RING_CHORD_MM: the grid's contour wanders
 by about a cell, and a chord of it pointing outwards cut up to 6.2 mm wide at a 4 mm
 stepover.  A fine level's fronts round the floor cut below it (a pocket) grow as rings by
@@ -1126,8 +1126,8 @@ class _Job:
         """Cut level z by :meth:`level`; where its widest cut next to a wall
         (:meth:`widest_cut`) passes ENGAGEMENT_LIMIT stepovers plus a cell, cut it again with
         the fronts bent towards the walls, at each of WALL_LAYER_STEPS, and keep the cut
-        that is narrowest (of the bent ones all moves measured, of the plain one those next
-        to a wall)."""
+        that is narrowest (of the plain one the moves ending within a tool radius of a wall
+        measured, of the bent ones those within the bending layer and a tool radius)."""
         before = self.snapshot()
         self.level(z, z_above, in_stock, air, li, nlevels, step_up)
         best = self.widest_cut(z, self.R + 3 * self.cell)
