@@ -863,11 +863,9 @@ class _Job:
     def link_ok(self, p: tuple, q: tuple, z: float) -> bool:
         """A feed from p to q at level z stays in {T <= z} and its tool meets no uncut
         material (within the grid's rounding of the cut region)."""
-        a = np.array(p[:2])
-        b = np.array(q[:2])
-        f = self.idx(_densify(np.array([a, b]), 0.5 * self.cell))
-        if np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3):
+        if not self.in_region(p, q, z):
             return False
+        f = self.along(p, q)
         i0, i1, j0, j1 = self.window(f, self.Rc + 3)
         sub = self.uncut[i0:i1, j0:j1]
         if not sub.any():
@@ -875,9 +873,13 @@ class _Job:
         d = capped_distance(sub, self.Rc + 2)
         return bool(np.all(_bilinear(d, f[:, 0] - j0, f[:, 1] - i0) >= self.Rc - 1.25))
 
+    def along(self, a, b) -> FloatArray:
+        """Fractional grid indices of points half a cell apart along the segment a-b (xy)."""
+        return self.idx(_densify(np.array([a[:2], b[:2]], dtype=float), 0.5 * self.cell))
+
     def in_region(self, a, b, z) -> bool:
         """The straight feed from a to b (xy) stays in {T <= z}."""
-        f = self.idx(_densify(np.array([a[:2], b[:2]], dtype=float), 0.5 * self.cell))
+        f = self.along(a, b)
         return not np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3)
 
     def engaged_width(self, a, b) -> float:
@@ -1134,8 +1136,9 @@ class _Job:
         if best <= ENGAGEMENT_LIMIT * self.s + self.cell:
             return
         kept, bent = self.snapshot(), False
-        for step in WALL_LAYER_STEPS:
-            self.restore(self.copied(before) if step != WALL_LAYER_STEPS[-1] else before)
+        for i, step in enumerate(WALL_LAYER_STEPS):
+            last = i == len(WALL_LAYER_STEPS) - 1
+            self.restore(before if last else self.copied(before))
             self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step)
             width = self.widest_cut(z, (WALL_LAYER_RADII + 1) * self.R + 3 * self.cell)
             if width < best:
@@ -1576,7 +1579,7 @@ class _Job:
                 dev = np.hypot(*(mid - a - t[:, None] * ab).T)
                 if dev.max() > limit:
                     break
-                f = self.idx(_densify(np.array([a, b]), 0.5 * self.cell))
+                f = self.along(a, b)
                 if np.any(_bilinear(field, f[:, 0], f[:, 1]) > 1e-3):
                     break
                 j += 1
