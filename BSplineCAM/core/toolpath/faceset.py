@@ -188,6 +188,20 @@ def _second_differences(net: FloatArray, p: int, q: int) -> tuple:
     return ss, st, tt
 
 
+def _rational_drift(w: FloatArray, coef: FloatArray) -> FloatArray:
+    """Bound on how far a rational patch's coordinate can exceed its control values' affine
+    part a(s, t) = c0 + c1 s + c2 t taken at (s, t) (n,), from the weights w (n, K) and coef
+    (n, 3).  The coordinate is sum lam_k x_k with lam_k = w_k B_k / sum w_j B_j, so its affine
+    part is a at g = sum lam_k g_k (g_k the Greville abscissae, in the unit box), not at
+    (s, t) = sum B_k g_k: |g - (s, t)| <= sum |lam_k - B_k| |g_k - (s, t)| <= sqrt(2) eps with
+    eps = (w_max - w_min) / w_min (|lam_k - B_k| <= B_k eps), so the coordinate is at most
+    a(s, t) + |(c1, c2)| sqrt(2) eps + the residual.  Subdivision evens the weights out, so
+    the drift shrinks as the square of the sub-patch (a polynomial patch has none)."""
+    wmin = w.min(axis=1)
+    eps = (w.max(axis=1) - wmin) / wmin
+    return math.sqrt(2.0) * eps * np.hypot(coef[:, 1], coef[:, 2])
+
+
 def _clip(seg: FloatArray, box: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
     """Liang-Barsky clipping of segments (n, K, 4) (u0, v0, u1, v1) by boxes (n, 4)
     (u0, u1, v0, v1): hit mask (n, K) and the clipped end points (n, K, 2) each."""
@@ -1248,9 +1262,15 @@ class FaceSet:
             cs = coef[strad]
             aval = cs[:, :1] + cs[:, 1:2] * st[..., 0] + cs[:, 2:3] * st[..., 1]
             listed = it.segs[strad, 0] != -2  # else too many segments: the whole box bounds
-            if not d.face.surface.rational:
-                # polynomial patch: the material's vertices (rational: the corners' bound)
-                amax[strad[listed]] = np.where(ok, aval, -np.inf).max(axis=1)[listed]
+            at = np.where(ok, aval, -np.inf).max(axis=1)
+            if d.face.surface.rational:
+                # the material's vertices plus the drift of the affine part (at most the
+                # corners' bound, which holds as well)
+                at = at + _rational_drift(flat[:, 3][nd[strad]], cs)
+                amax[strad[listed]] = np.minimum(amax[strad[listed]], at[listed])
+            else:
+                # polynomial patch: the material's vertices
+                amax[strad[listed]] = at[listed]
             none = ~ok.any(axis=1) & listed
             reach[strad[none]] = False
         lin = cz + s0 + amax + resid
@@ -1531,14 +1551,18 @@ class FaceSet:
                 st, ok = d.vertices(it.take(strad))
                 cok[strad] = ok[:, :4]
                 listed = it.segs[strad, 0] != -2
-                if not d.face.surface.rational and listed.any():
+                if listed.any():
                     # the coordinate is a scalar Bezier patch: affine part at the material's
-                    # vertices plus the largest residual of its coefficients
+                    # vertices plus the largest residual of its coefficients (a rational
+                    # patch: plus the affine part's drift, :func:`_rational_drift`)
                     strad, st, ok = strad[listed], st[listed], ok[listed]
                     cs = coef[strad]
                     aval = cs[:, :1] + cs[:, 1:2] * st[..., 0] + cs[:, 2:3] * st[..., 1]
+                    extra = resid[strad]
+                    if d.face.surface.rational:
+                        extra = extra + _rational_drift(flat[strad, 3], cs)
                     ub[strad] = np.minimum(ub[strad],
-                                           np.where(ok, aval, -np.inf).max(axis=1) + resid[strad])
+                                           np.where(ok, aval, -np.inf).max(axis=1) + extra)
                 loc = st[:, 4:]
                 good = ok[:, 4:]
                 if good.any():
