@@ -454,11 +454,9 @@ def test_fine_stepdown_terraces_and_order(shape):
     assert fine.stats["cutting_length_mm"] < 0.9 * plain.stats["cutting_length_mm"]
 
 
-def test_fine_stepdown_no_rapid_into_a_terrace_case_study():
-    """The case study roughed at an 8 mm step-down with a 2 mm fine step: the job simulation of
-    the program's text finds no rapid touching the stock.  (A rapid descent into a band
-    touched a terrace 1 mm deep while the surface estimate took a cell as cut when only its
-    centre lay within the tool.)"""
+def case_study_part():
+    """The case study's height function (NaN off the surface) and its block: the part's box
+    grown by 2 mm on every side."""
     from BSplineCAM.core.footprint import surface_height
     from BSplineCAM.core.surface import Surface
 
@@ -470,6 +468,15 @@ def test_fine_stepdown_no_rapid_into_a_terrace_case_study():
     def height(xs, ys):
         return surface_height(surf, np.asarray(xs)[None, :], np.asarray(ys)[:, None])[0]
 
+    return height, stock
+
+
+def test_fine_stepdown_no_rapid_into_a_terrace_case_study():
+    """The case study roughed at an 8 mm step-down with a 2 mm fine step: the job simulation of
+    the program's text finds no rapid touching the stock.  (A rapid descent into a band
+    touched a terrace 1 mm deep while the surface estimate took a cell as cut when only its
+    centre lay within the tool.)"""
+    height, stock = case_study_part()
     tool = Tool(10.0, "flat")
     rough = generate_roughing(height, stock, tool, 8.0, 4.0, 0.3, 0.3, fine_stepdown=2.0)
     job = simulate_text(rough, stock, tool, cell=0.1)
@@ -1069,17 +1076,7 @@ def test_floor_rings_of_the_case_study_bend_by_their_own_radius():
     cut wider than 1.1 stepover plus a cell (the job simulation at 0.1 mm), up to 5.46 mm;
     with the step of the radius the front has where it bends more, and the front cut as a
     smooth curve in short chords, 8, up to 4.75 mm."""
-    from BSplineCAM.core.footprint import surface_height
-    from BSplineCAM.core.surface import Surface
-
-    surf = Surface.from_json(str(EXAMPLES / "case-study.json"))
-    P = surf.evaluate_grid(np.linspace(0, 1, 101), np.linspace(0, 1, 101)).reshape(-1, 3)
-    lo, hi = P.min(axis=0), P.max(axis=0)
-    stock = Stock(lo[0] - 2, hi[0] + 2, lo[1] - 2, hi[1] + 2, lo[2] - 2, hi[2] + 2)
-
-    def height(xs, ys):
-        return surface_height(surf, np.asarray(xs)[None, :], np.asarray(ys)[:, None])[0]
-
+    height, stock = case_study_part()
     tool = Tool(10.0, "flat")
     rough = generate_roughing(height, stock, tool, 8.0, 4.0, 0.3, 0.3, fine_stepdown=4.0)
     radial, collisions = _job_radial(rough, stock, tool, 0.1)
