@@ -1326,10 +1326,9 @@ class _Job:
             k += 1
             # the rings still round: their front pieces go on the exact circle
             circles = [r for r in rings if r.radius is not None and r.exact]
-            floor = [r.mask for r in rings if not r.exact]
-            floor = np.logical_or.reduce(floor) if floor else None
+            zones = [r.mask for r in rings if not r.exact]  # the floor rings' fronts
             self.cut_contours(F, z, z_above, front=dQ - step, reached=dQ, circles=circles,
-                              smooth=floor)
+                              smooth=np.logical_or.reduce(zones) if zones else None)
             Q = Qn
         # walls
         F = tip - z
@@ -1430,7 +1429,8 @@ class _Job:
         Without, the contour is the level's final wall pass.  ``circles``: (component mask,
         the rings round a helix still round (:class:`_Ring`); front pieces of a ring within a
         cell of its circle (the grid's contour of it) are put on it (:meth:`on_circles`) and
-        cut in chords within RING_CHORD_MM of it.
+        cut in chords within RING_CHORD_MM of it.  ``smooth``: the floor rings' zones
+        (:meth:`emit`).
         """
         lines = marching_squares(F)
         if not lines:
@@ -1528,7 +1528,9 @@ class _Job:
         them, nearest next first; an open stretch is cut in its own direction, a closed one
         from its vertex nearest the tool.  A chord between two points on one of the
         ``circles`` (see :meth:`on_circles`, (centre, radius) mm) is cut as an arc in chords
-        within RING_CHORD_MM of it."""
+        within RING_CHORD_MM of it.  With ``smooth`` (cells: the floor rings' zones) a
+        stretch wholly inside it is cut as a smooth curve (:meth:`smoothed`) instead of
+        straightened."""
         if not stretches:
             return
         pts = [self.xy(p) for p in stretches]
