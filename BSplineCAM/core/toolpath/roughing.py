@@ -891,7 +891,12 @@ class _Job:
 
     def in_region(self, a, b, z) -> bool:
         """The straight feed from a to b (xy) stays in {T <= z}."""
-        f = self.along(a, b)
+        return self.path_in_region(np.array([a[:2], b[:2]], dtype=float), z)
+
+    def path_in_region(self, path: FloatArray, z: float) -> bool:
+        """Every feed along the polyline ``path`` (xy) stays in {T <= z} (:meth:`in_region`
+        of each, sampled at once)."""
+        f = self.idx(_densify(np.asarray(path, dtype=float)[:, :2], 0.5 * self.cell))
         return not np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3)
 
     def engaged_width(self, a, b) -> float:
@@ -1594,9 +1599,7 @@ class _Job:
         keep = simplify(np.column_stack([q, np.full(len(q), z)]), np.array([0, len(q)]),
                         RING_CHORD_MM, "planar")
         q = q[keep]
-        if not all(self.in_region(a, b, z) for a, b in zip(q[:-1], q[1:])):
-            return path
-        return q
+        return q if self.path_in_region(q, z) else path
 
     def inner_chords(self, path: FloatArray, field: FloatArray) -> FloatArray:
         """Path (xy) with the vertices dropped that a chord between two others passes on the
@@ -1706,27 +1709,29 @@ def ring_step(rho: float, R: float, s: float) -> float:
     (a 10 mm mill 4 mm out of a 4 mm helix: 96 degrees instead of 78, a width of 5.5 mm).
     The ds that gives phi0 solves rho'^2 + 2 c R rho' - ((rho + R)^2 - R^2) = 0 with
     c = 1 - s/R; it tends to s as rho grows."""
+    return float(min(max(float(_ring_growth(rho, R, s)), 0.0), s))
+
+
+def _ring_growth(rho, R: float, s: float):
+    """rho' - rho of :func:`ring_step` (unclipped), for a radius or an array of them."""
     c = 1.0 - s / R
-    grown = -c * R + math.sqrt(c * c * R * R + (rho + R) ** 2 - R * R)
-    return float(min(max(grown - rho, 0.0), s))
+    return -c * R + np.sqrt(c * c * R * R + (rho + R) ** 2 - R * R) - rho
 
 
 def ring_steps(rho: FloatArray, R: float, s: float) -> FloatArray:
     """:func:`ring_step` of each radius (mm; inf: a straight front), at least
     MIN_FRONT_STEP of the stepover."""
-    c = 1.0 - s / R
     r = np.minimum(np.asarray(rho, dtype=float), 1e6)
-    grown = -c * R + np.sqrt(c * c * R * R + (r + R) ** 2 - R * R)
-    return np.clip(grown - r, MIN_FRONT_STEP * s, s)
+    return np.clip(_ring_growth(r, R, s), MIN_FRONT_STEP * s, s)
 
 
 def front_radius(Q: np.ndarray, cell: float, R: float) -> FloatArray:
     """Radius (mm) of the boundary of the cleared centres Q nearest each cell (inf where it
     is straight or bends away): 1 / (the Laplacian of Q's signed distance, smoothed by two
     box means reaching FRONT_SMOOTH_RADII tool radii to each side) less the cell's distance,
-    at least two cells.  The signed
-    distance is smooth across the boundary, and the Laplacian of a distance is the curvature
-    of its level sets, 1 / (rho + d) at a distance d from a round boundary of radius rho."""
+    at least two cells.  The signed distance is smooth across the boundary, and the Laplacian
+    of a distance is the curvature of its level sets, 1 / (rho + d) at a distance d from a
+    round boundary of radius rho."""
     out = np.sqrt(squared_distance(Q)) * cell
     sd = out - np.sqrt(squared_distance(~Q)) * cell
     h = max(2, int(round(FRONT_SMOOTH_RADII * R / cell)))
