@@ -484,3 +484,38 @@ def test_region_certificate_holds_on_a_dense_sample(slope_deg):
             f = np.where(d2 <= R_BALL ** 2,
                          pts[:, 2] + np.sqrt(np.maximum(R_BALL ** 2 - d2, 0.0)), -np.inf)
             assert f.max() <= f0[k] + excess[k] + 1e-12
+
+
+def test_slopes_of_contacts_on_a_curved_wall_match_the_heights():
+    """A wall (an unselected vertical face) is met by the 3-D chords of its trimmed border
+    (faceset._Walls), which leave the cylinder of examples/part.step's boss by up to the trim
+    tolerance: the height's slope (envelope theorem, FaceQuery.slopes) must come from the chord
+    point the height was measured at, not from the surface at the contact's (u, v) (off by
+    0.008 there before, so the chord checks along a link over the boss split down to 1e-5 mm:
+    25 000 drop-cutter queries for one 2.5 mm link)."""
+    pytest.importorskip("OCP")
+    from BSplineCAM.core.toolpath.faces_raster import FaceQuery
+    from BSplineCAM.ocp import faces as ocp
+
+    faces = ocp.faces_from_shape(ocp.read_part(ROOT / "examples" / "part.step"), "up",
+                                 tolerance=0.002)
+    fs = FaceSet(faces)
+    wall = next(k for k, f in enumerate(faces) if f.name == "Face6")
+    assert wall in fs.walls.owner  # met by its border
+    query = FaceQuery(fs, 3.0)
+    x = np.linspace(52.8, 55.1, 47)
+    xy = np.column_stack([x, np.full_like(x, 23.2257)])
+    h = 1e-5
+    z, face, u, v, _ = query.heights(xy)
+    assert np.all(face == wall)
+    grad = query.slopes(xy, face, u, v)
+    for axis in (0, 1):
+        step = np.zeros(2)
+        step[axis] = h
+        zp = query.heights(xy + step)[0]
+        zm = query.heights(xy - step)[0]
+        np.testing.assert_allclose(grad[:, axis], (zp - zm) / (2 * h), atol=2e-4)
+    # the contact the slope uses lies on the ball: its centre is R from it
+    p = fs.contact_points(face, u, v)
+    centre = np.column_stack([xy, z + 3.0])
+    np.testing.assert_allclose(np.linalg.norm(p - centre, axis=1), 3.0, atol=1e-9)

@@ -153,6 +153,39 @@ def test_iso_cylinder_closed_form():
     assert (sim - design)[far].max() <= H + TOL
 
 
+@pytest.mark.parametrize("direction", ["u", "v"])
+def test_iso_stops_where_the_face_turns_steeper_than_the_raster_reaches(direction):
+    """A quarter cylinder from its top (0 degrees) down to its vertical side (90): the passes
+    reach no further than STEEPEST_REACHED (75 degrees), as the raster's do; beyond it the
+    ball's contact nears its rim and the chord checks had to sample the height densely (on
+    examples/part.step's fillets iso took over 15 minutes).  Along the arc (u) each pass ends
+    on the 75 degree line itself."""
+    from BSplineCAM.core.toolpath.faces_raster import STEEPEST_REACHED
+
+    rho, length = 10.0, 20.0
+    c = math.sqrt(0.5)
+    arc = [(0.0, rho), (rho, rho), (rho, 0.0)]
+    poles = np.array([[[x, y, z] for y in (0.0, length)] for x, z in arc])
+    weights = np.array([[1.0, 1.0], [c, c], [1.0, 1.0]])
+    ns = NurbsSurface(poles, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1, weights=weights)
+    fs = FaceSet([Face(ns, rectangle(ns))])
+    tp = generate_faces_iso(fs, D, H, TOL, direction=direction)
+    pts = np.concatenate(tp.passes)
+    # the ball centre lies on the offset cylinder (the tip at most the tolerance above it):
+    # its x gives the contact's angle from the top
+    angle = np.degrees(np.arcsin(np.clip(pts[:, 0] / (rho + R), -1.0, 1.0)))
+    assert angle.max() <= STEEPEST_REACHED + 0.01
+    assert angle.min() <= 1.0
+    if direction == "u":
+        for p in tp.passes:
+            a = np.degrees(np.arcsin(np.clip(p[:, 0] / (rho + R), -1.0, 1.0)))
+            assert a.max() >= STEEPEST_REACHED - 0.01
+    else:
+        assert angle.max() >= STEEPEST_REACHED - 10.0
+    exact = np.sqrt((rho + R) ** 2 - pts[:, 0] ** 2) - R
+    assert np.all(pts[:, 2] >= exact - 1e-7)
+
+
 def test_iso_bad_input():
     fs = FaceSet(dome_faces())
     with pytest.raises(ParameterError, match="direction"):

@@ -12,9 +12,13 @@ Per selected face, as :mod:`.isoparametric` does for one control net:
   minus R; the tip is then raised to at least the certified :meth:`FaceSet.drop_ball` height
   at its XY over EVERY face of the set, so other faces and check surfaces are never gouged;
 * a curve is cut only where (u, v) lies inside the trim (:meth:`_FaceData.inside`, the even-odd
-  test of :func:`faces.inside`); the trim crossings are found by bisection in the parameter to
-  ``TRIM_BISECTIONS`` halvings, and a stretch lifted more than tolerance / 2 by a face that is
-  not selected (the ball rides a check surface) is left out as well;
+  test of :func:`faces.inside`) and the face is no steeper than
+  :data:`.faces_raster.STEEPEST_REACHED` (75 degrees: as far as the raster reaches; beyond it
+  the contact nears the ball's rim, where the height's slope across the pass grows without
+  bound and every chord check would have to sample it densely); the crossings are found by
+  bisection in the parameter to ``TRIM_BISECTIONS`` halvings, and a stretch lifted more than
+  tolerance / 2 by a face that is not selected (the ball rides a check surface) is left out
+  as well;
 * points are refined at chord midpoints until the CL curve departs at most tolerance / 2 from
   the chords, thinned by Douglas-Peucker to tolerance / 2 in 3-D, and every chord is made
   one-sided against the exact drop-cutter (:func:`.chords.lift_chords`).
@@ -41,7 +45,7 @@ from .common import (
     Toolpath,
     ToolpathStats,
 )
-from .faces_raster import STAY_DOWN_LINK, FaceQuery
+from .faces_raster import STAY_DOWN_LINK, STEEPEST_REACHED, FaceQuery
 from .faceset import FaceSet
 from .isoparametric import _allowed_step, lifted_runs
 from .raster import zigzag_by_line
@@ -153,7 +157,7 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     """Passes (list of (n, 3) tip arrays, zig-zag order), iso values and statistics of one
     selected face."""
     s = face.surface
-    inside = faceset.data[k].inside
+    in_trim = faceset.data[k].inside
     R = tool.radius
     u0, u1, v0, v1 = face.bounds()
     (du0, du1), (dv0, dv1) = s.domain
@@ -164,6 +168,16 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     d = s.derivatives(gu.ravel(), gv.ravel())
     sign = 1.0 if float(np.cross(d.su, d.sw)[:, 2].sum()) >= 0 else -1.0
     jets = _FaceJets(s, sign)
+    cap = math.sin(math.radians(STEEPEST_REACHED))
+
+    def inside(u: FloatArray, v: FloatArray) -> np.ndarray:
+        """Inside the trim and no steeper than STEEPEST_REACHED (as the raster reaches)."""
+        ins = np.asarray(in_trim(u, v), bool)
+        if ins.any():
+            n = jets.jet(np.asarray(u, float)[ins], np.asarray(v, float)[ins]).normal
+            ins[ins] = np.hypot(n[:, 0], n[:, 1]) <= cap
+        return ins
+
     fixed = _iso_values(jets, inside, tool, iso, a0, a1, f0, f1)
     monitor(lo + 0.3 * (hi - lo))
     # points along each curve about sqrt(8 R tol) apart in 3-D

@@ -70,17 +70,11 @@ class FaceQuery:
     def slopes(self, xy: FloatArray, face: np.ndarray, u: FloatArray, v: FloatArray) -> FloatArray:
         """Gradient of the tip height (envelope theorem, see :meth:`DropCutter.slopes`)."""
         q = np.asarray(xy, dtype=float).reshape(-1, 2)
-        grad = np.full((len(q), 2), np.nan)
-        for k, f in enumerate(self.faceset.faces):
-            idx = np.flatnonzero(face == k)
-            if len(idx) == 0:
-                continue
-            p = f.surface.evaluate(u[idx], v[idx])
-            d = p[:, :2] - q[idx]
-            h = np.sqrt(np.maximum(self.radius ** 2 - (d * d).sum(axis=1), 0.0))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                grad[idx] = d / h[:, None]
-        return grad
+        p = self.faceset.contact_points(face, u, v)
+        d = p[:, :2] - q
+        h = np.sqrt(np.maximum(self.radius ** 2 - (d * d).sum(axis=1), 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return d / h[:, None]
 
     def heights_and_slopes(self, xy: FloatArray) -> tuple[FloatArray, FloatArray]:
         tip, face, u, v, _ = self.heights(xy)

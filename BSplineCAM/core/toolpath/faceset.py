@@ -379,6 +379,34 @@ class _Walls:
         bv[qi] = uvs[:, 1] + tb * (uvs[:, 3] - uvs[:, 1])
         return best, face, bu, bv
 
+    def points(self, k: int, u: FloatArray, v: FloatArray) -> FloatArray:
+        """The 3-D contact (m, 3) that :meth:`drop` measured for contacts (u, v) on wall ``k``:
+        the point of the border chord whose trim segment holds (u, v), at the same fraction
+        along it.  On a curved wall it differs from the surface at (u, v) by up to the trim
+        tolerance, and the height's slope (envelope theorem) must come from the chord's
+        point, the one the height was measured at."""
+        mine = np.flatnonzero(self.owner == k)
+        uv = np.column_stack([u, v]).astype(float)
+        out = np.full((len(uv), 3), np.nan)
+        if len(mine) == 0 or len(uv) == 0:
+            return out
+        e = self.uv[mine]
+        a, dd = e[:, :2], e[:, 2:] - e[:, :2]
+        L2 = (dd * dd).sum(axis=1)
+        L2s = np.where(L2 > 0, L2, 1.0)
+        step = max(1, 2 ** 22 // len(mine))  # bounded memory: queries x segments per block
+        for start in range(0, len(uv), step):
+            w = uv[start:start + step]
+            rel = w[:, None, :] - a[None]
+            t = np.clip((rel * dd[None]).sum(axis=2) / L2s[None], 0.0, 1.0)
+            off = rel - t[..., None] * dd[None]
+            j = np.argmin((off * off).sum(axis=2), axis=1)
+            rows = np.arange(len(w))
+            seg = self.seg[mine[j]]
+            tj = t[rows, j]
+            out[start:start + step] = seg[:, 0] + tj[:, None] * (seg[:, 1] - seg[:, 0])
+        return out
+
 
 class _SegmentGrid:
     """Trim segments filed by the cells of a G x G grid over the domain that their boxes
@@ -686,6 +714,23 @@ class FaceSet:
         self.size = float(np.linalg.norm(hi - lo))
         self.stats = {"pairs": 0, "levels": 0, "uncertified": 0}
         self._box_memo: dict = {}  # bounds() per selected_only: the faces never change
+
+    def contact_points(self, face: np.ndarray, u: FloatArray, v: FloatArray) -> FloatArray:
+        """The 3-D points (m, 3) where :meth:`drop_ball`'s contacts (face, u, v) touch the
+        ball (NaN where face is -1): the surface at (u, v), or on a wall the point of its
+        border chord the height was measured at (:meth:`_Walls.points`)."""
+        face = np.asarray(face)
+        u = np.asarray(u, dtype=float)
+        v = np.asarray(v, dtype=float)
+        out = np.full((len(face), 3), np.nan)
+        walls = set(self.walls.owner.tolist())
+        for k in np.unique(face[face >= 0]).tolist():
+            idx = np.flatnonzero(face == k)
+            if k in walls:
+                out[idx] = self.walls.points(k, u[idx], v[idx])
+            else:
+                out[idx] = self.faces[k].surface.evaluate(u[idx], v[idx])
+        return out
 
     # -- drop-cutter ---------------------------------------------------------------------------
     def drop_ball(self, xy, radius: float, selected_only: bool = False,

@@ -680,13 +680,10 @@ def split_faces_by_slope(faceset: Any, threshold_deg: float, tool_diameter: floa
     q = np.column_stack([X.ravel(), Y.ravel()])
     tip, face, u, v, _ = faceset.drop_ball(q, R)
     slope = np.full(len(q), np.nan)
-    for k, f in enumerate(faceset.faces):
-        idx = np.flatnonzero((face == k) & np.isfinite(tip))
-        if len(idx) == 0:
-            continue
-        p = f.surface.evaluate(u[idx], v[idx])
-        rise = tip[idx] + R - p[:, 2]  # the contact normal's vertical part, times R
-        slope[idx] = np.degrees(np.arccos(np.clip(rise / R, 0.0, 1.0)))
+    idx = np.flatnonzero((face >= 0) & np.isfinite(tip))
+    p = faceset.contact_points(face[idx], u[idx], v[idx])
+    rise = tip[idx] + R - p[:, 2]  # the contact normal's vertical part, times R
+    slope[idx] = np.degrees(np.arccos(np.clip(rise / R, 0.0, 1.0)))
     slope = slope.reshape(X.shape)
     with np.errstate(invalid="ignore"):
         shallow = slope < threshold
