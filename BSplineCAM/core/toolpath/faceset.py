@@ -394,7 +394,7 @@ class _Walls:
         a, dd = e[:, :2], e[:, 2:] - e[:, :2]
         L2 = (dd * dd).sum(axis=1)
         L2s = np.where(L2 > 0, L2, 1.0)
-        step = max(1, 2 ** 22 // len(mine))  # bounded memory: queries x segments per block
+        step = max(1, 2 ** 20 // len(mine))  # bounded memory: queries x segments per block
         for start in range(0, len(uv), step):
             w = uv[start:start + step]
             rel = w[:, None, :] - a[None]
