@@ -31,6 +31,7 @@ CELL = 0.75  # mm, the grid edge of the waterline (R / 4)
 EPS = 2e-6  # mm, tolerance / 1000 of the CLI's default
 WIDTH = 2.5e-4  # mm, tolerance / 8 of the CLI's default
 RHO, HEIGHT = 10.0, 10.0  # mm, the tube's radius and height
+FLOOR = 25.0  # mm, the floor below the plate's top
 
 
 def plate() -> FaceSet:
@@ -132,6 +133,37 @@ def test_jump_past_the_level_ends_on_the_air_side():
     d_up = p0[:, 0] + t_up * (p1[:, 0] - p0[:, 0]) - EDGE
     assert np.all(d > R) and np.all(d - R <= WIDTH)
     assert np.isnan(beside_edge(d)).all()
+    assert np.all(beside_edge(d_up) > level)
+    assert drop.calls <= FALSI_STEPS
+
+
+def test_jump_down_to_a_floor_far_below_is_bisected():
+    """The plate over a floor FLOOR mm below its top (a face on both sides of the jump, the
+    air end 22 mm under the level): regula falsi lands next to the air end step after step
+    there, so a bracket steeper than JUMP_SLOPE is bisected.  Every edge settles as a jump
+    within the step budget, on the air side (the ball on the floor, its closed form) at most
+    WIDTH mm from the plate's edge's offset.  (With the secant alone some edges did not
+    settle in FALSI_STEPS queries: their points were left at the grid edge's air end.)"""
+    floor = plane(0.0, 40.0, 0.0, 20.0, TOP - FLOOR)
+    ns = plane(0.0, EDGE, 0.0, 20.0, TOP)
+    fs = FaceSet([Face(ns, rectangle(ns)), Face(floor, rectangle(floor))])
+    rng = np.random.default_rng(17)
+    n = 60
+    end_d = R + rng.uniform(1e-4, 0.74, n)
+    y = rng.uniform(5.0, 15.0, n)
+    p0 = np.column_stack([EDGE + end_d - CELL, y])
+    p1 = np.column_stack([EDGE + end_d, y])
+    level = np.full(n, TOP - R - 0.5)
+    drop = Counted(fs)
+    z0, z1 = drop.fs.drop_ball(p0, R)[0], drop.fs.drop_ball(p1, R)[0]
+    assert np.all(z0 > level) and np.all(z1 <= level - 20.0)
+    t, jump, t_up, settled = polish_crossings(drop, p0, p1, z0, z1, level, EPS, WIDTH)
+    assert settled.all() and jump.all()
+    d = p0[:, 0] + t * (p1[:, 0] - p0[:, 0]) - EDGE
+    d_up = p0[:, 0] + t_up * (p1[:, 0] - p0[:, 0]) - EDGE
+    assert np.all(d > R) and np.all(d - R <= WIDTH), (d - R).max()
+    assert np.allclose(drop.fs.drop_ball(p0 + t[:, None] * (p1 - p0), R)[0], TOP - FLOOR,
+                       atol=1e-9)
     assert np.all(beside_edge(d_up) > level)
     assert drop.calls <= FALSI_STEPS
 

@@ -260,8 +260,10 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
     ends, one above the level, the other at or below it (the air side) or NaN.  Regula falsi
     with the Illinois modification (Dowell & Jarratt 1971: the value of an end kept twice in a
     row is halved) on the exact height, bisection instead while the air end has no face (no
-    value to follow) or when three steps did not halve the bracket (Brent's safeguard: a
-    discontinuity stalls the secant next to one end).  "No face" stays NaN throughout: a
+    value to follow), while its ends differ by more than JUMP_SLOPE per mm (a jump to a face
+    far below: the secant would land next to the air end step after step), or when three
+    steps did not halve the bracket (Brent's safeguard: a discontinuity stalls the secant
+    next to one end).  "No face" stays NaN throughout: a
     stand-in number would be changed by the halving and pull the secant onto that end.
 
     An edge stops at a point within ``eps`` of the level, or when its bracket is ``width`` mm
@@ -303,6 +305,10 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
             t = (a_a * b_u - a_u * b_a) / (b_u - b_a)
         lo, hi = np.minimum(a_u, a_a), np.maximum(a_u, a_a)
         bisect = ~np.isfinite(t) | (t <= lo) | (t >= hi) | (w[act] > 0.5 * w_ago[0, act])
+        # a bracket whose ends differ more steeply than JUMP_SLOPE holds a jump (or a wall
+        # within 0.06 degrees of vertical): the secant lands next to its air end time and
+        # again, while bisection narrows it to ``width`` in log2 steps
+        bisect |= rise[act] > JUMP_SLOPE
         t = np.where(bisect, 0.5 * (a_u + a_a), t)
         w_ago[:, act] = np.vstack([w_ago[1:, act], w[act]])
         ft = np.asarray(heights(p0[act] + t[:, None] * (p1[act] - p0[act])), float) - level[act]
