@@ -519,3 +519,89 @@ def test_slopes_of_contacts_on_a_curved_wall_match_the_heights():
     p = fs.contact_points(face, u, v)
     centre = np.column_stack([xy, z + 3.0])
     np.testing.assert_allclose(np.linalg.norm(p - centre, axis=1), 3.0, atol=1e-9)
+
+
+def test_ball_on_a_trimmed_edge_next_to_its_rim_is_certified():
+    """A tilted plate (z = 1 + 0.2 x) trimmed at x = 20 inside its domain (x from 0 to 30,
+    x = 15 u + 15 u^2: a cubic in u with unevenly spaced poles, as a STEP part's top is), the
+    ball's axis R - eps beyond that edge (eps from 1e-7 to 1e-2 mm): it rests on the edge,
+    tip = z(20) + sqrt(R^2 - (R - eps)^2) - R.  There f's slope across the edge grows as
+    R / sqrt(2 R eps), the sub-patches straddling the trim reach past it towards the ball,
+    and the parametrisation's curvature, times that slope, defeats the local certificate:
+    bounded by their box, they stayed open down to MAX_DEPTH (hundreds of uncertified pairs
+    per query); bounded by the material's own distance, every height is certified."""
+    R, x_e = 3.0, 20.0
+    xs = np.array([0.0, 5.0, 15.0, 30.0])
+    poles = np.array([[[x, y, 1.0 + 0.2 * x] for y in (0.0, 20.0)] for x in xs])
+    ns = NurbsSurface(poles, [0, 0, 0, 0, 1, 1, 1, 1], [0, 0, 1, 1], 3, 1)
+    ue = (math.sqrt(1.0 + 4.0 * x_e / 15.0) - 1.0) / 2.0  # 15 u + 15 u^2 = x_e
+    outer = np.array([[0.0, 0.0], [ue, 0.0], [ue, 1.0], [0.0, 1.0], [0.0, 0.0]])
+    fs = FaceSet([Face(ns, outer)])
+    rng = np.random.default_rng(3)
+    eps = 10.0 ** rng.uniform(-7.0, -2.0, 60)
+    xy = np.column_stack([x_e + R - eps, rng.uniform(5.0, 15.0, 60)])
+    tip, face, _u, _v, _ = fs.drop_ball(xy, R)
+    exact = 1.0 + 0.2 * x_e + np.sqrt(R * R - (R - eps) ** 2) - R
+    assert np.all(face == 0)
+    assert fs.stats["uncertified"] == 0
+    assert np.all(tip <= exact + 1e-9) and np.all(tip >= exact - CERTIFY)
+
+
+def test_material_reach_bounds_a_dense_sample():
+    """The rim bound (:func:`_material_reach`): on random rational Bezier patches (degrees
+    1-4, weights 0.2-5) cut by a random trim line, no material point lies higher than its z
+    bound or nearer a random query in xy than its distance bound (a dense sample of the
+    material and of the trim edge), and on sub-patches the distance bound is within the
+    square of their size of the sample's nearest point."""
+    from BSplineCAM.core.toolpath.faceset import (
+        _bernstein,
+        _bernstein_grid,
+        _material_reach,
+        _sub_net,
+    )
+
+    rng = np.random.default_rng(23)
+    gs = np.linspace(0.0, 1.0, 61)
+    grid = np.column_stack([a.ravel() for a in np.meshgrid(gs, gs)])
+    gaps = {}
+    for trial in range(60):
+        p, q = (int(v) for v in rng.integers(1, 5, 2))
+        P = rng.normal(size=(3, p + 1, q + 1)) * 10.0
+        w = rng.uniform(0.2, 5.0, (p + 1, q + 1)) if trial % 2 else np.ones((p + 1, q + 1))
+        net = np.concatenate([P * w, w[None]])[None]
+        size = [1.0, 0.25, 0.0625][trial % 3]
+        lo = rng.uniform(0.0, 1.0 - size, 2)
+        sub = _sub_net(net, lo[:1], lo[:1] + size, lo[1:], lo[1:] + size)
+        flat = sub.reshape(1, 4, -1)
+        PX, PY, PZ = (flat[:, k] / flat[:, 3] for k in range(3))
+        CX, CY, CZ = PX.mean(axis=1), PY.mean(axis=1), PZ.mean(axis=1)
+        design = _bernstein_grid(p, q)
+        G = np.stack([PZ - CZ[:, None], PX - CX[:, None], PY - CY[:, None]])
+        C = G @ np.linalg.pinv(design).T
+        RS = G - C @ design.T
+        # the material: the box's part where n . (s, t) <= c, a line through a random point
+        ang = rng.uniform(0.0, 2 * np.pi)
+        n = np.array([math.cos(ang), math.sin(ang)])
+        c = float(n @ rng.uniform(0.2, 0.8, 2))
+        t = np.linspace(-2.0, 2.0, 4001)
+        line = np.array([c * n[0], c * n[1]]) + t[:, None] * np.array([-n[1], n[0]])
+        edge = line[(line >= 0.0).all(axis=1) & (line <= 1.0).all(axis=1)]
+        corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+        st = np.concatenate([corners, edge[:1], edge[-1:]])[None]
+        ok = np.concatenate([corners @ n <= c, [True, True]])[None]
+        pts = np.concatenate([grid[grid @ n <= c], edge])
+        bs, bt = _bernstein(p, pts[:, 0]), _bernstein(q, pts[:, 1])
+        xyzw = np.einsum("ni,kij,nj->nk", bs, sub[0], bt)
+        xyz = xyzw[:, :3] / xyzw[:, 3:]
+        qs = xyz[rng.integers(0, len(xyz), 20), :2] + rng.normal(size=(20, 2)) * 5.0
+        node = np.zeros(20, int)
+        z_top, r = _material_reach(np.repeat(st, 20, 0), np.repeat(ok, 20, 0), 1, node, qs,
+                                   (CX, CY, CZ), C, RS,
+                                   np.repeat(flat[:, 3], 20, 0) if trial % 2 else None)
+        assert np.all(xyz[:, 2] <= z_top[0] + 1e-9), trial
+        dist = np.hypot(xyz[None, :, 0] - qs[:, :1], xyz[None, :, 1] - qs[:, 1:]).min(axis=1)
+        assert np.all(r <= dist + 1e-9), (trial, float((r - dist).max()))
+        gaps.setdefault(size, []).append(float((dist - r).max()))
+    # the distance bound tightens as the square of the sub-patch (the sample's own spacing,
+    # 1/60 of the sub-patch, is the floor)
+    assert np.median(gaps[0.0625]) < 0.05 * np.median(gaps[1.0])

@@ -23,7 +23,12 @@ control nets, so rational patches split exactly), and the returned height is wit
   the trim polyline's segments enter and leave the sub-patch (Liang-Barsky clipping).  With p0
   the control net's centroid the gap to the true maximum shrinks as the square of the
   sub-patch size.  It is combined (the smaller wins) with the box bound
-  z_max + sqrt(R^2 - dist(q, box_xy)^2), which also prunes sub-patches out of reach.
+  z_max + sqrt(R^2 - dist(q, box_xy)^2), which also prunes sub-patches out of reach.  Near
+  the ball's rim f's slope across it grows as R / sqrt(R^2 - r^2) and both converge only
+  linearly (the tangent plane is not used there, the box reaches past a trim towards the
+  query): deep sub-patches there are also bounded by the material's own z and xy distance,
+  from the affine part's values at the material's vertices and the residual
+  (:func:`_material_reach`), which converge as the square of the sub-patch.
 * Lower bound: f at actual surface points inside the trim (the corner control points of a
   Bezier patch lie on the surface; trim vertices are evaluated; on shallow sub-patches also the
   point at the control point nearest the query), so the answer never exceeds the true height.
@@ -96,6 +101,14 @@ REGION_TIE = 0.01
 CUT_MARGIN = 0.02
 #: Sub-patch trim classifications (and vertices) remembered per face (see :class:`_RowCache`).
 CLASSIFY_CACHE = 50_000
+#: A sub-patch at least RIM_DEPTH halvings deep whose net's box lies farther than this
+#: fraction of R from the query (in xy) is bounded by its material's own distance as well
+#: (:func:`_material_reach`; shallower ones are rarely kept open by the rim, and the bound
+#: costs about as much as the rest of theirs).
+RIM_FRACTION = 0.9
+RIM_DEPTH = 14
+#: Margin (mm) taken off that distance for rounding.
+RIM_ROUNDING_MM = 1e-11
 #: Sub-patches this shallow also offer the surface point below their control point nearest
 #: the query as a lower bound (see :meth:`FaceSet._bounds`).
 SEED_DEPTH = 3
@@ -200,6 +213,65 @@ def _rational_drift(w: FloatArray, coef: FloatArray) -> FloatArray:
     wmin = w.min(axis=1)
     eps = (w.max(axis=1) - wmin) / wmin
     return math.sqrt(2.0) * eps * np.hypot(coef[:, 1], coef[:, 2])
+
+
+def _material_reach(st: FloatArray, ok: np.ndarray, k: int, node: np.ndarray, q: FloatArray,
+                    centroid: tuple, C: FloatArray, RS: FloatArray,
+                    w: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+    """Upper bound of z and lower bound of the xy distance from q (m, 2) over the material
+    of sub-patches ``node`` (m,) whose material polygon has its vertices among ``st``
+    (m, 4 + 2k, 2), local (s, t), where ``ok`` (m, 4 + 2k): the corners, then the first and
+    the second ends of k clipped trim segments (as :meth:`_FaceData.vertices`).
+
+    Each coordinate is its control values' affine part a(s, t) (``C``, about the net's
+    ``centroid``) plus at most its largest residual (``RS``; for a rational patch plus the
+    drift of :func:`_rational_drift`, from the weights ``w``), and an affine map takes the
+    polygon into the hull of its vertices' images.  So z is at most the largest a_z at a
+    vertex plus its residual, and the xy distance at least the hull's distance from q, less
+    the xy residual: the hull lies beyond the line of any unit normal nu at min_v nu . (a(v)
+    - q), tried along the images of the box's sides and of the trim segments (the material's
+    edges) and towards the nearest vertex.  Both converge as the square of the sub-patch,
+    where the box of the net converges linearly, and near the ball's rim f's slope across it
+    grows as R / sqrt(R^2 - r^2)."""
+    cx, cy, cz = (c[node] for c in centroid)
+    s_, t_ = st[..., 0], st[..., 1]
+    cX, cY, cZ = C[1, node], C[2, node], C[0, node]
+    ax = (cx + cX[:, 0])[:, None] + cX[:, 1:2] * s_ + cX[:, 2:3] * t_ - q[:, :1]
+    ay = (cy + cY[:, 0])[:, None] + cY[:, 1:2] * s_ + cY[:, 2:3] * t_ - q[:, 1:]
+    az = (cz + cZ[:, 0])[:, None] + cZ[:, 1:2] * s_ + cZ[:, 2:3] * t_
+    rx, ry, rz = (np.abs(RS[j, node]).max(axis=1) for j in (1, 2, 0))
+    if w is not None:
+        rx = rx + _rational_drift(w, cX)
+        ry = ry + _rational_drift(w, cY)
+        rz = rz + _rational_drift(w, cZ)
+    z_top = np.where(ok, az, -np.inf).max(axis=1) + rz
+    # candidate normals (m, D): the images of the box's sides (s and t), of the trim
+    # segments, and the direction of the nearest vertex
+    tx = [cX[:, 1], cX[:, 2]]
+    ty = [cY[:, 1], cY[:, 2]]
+    if k:
+        ds = st[:, 4 + k:, 0] - st[:, 4:4 + k, 0]
+        dt = st[:, 4 + k:, 1] - st[:, 4:4 + k, 1]
+        tx.append(cX[:, 1:2] * ds + cX[:, 2:3] * dt)
+        ty.append(cY[:, 1:2] * ds + cY[:, 2:3] * dt)
+    dist2 = np.where(ok, ax * ax + ay * ay, np.inf)
+    j = np.argmin(dist2, axis=1)
+    rows = np.arange(len(node))
+    nx = np.column_stack(tuple(-v for v in ty) + (ax[rows, j],))
+    ny = np.column_stack(tuple(tx) + (ay[rows, j],))
+    length = np.hypot(nx, ny)
+    usable = length > 0
+    nx = nx / np.where(usable, length, 1.0)
+    ny = ny / np.where(usable, length, 1.0)
+    gap = np.zeros(len(node))
+    for c in range(nx.shape[1]):
+        proj = nx[:, c:c + 1] * ax + ny[:, c:c + 1] * ay  # (m, V)
+        lo = np.where(ok, proj, np.inf).min(axis=1)
+        hi = np.where(ok, proj, -np.inf).max(axis=1)
+        gap = np.maximum(gap, np.where(usable[:, c], np.maximum(lo, -hi), 0.0))
+    # less the residual, and a margin for rounding (coordinates of order 1e2 mm)
+    r = np.maximum(gap - np.hypot(rx, ry) - RIM_ROUNDING_MM, 0.0)
+    return z_top, r
 
 
 def _clip(seg: FloatArray, box: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
@@ -815,7 +887,7 @@ class FaceSet:
             level += 1
             evaluated = []
             for j, d, it in groups:
-                ub, lb, lu, lv = self._bounds(d, it, q, R)
+                ub, lb, lu, lv = self._bounds(d, it, q, R, best[it.query] + certify)
                 evaluated.append((j, d, it, ub))
                 good = np.isfinite(lb)
                 if good.any():
@@ -1259,9 +1331,11 @@ class FaceSet:
         ok = (concave | side_u | side_v) & np.isfinite(du) & np.isfinite(dw)
         return ok, u + np.where(ok, du, 0.0), v + np.where(ok, dw, 0.0)
 
-    def _bounds(self, d: _FaceData, it: _Items, q: FloatArray, R: float):
+    def _bounds(self, d: _FaceData, it: _Items, q: FloatArray, R: float,
+                floor: FloatArray | float = -np.inf):
         """Upper bound of f over each sub-patch's material, a lower bound (f at a surface
-        point inside the trim, -inf if none) and that point's (u, v)."""
+        point inside the trim, -inf if none) and that point's (u, v).  Pairs whose bound is
+        at most ``floor`` (per pair: they will be dropped) are not bounded more tightly."""
         n = len(it.query)
         R2 = R * R
         # the query-free part, once per sub-patch of the table (see _Items)
@@ -1321,6 +1395,41 @@ class FaceSet:
         lin = cz + s0 + amax + resid
         ub = np.where(lin_ok & (lin < ub), lin, ub)
         ub[~reach] = -np.inf
+        # next to the ball's rim the box's distance bounds f only to first order, by a slope
+        # that grows without bound there: the material's own distance instead (where the
+        # bounds so far leave the pair open)
+        rim = np.flatnonzero((ub > floor) & (dd >= (RIM_FRACTION * R) ** 2)
+                             & (it.depth >= RIM_DEPTH))
+        if len(rim):
+            in_strad = np.full(n, -1)
+            if len(strad):
+                in_strad[strad[listed]] = np.flatnonzero(listed)
+            k_ = in_strad[rim]
+            zb = np.empty(len(rim))
+            rb = np.empty(len(rim))
+            w_all = flat[:, 3] if d.face.surface.rational else None
+            cut = k_ >= 0
+            for sel in (np.flatnonzero(~cut), np.flatnonzero(cut)):
+                if len(sel) == 0:
+                    continue
+                rows = rim[sel]
+                if cut[sel[0]]:
+                    # the corners and the ends of the segments present (at most kk of them)
+                    kk = max(int((it.segs[rows] >= 0).sum(axis=1).max()), 1)
+                    cols = np.r_[0:4 + kk, 4 + MAX_SEGMENTS:4 + MAX_SEGMENTS + kk]
+                    vst, vok = st[k_[sel]][:, cols], ok[k_[sel]][:, cols]
+                else:
+                    kk = 0
+                    vst = np.broadcast_to(CORNERS, (len(sel), 4, 2))
+                    vok = np.ones((len(sel), 4), bool)
+                zb[sel], rb[sel] = _material_reach(
+                    vst, vok, kk, nd[rows], qq[rows], (CX, CY, CZ), C, RS,
+                    None if w_all is None else w_all[nd[rows]])
+            far = rb * rb > R2
+            ub[rim[far]] = -np.inf
+            near = ~far
+            ub[rim[near]] = np.minimum(ub[rim[near]],
+                                       zb[near] + np.sqrt(np.maximum(R2 - rb[near] ** 2, 0.0)))
         # lower bound: corners (control points on the surface) inside the trim
         cidx = _corner_index(d.p, d.q)
         cx_, cy_, cz_ = PX[:, cidx][nd], PY[:, cidx][nd], PZ[:, cidx][nd]
