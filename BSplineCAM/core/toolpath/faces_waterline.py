@@ -69,6 +69,8 @@ SURFACE_TILT = 1e-3
 #: Largest number of drop-cutter queries per grid edge while polishing its crossing (regula
 #: falsi converges in about 6 where the height is smooth; a jump takes about 12 bisections).
 FALSI_STEPS = 32
+#: A level point lies within this fraction of the tolerance of its level (mm) in height.
+LEVEL_EPS = 1e-3
 #: A jump of the drop height past a level is bracketed to this fraction of the tolerance (mm):
 #: the point kept, on the air side, lies at most that far from where the ball leaves the model.
 JUMP_WIDTH = 0.125
@@ -494,7 +496,7 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     z0, z1 = Z[c0[:, 0], c0[:, 1]], Z[c1[:, 0], c1[:, 1]]
     width = JUMP_WIDTH * tool.tolerance
     t, jump, t_up, settled = polish_crossings(lambda q: query.heights(q)[0], p0, p1, z0, z1, zl,
-                                     1e-3 * tool.tolerance, width)
+                                              LEVEL_EPS * tool.tolerance, width)
     xy = p0 + t[:, None] * (p1 - p0)
     _tip, good = _contacts(faceset, query, signs, xy)
     if jump.any():
@@ -555,7 +557,7 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     passes = [pts[a:b][keep[a:b]] for a, b in zip(starts[:-1], starts[1:])]
     step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
     passes, push_stats = push_out(_FiniteQuery(query), passes, step, drop_dips=True,
-                                  follow_jumps=True)
+                                  follow_jumps=True, off_level=LEVEL_EPS * tool.tolerance)
     monitor(0.9)
     # vertices pushed off the selected faces' surface contacts end their run
     out = []

@@ -280,8 +280,8 @@ UNSEEN_DIP = 1e-4
 
 
 def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
-             drop_dips: bool = False,
-             follow_jumps: bool = False) -> tuple[list, dict]:
+             drop_dips: bool = False, follow_jumps: bool = False,
+             off_level: float = OFF_LEVEL) -> tuple[list, dict]:
     """Move waterline vertices outwards (downhill, in XY) until no chord at the level has the
     exact drop-cutter height above it: a chord across a convex contour lies inside the offset.
 
@@ -292,8 +292,10 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
 
     With ``follow_jumps`` (the faces' waterline, whose contours follow jumps of the height),
     where that shift would exceed a quarter of the chord (no smooth sag is that deep), the
-    height is steeper than ``MAX_SLOPE`` at the worst point or an end lies off its level by
-    more than ``OFF_LEVEL`` (beside a jump), the height may jump inside the chord (the ball's
+    height is steeper than ``MAX_SLOPE`` at the worst point or an end lies beside a jump (no
+    face, a jump shift of an earlier round, or off its level by more than ``off_level``, the
+    level points' accuracy, plus what the smooth shifts explain: :func:`_beside_jump`), the
+    height may jump inside the chord (the ball's
     rim on a wall, the model's edge: e is the jump's height and the gradient means nothing):
     the shift is found instead by searching along both normals from the worst point for the
     nearest point on the free side (height at most the level, or no face), halving from half
@@ -310,13 +312,20 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
     it = 0
     jumps = 0
     check = None
+    # per vertex (their count never changes here): the level deviation (mm) the smooth shifts
+    # so far explain, and whether a jump shift moved it
+    nv = sum(len(p) for p in passes)
+    explained = np.zeros(nv)
+    jumped = np.zeros(nv, bool)
+    off = jumped
     for it in range(1, iterations + 2):
         s = sample_chords(dc.heights_and_slopes, passes, [p[:, 2] for p in passes], step)
         if follow_jumps:
-            _hide_jump_chords(s)
+            off = _beside_jump(s, explained, jumped, off_level)
+            _hide_jump_chords(s, off)
         check = chord_excess(dc.heights_and_slopes, s)
         if follow_jumps:
-            _jump_chord_excess(dc, s, check)
+            _jump_chord_excess(dc, s, check, off)
         worst = float(np.max(check.excess, initial=-np.inf))
         if worst <= NEGLIGIBLE or it > iterations:
             break
@@ -336,9 +345,7 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
         shift = np.where(need, (np.maximum(check.excess, 0.0) + CLEARANCE) / rate, 0.0)
         cand = np.flatnonzero(need)
         where, gw = _worst_points(s, check, cand)
-        # a vertex off its level (beside a jump: no face, or far below) makes its chords jump
-        zvx = s.z[s.vertex]
-        off = ~(np.abs(zvx - vzv) <= OFF_LEVEL)
+        # a vertex beside a jump (no face, or far below) makes its chords jump
         steep = ~(np.abs(gw).max(axis=1, initial=0.0) <= MAX_SLOPE)
         steep |= off[cand] | off[nxt[cand]] | (shift[cand] > 0.25 * length[cand])
         if not follow_jumps:
@@ -376,6 +383,18 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
         move[fc] = joint
         move[lc] = joint
         moved_max = max(moved_max, float(np.hypot(move[:, 0], move[:, 1]).max(initial=0.0)))
+        if follow_jumps:
+            # a smooth shift lowers the vertex's height by about |grad| times its length (twice
+            # that is allowed, and the clearance); a vertex a jump shift moved, or one without a
+            # gradient, stays beside a jump
+            jumped[jump] = True
+            jumped[nxt[jump]] = True
+            slope = np.maximum(np.hypot(gv[:, 0], gv[:, 1]), np.hypot(grad[:, 0], grad[:, 1]))
+            slope[1:] = np.maximum(slope[1:], np.where(prev[1:], slope[:-1], 0.0))
+            moved = amount > 0
+            jumped |= moved & ~np.isfinite(slope)
+            explained += np.where(moved & np.isfinite(slope),
+                                  2.0 * amount * slope + CLEARANCE, 0.0)
         new = vxy + move
         cuts = np.flatnonzero(np.diff(vline)) + 1
         passes = [np.column_stack([q, p[:, 2:]]) for q, p in zip(np.split(new, cuts), passes)]
@@ -390,12 +409,23 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
                     "dipping_chords": dipping}
 
 
-def _hide_jump_chords(s) -> None:
-    """Blank (NaN) the inner samples of the chords with an end off its level: beside a jump
-    :func:`chord_excess` would cut every interval across it down to ``MIN_SPLIT`` and learn
-    nothing (its model needs a height at both ends); :func:`_jump_chord_excess` checks them."""
+def _beside_jump(s, explained: FloatArray, jumped: np.ndarray, off_level: float) -> np.ndarray:
+    """Whether each vertex lies beside a jump of the height: no face under the ball, moved by
+    a jump shift (``jumped``), or off its level by more than ``off_level`` (mm, the level
+    points' own accuracy) plus what push_out's smooth shifts explain (``explained``, mm):
+    a vertex shifted downhill stands below its level by about its chord's excess, and its
+    chords are smooth ones still."""
     vxy, vzv, vline = s.vertices()
-    off = ~(np.abs(s.z[s.vertex] - vzv) <= OFF_LEVEL)
+    dev = np.abs(s.z[s.vertex] - vzv)
+    return jumped | ~(dev <= off_level + explained)
+
+
+def _hide_jump_chords(s, off: np.ndarray) -> None:
+    """Blank (NaN) the inner samples of the chords with an end beside a jump (``off``, per
+    vertex): there :func:`chord_excess` would cut every interval across it down to
+    ``MIN_SPLIT`` and learn nothing (its model needs a height at both ends);
+    :func:`_jump_chord_excess` checks them."""
+    vxy, vzv, vline = s.vertices()
     jump = np.append((vline[1:] == vline[:-1]) & (off[:-1] | off[1:]), False)
     rank = np.cumsum(s.vertex) - 1
     blank = ~s.vertex & jump[rank]
@@ -403,7 +433,7 @@ def _hide_jump_chords(s) -> None:
     s.grad[blank] = np.nan
 
 
-def _jump_chord_excess(dc: DropCutter, s, check) -> None:
+def _jump_chord_excess(dc: DropCutter, s, check, off: np.ndarray) -> None:
     """Exact samples along the chords with an end off its level (beside a jump), raising
     their excess in ``check`` where one stands higher than the chord (and making it the
     chord's worst point).  :func:`chord_excess` examines only intervals with a height at both
@@ -415,7 +445,6 @@ def _jump_chord_excess(dc: DropCutter, s, check) -> None:
     vxy, vzv, vline = s.vertices()
     if len(vxy) < 2:
         return
-    off = ~(np.abs(s.z[s.vertex] - vzv) <= OFF_LEVEL)
     same = vline[1:] == vline[:-1]
     chords = np.flatnonzero(same & (off[:-1] | off[1:]))
     if len(chords) == 0:
