@@ -272,8 +272,9 @@ def densify(dc: DropCutter, pts: FloatArray, starts: np.ndarray, gap: float,
     return pts, starts
 
 
-#: A waterline vertex whose exact height is farther than this from its level (mm) lies beside a
-#: jump of the height (on its air side): the gradients of its chords mean nothing.
+#: push_out's default accuracy (mm) of the level points in height: a vertex farther than this
+#: from its level, beyond what push_out's own smooth shifts explain, lies beside a jump of the
+#: height (on its air side), where the gradients of its chords mean nothing (:func:`_beside_jump`).
 OFF_LEVEL = 1e-6
 #: Deepest dip (mm) of a chord beside a jump that its samples may miss (:func:`_jump_chord_excess`).
 UNSEEN_DIP = 1e-4
@@ -415,8 +416,7 @@ def _beside_jump(s, explained: FloatArray, jumped: np.ndarray, off_level: float)
     points' own accuracy) plus what push_out's smooth shifts explain (``explained``, mm):
     a vertex shifted downhill stands below its level by about its chord's excess, and its
     chords are smooth ones still."""
-    vxy, vzv, vline = s.vertices()
-    dev = np.abs(s.z[s.vertex] - vzv)
+    dev = np.abs(s.z[s.vertex] - s.zv[s.vertex])
     return jumped | ~(dev <= off_level + explained)
 
 
