@@ -124,7 +124,18 @@ def test_iso_holed_plane_passes_stop_at_the_hole():
     far = (found & (X > R) & (X < 40 - R) & (Y > R) & (Y < 40 - R)
            & (np.hypot(X - 20, Y - 20) > 8 + R))
     assert (sim - design)[far].max() <= H + TOL
-    hole = np.hypot(X - 20, Y - 20) < 8 - R
+    # the hole is entered only by stay-down links bridging a chord of it narrower than the
+    # ball (it rests on the rim on both sides); away from such chords it is never entered
+    links = [lk for lk in tp.links if lk is not None]
+    over = [lk for lk in links if np.hypot(lk[:, 0] - 20, lk[:, 1] - 20).min() < 8.0]
+    for lk in over:
+        assert np.ptp(lk[:, 1]) <= 1e-9  # along its pass
+        assert 2 * math.sqrt(64.0 - (lk[0, 1] - 20.0) ** 2) < D
+    reach = np.full(X.shape, True)
+    for lk in over:
+        reach &= np.abs(Y - lk[0, 1]) > R
+    hole = (np.hypot(X - 20, Y - 20) < 8 - R) & reach
+    assert hole.sum() > 1000
     assert np.all(sim[hole] >= stock_top(tp) - 1e-6)
 
 
@@ -151,6 +162,33 @@ def test_iso_cylinder_closed_form():
     assert_no_gouge(sim, design, found)
     far = found & (np.abs(Y - length / 2) < length / 2 - R) & (np.abs(X) < rho * math.sqrt(0.5) - R)
     assert (sim - design)[far].max() <= H + TOL
+
+
+@pytest.mark.parametrize("direction", ["u", "v"])
+def test_iso_seam_oblique_to_the_passes_keeps_the_scallop(direction):
+    """Two selected faces of one plane, split by a seam running at an angle to the iso-curves
+    (y from 16 to 22 mm across the 40 mm plate, as the top and a fillet of examples/part.step
+    meet).  Each face spaces its passes on its own, from its trim's parameter box, so at the
+    seam the last pass of one face and the first of the other could lie up to two stepovers
+    apart.  Every point of each face must lie within half a stepover of one of its passes (or
+    between two of them), the seam included: the scallop over the whole plate, seam band
+    included, stays within h + tol."""
+    ns = plane(0.0, 40.0, 0.0, 40.0, 1.5)
+    a, b = 0.4, 0.55  # the seam from (u, v) = (0, a) to (1, b)
+    lower = np.array([[0, 0], [1, 0], [1, b], [0, a], [0, 0]], float)
+    upper = np.array([[0, a], [1, b], [1, 1], [0, 1], [0, a]], float)
+    if direction == "v":  # the same plate with u and v swapped: the seam at x from 16 to 22
+        ns = NurbsSurface(ns.poles.transpose(1, 0, 2), ns.knots_v, ns.knots_u, 1, 1)
+        lower, upper = lower[::-1, ::-1].copy(), upper[::-1, ::-1].copy()
+    fs = FaceSet([Face(ns, lower, index=1), Face(ns, upper, index=2)])
+    tp = generate_faces_iso(fs, D, H, TOL, direction=direction)
+    verts = np.concatenate(tp.passes)
+    np.testing.assert_allclose(verts[:, 2], 1.5, atol=1e-9)
+    sim, design, _f, found, X, Y = simulated(fs, tp, (-1.0, 41.0, -1.0, 41.0), 0.05)
+    assert_no_gouge(sim, design, found)
+    far = found & (X > R) & (X < 40 - R) & (Y > R) & (Y < 40 - R)
+    scallop = (sim - design)[far]
+    assert scallop.max() <= H + TOL, scallop.max()
 
 
 @pytest.mark.parametrize("direction", ["u", "v"])

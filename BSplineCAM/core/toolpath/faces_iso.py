@@ -7,6 +7,9 @@ Per selected face, as :mod:`.isoparametric` does for one control net:
 * the iso-curves across are spaced by the scallop height from the curvature and slope of the
   face (:func:`.isoparametric._allowed_step`, curvature-adjusted stepover held vertically,
   checked on both neighbouring curves), over the points of each curve inside the trim;
+  where a trim edge crosses the curves at an angle (a seam between two selected faces, a
+  hole's rim) short partial curves cover the material between the last curve and the edge
+  (:func:`_edge_curves`), so no point of the face lies farther than half a step from a pass;
 * along a curve the contact point p runs from the trim's parameter box start to its end; the
   ball centre is p + R n (n the upward unit normal, Farouki 1986) and the tip that centre
   minus R; the tip is then raised to at least the certified :meth:`FaceSet.drop_ball` height
@@ -57,6 +60,12 @@ TRIM_BISECTIONS = 40
 REFINE_ROUNDS = 6
 #: Probe points along a curve for the stepover across it.
 PROBES = 65
+#: Samples per probe column in the smallest step that find the trim edges between the
+#: iso-curves (:func:`_edge_curves`; at most EDGE_SAMPLES_MAX a column), and the bisections
+#: that place each edge (to 2^-30 of a sample spacing).
+EDGE_SAMPLES = 16
+EDGE_SAMPLES_MAX = 4096
+EDGE_BISECTIONS = 30
 
 
 class _FaceJets:
@@ -116,6 +125,87 @@ def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection
             d = d2
         fixed.append(min(c + max(d, 1e-9 * (f1 - f0)), f1))
     return fixed
+
+
+def _material_runs(inside, probe: FloatArray, f0: float, f1: float, df: float,
+                   iso: IsoDirection) -> list[list[tuple[float, float]]]:
+    """Per probe column (a fixed value of the parameter along the passes), the stretches of
+    the fixed parameter in [f0, f1] inside the material, sampled every ``df`` at most (at
+    most ``EDGE_SAMPLES_MAX`` samples) and their ends placed by bisection."""
+    n = min(EDGE_SAMPLES_MAX, max(2, math.ceil((f1 - f0) / max(df, 1e-300)) + 1))
+    f = np.linspace(f0, f1, n)
+    cols = len(probe)
+    ins = np.asarray(inside(*_uv(np.repeat(probe, n), np.tile(f, cols), iso)),
+                     bool).reshape(cols, n)
+    rows, js = np.nonzero(ins[:, 1:] != ins[:, :-1])
+    lo, hi = f[js], f[js + 1]
+    ends = ins[rows, js]  # True: the material ends in this interval
+    for _ in range(EDGE_BISECTIONS):
+        m = 0.5 * (lo + hi)
+        same = np.asarray(inside(*_uv(probe[rows], m, iso)), bool) == ends
+        lo = np.where(same, m, lo)
+        hi = np.where(same, hi, m)
+    x = 0.5 * (lo + hi)
+    runs: list[list[tuple[float, float]]] = []
+    for j in range(cols):
+        edges = x[rows == j].tolist()
+        if ins[j, 0]:
+            edges.insert(0, f0)
+        if ins[j, -1]:
+            edges.append(f1)
+        runs.append(list(zip(edges[0::2], edges[1::2])))
+    return runs
+
+
+def _edge_curves(inside, probe: FloatArray, fixed: list[float],
+                 iso: IsoDirection) -> list[tuple[float, float, float]]:
+    """Partial curves (fixed value, along from, along to) that cover the material next to
+    trim edges running at an angle to the iso-curves.
+
+    A pass is cut only inside the trim, so where a trim edge crosses the iso-curves (the seam
+    of two selected faces, a hole's rim) the material next to it lies between a curve and
+    the edge, not between two curves, and may lie up to a step from the nearest cut.  Along
+    each probe column the material's stretches are found (:func:`_material_runs`); in each,
+    a point farther than half the step from the curves cut there (the step of the gap it lies
+    in, the allowed one) is uncovered.  An uncovered stretch [p, q] (shorter than a step) is
+    covered by one curve in [max(p, q - h), min(q, p + h)], h that half step; those
+    intervals of all columns are met by the fewest curves by greedy interval stabbing (each
+    curve at the earliest end of the intervals still open), and each curve is cut only over
+    the columns whose intervals it meets, two probe spacings wider on each side.  So every
+    point of the material lies within half a step of a curve cut there, or between two cut
+    curves at most a step apart (as the scallop's step assumes)."""
+    c = np.asarray(fixed, float)
+    if len(c) < 2:
+        return []
+    steps = np.diff(c)
+    runs = _material_runs(inside, probe, float(c[0]), float(c[-1]),
+                          float(steps.min()) / EDGE_SAMPLES, iso)
+    want = []  # (lo, hi, column): a curve must lie in [lo, hi]
+    for j, stretches in enumerate(runs):
+        for p, q in stretches:
+            k = np.flatnonzero((c >= p) & (c <= q))
+            if len(k) == 0:
+                g = min(max(int(np.searchsorted(c, p)) - 1, 0), len(steps) - 1)
+                gaps = [(p, q, 0.5 * steps[g])]
+            else:
+                gaps = []
+                first, last = int(k[0]), int(k[-1])
+                if first > 0 and c[first] - p > 0.5 * steps[first - 1]:
+                    gaps.append((p, c[first] - 0.5 * steps[first - 1], 0.5 * steps[first - 1]))
+                if last < len(steps) and q - c[last] > 0.5 * steps[last]:
+                    gaps.append((c[last] + 0.5 * steps[last], q, 0.5 * steps[last]))
+            for a, b, h in gaps:
+                want.append((max(a, b - h), min(b, a + h), j))
+    want.sort(key=lambda w: w[1])
+    spacing = float(probe[1] - probe[0]) if len(probe) > 1 else 0.0
+    curves = []
+    while want:
+        g = want[0][1]
+        met = [w[2] for w in want if w[0] <= g]
+        want = [w for w in want if w[0] > g]
+        curves.append((g, float(probe[min(met)]) - 2 * spacing,
+                       float(probe[max(met)]) + 2 * spacing))
+    return curves
 
 
 def _tips(jets: _FaceJets, query: FaceQuery, along: FloatArray, fixed: FloatArray,
@@ -189,9 +279,16 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
     n = max(8, math.ceil(length / step) + 1)
     along = np.linspace(a0, a1, n)
-    line = np.repeat(np.arange(len(fixed)), n)
-    t = np.tile(along, len(fixed))
-    f = np.asarray(fixed)[line]
+    # the scallop-spaced curves, and partial ones along trim edges that cross them
+    edge = _edge_curves(inside, np.linspace(a0, a1, PROBES), fixed, iso)
+    values = np.array(list(fixed) + [g for g, _, _ in edge])
+    span_lo = np.array([-np.inf] * len(fixed) + [b for _, b, _ in edge])
+    span_hi = np.array([np.inf] * len(fixed) + [b for _, _, b in edge])
+    order = np.argsort(values, kind="stable")
+    values, span_lo, span_hi = values[order], span_lo[order], span_hi[order]
+    line = np.repeat(np.arange(len(values)), n)
+    t = np.tile(along, len(values))
+    f = values[line]
     ins = inside(*_uv(t, f, iso))
     # trim crossings: the last point inside, by bisection
     cl_line, cl_t, cl_f = _trim_crossings(inside, line, t, f, ins, iso)
@@ -199,6 +296,7 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     t = np.concatenate([t, cl_t])
     f = np.concatenate([f, cl_f])
     ins = np.concatenate([ins, np.ones(len(cl_t), bool)])
+    ins &= (t >= span_lo[line]) & (t <= span_hi[line])  # a partial curve: its span only
     order = np.lexsort((t, line))
     line, t, f, ins = line[order], t[order], f[order], ins[order]
     line, t, f = line[ins], t[ins], f[ins]
@@ -250,13 +348,14 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     runs = [(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b - a >= 2 and cut[a]]
     monitor(lo + 0.7 * (hi - lo))
     if not runs:
-        return [], fixed, {}
+        return [], fixed, {"edge_curves": len(edge)}
     starts = np.cumsum([0] + [b - a for a, b in runs])
     idx = np.concatenate([np.arange(a, b) for a, b in runs])
     pieces, stats = lifted_runs(query.heights_and_slopes, cl[idx], starts, half, step)
     passes = [(int(line[a]), p) for (a, _b), p in zip(runs, pieces)]
     ordered = zigzag_by_line(passes)
     stats["lifted_points"] = int((lift > tool.tolerance).sum())
+    stats["edge_curves"] = len(edge)
     return ordered, fixed, stats
 
 
