@@ -184,6 +184,8 @@ def test_iso_seam_oblique_to_the_passes_keeps_the_scallop(direction):
     tp = generate_faces_iso(fs, D, H, TOL, direction=direction)
     verts = np.concatenate(tp.passes)
     np.testing.assert_allclose(verts[:, 2], 1.5, atol=1e-9)
+    # the partial passes along the seam, on both faces
+    assert all(v["edge_curves"] > 0 for v in tp.extra["faces"].values())
     sim, design, _f, found, X, Y = simulated(fs, tp, (-1.0, 41.0, -1.0, 41.0), 0.05)
     assert_no_gouge(sim, design, found)
     far = found & (X > R) & (X < 40 - R) & (Y > R) & (Y < 40 - R)

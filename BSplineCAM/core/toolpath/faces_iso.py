@@ -389,6 +389,7 @@ def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
         steps = np.diff(fixed)
         per_face[face.name] = {
             "iso_values": [float(x) for x in fixed], "passes": len(ordered),
+            "edge_curves": stats.pop("edge_curves", 0),
             "parameter_step_min": float(steps.min()) if len(steps) else float("nan"),
             "parameter_step_max": float(steps.max()) if len(steps) else float("nan"),
             "chord_lift": stats}
