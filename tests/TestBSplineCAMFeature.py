@@ -204,6 +204,14 @@ class TestSurfaceObject(BSplineCAMTestCase):
         net[3, 3, 2] = 40.0
         hill = Surface(net, "clamped")
         self.assertLess(part.surface_extent(hill).z_max, part.to_face(hill).BoundBox.ZMax - 10.0)
+        # extents are remembered by the net: the same shape with a higher pole is searched anew
+        net[3, 3, 2] = 70.0
+        higher = Surface(net, "clamped")
+        top = higher.evaluate_grid(np.linspace(0.4, 0.6, 201), np.linspace(0.4, 0.6, 201))
+        self.assertAlmostEqual(part.surface_extent(higher).z_max, float(top[..., 2].max()),
+                               places=3)
+        self.assertGreater(part.surface_extent(higher).z_max,
+                           part.surface_extent(hill).z_max + 10.0)
 
     def test_placement_is_kept(self) -> None:
         obj = sf.make_surface(wavy_net(), doc=self.doc)

@@ -87,8 +87,15 @@ EXTENT_SAMPLES_PER_PATCH = 16
 EXTENT_ROUNDS = 10
 
 
+#: The extents of the last few nets (:func:`surface_extent`): a recompute asks for the same
+#: surface's several times (depths, stock, the op's own), each a dense search.
+_EXTENTS: dict = {}
+EXTENT_MEMO = 8
+
+
 def surface_extent(surface: Surface) -> Extent:
-    """The exact surface's extent by the core's evaluation (deterministic, no OCCT box).
+    """The exact surface's extent by the core's evaluation (deterministic, no OCCT box),
+    remembered by the net's knots and points.
 
     OCCT's ``BoundBox`` of a B-spline face encloses its poles (or, once the face is meshed,
     the mesh plus its deflection), so it stands above a hill's top and changes with the view.
@@ -97,6 +104,20 @@ def surface_extent(surface: Surface) -> Extent:
     last, refine it (a fine search; the surface is smooth within a patch): the result lies
     inside the true extent by far less than 1 nm for nets of usual size.
     """
+    net = surface.control_points
+    key = (str(surface.knots.value), net.shape, net.tobytes())
+    known = _EXTENTS.get(key)
+    if known is not None:
+        return known
+    extent = _search_extent(surface)
+    while len(_EXTENTS) >= EXTENT_MEMO:
+        _EXTENTS.pop(next(iter(_EXTENTS)))
+    _EXTENTS[key] = extent
+    return extent
+
+
+def _search_extent(surface: Surface) -> Extent:
+    """:func:`surface_extent`'s search."""
     pu, pw = surface.patches
     nu = EXTENT_SAMPLES_PER_PATCH * pu + 1
     nw = EXTENT_SAMPLES_PER_PATCH * pw + 1
