@@ -1141,7 +1141,8 @@ class FaceSet:
         the normals of the trim segments in the box cover a maximum on a trim edge (the
         material lies on one side of a straight edge: delta = 0, and beta, the slope along
         the edge, vanishes at the edge's maximum).  The least bound over these, divided by
-        w_min^2, is the excess.  Boxes are tried largest first (REGION_SIZES) and stay inside
+        w_min^2, is the excess.  Boxes are tried largest first (REGION_SIZES: the first alone,
+        then the rest in one pass, each query keeping the largest that holds) and stay inside
         the Bezier patch that holds x*."""
         n = len(u)
         found = np.zeros(n, bool)
@@ -1177,10 +1178,15 @@ class FaceSet:
         # trim segments crossing each box: those of the (nested) box tried before it
         segs = d.root_segs[root]
         stat = d.root_status[root]
-        for rho in REGION_SIZES:
-            if not todo.any():
+        # the largest box first; where it fails, all the smaller ones in one pass (a call's
+        # cost is in its array operations, not its rows), each query taking the largest
+        # that holds.  A nested box's trim segments are among its first box's.
+        for sizes in (REGION_SIZES[:1], REGION_SIZES[1:]):
+            if not todo.any() or not sizes:
                 break
-            k_ = np.flatnonzero(todo)
+            asked = np.flatnonzero(todo)
+            k_ = np.repeat(asked, len(sizes))
+            rho = np.tile(np.asarray(sizes, float), len(asked))
             s0, s1 = np.maximum(cs[k_] - rho, 0.0), np.minimum(cs[k_] + rho, 1.0)
             t0, t1 = np.maximum(ct[k_] - rho, 0.0), np.minimum(ct[k_] + rho, 1.0)
             sub = _sub_net(nets[k_], s0, s1, t0, t1)
@@ -1283,11 +1289,13 @@ class FaceSet:
             # k > 0 is all the bound needs: where the face turns steep its xy map nears
             # singular (s_eff <= 0, no concavity from the hemisphere), but a convex face's own
             # curvature (lam < 0) still makes f strongly concave along it
-            ok = (kk > 0) & (wmin > 0) & usable & (excess <= limit[k_])
-            hit = k_[ok]
+            ok = np.flatnonzero((kk > 0) & (wmin > 0) & usable & (excess <= limit[k_]))
+            # rows run query by query, largest box first: each query's first good row
+            first = ok[np.unique(k_[ok], return_index=True)[1]]
+            hit = k_[first]
             found[hit] = True
-            out_box[hit] = rbox[ok]
-            out_ex[hit] = excess[ok]
+            out_box[hit] = rbox[first]
+            out_ex[hit] = excess[first]
             todo[hit] = False
         return found, out_box, out_ex
 
