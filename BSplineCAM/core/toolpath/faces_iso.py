@@ -168,7 +168,8 @@ def _edge_curves(inside, probe: FloatArray, fixed: list[float],
     each probe column the material's stretches are found (:func:`_material_runs`); in each,
     a point farther than half the step from the curves cut there (the step of the gap it lies
     in, the allowed one) is uncovered.  An uncovered stretch [p, q] (shorter than a step) is
-    covered by one curve in [max(p, q - h), min(q, p + h)], h that half step; those
+    covered by one curve in [max(p, q - h), min(q, p + h)] (h that half step; kept h / 8 off
+    q, where the stretch may end at the edge itself); those
     intervals of all columns are met by the fewest curves by greedy interval stabbing (each
     curve at the earliest end of the intervals still open), and each curve is cut only over
     the columns whose intervals it meets, two probe spacings wider on each side.  So every
@@ -195,7 +196,9 @@ def _edge_curves(inside, probe: FloatArray, fixed: list[float],
                 if last < len(steps) and q - c[last] > 0.5 * steps[last]:
                     gaps.append((c[last] + 0.5 * steps[last], q, 0.5 * steps[last]))
             for a, b, h in gaps:
-                want.append((max(a, b - h), min(b, a + h), j))
+                # a little inside the stretch's end (at an edge the curve would not be cut
+                # there): any curve within h of both ends covers it
+                want.append((max(a, b - h), min(b - min(h / 8.0, 0.5 * (b - a)), a + h), j))
     want.sort(key=lambda w: w[1])
     spacing = float(probe[1] - probe[0]) if len(probe) > 1 else 0.0
     curves = []
