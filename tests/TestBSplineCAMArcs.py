@@ -217,3 +217,83 @@ def test_waterline_arcs_stay_on_the_free_side():
                     / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
         best = np.minimum(best, np.linalg.norm(a + t[:, None] * ab - pts[::5], axis=1))
     assert best.max() <= 0.001 + 1e-5
+
+
+def _greedy_one_end_per_call(sizes, evaluate, first):
+    """The greedy runs as documented, one end asked per call (the reference for
+    :func:`arcs._greedy`, which asks for several at once)."""
+    out = []
+    for p, n in enumerate(sizes):
+        runs, start = [], 0
+        while start < n - 1:
+            if start + first > n - 1:
+                runs.append((start, start + 1, None))
+                start += 1
+                continue
+            step, best, lo, hi = first, None, 0, None
+            while True:
+                end = min(start + step, n - 1) if hi is None else (lo + hi) // 2
+                fit = evaluate([(p, start, end)])[0]
+                if hi is None:
+                    if fit is not None:
+                        best = (end, fit)
+                        if end == n - 1:
+                            break
+                        step *= 2
+                        continue
+                    if best is None:
+                        break
+                    lo, hi = best[0], end
+                elif fit is not None:
+                    lo, best = end, (end, fit)
+                else:
+                    hi = end
+                if hi - lo <= 1:
+                    break
+            if best is None:
+                runs.append((start, start + 1, None))
+                start += 1
+            else:
+                runs.append((start, best[0], best[1]))
+                start = best[0]
+        out.append(runs)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_greedy_runs_match_one_end_per_call(seed):
+    """arcs._greedy asks for several ends at once (the shortest runs of the next starts after
+    a stretch where nothing fits); its runs are those of the plain greedy, one end per call,
+    on fit tests that are not monotone (a longer run may fit where a shorter one did not).
+    Where nothing fits it needs far fewer calls than positions."""
+    from BSplineCAM.core.toolpath import arcs
+
+    rng = np.random.default_rng(seed)
+    sizes = [int(n) for n in rng.integers(2, 400, 7)] + [1, 3]
+    straight = rng.random(len(sizes)) < 0.5  # sequences with long stretches where nothing fits
+    memo: dict = {}
+
+    def evaluate(jobs):
+        out = []
+        for p, s, e in jobs:
+            if (p, s, e) not in memo:
+                quiet = straight[p] and (s // 50) % 2 == 0
+                ok = not quiet and rng.random() < (0.9 if e - s <= 8 else 0.5)
+                memo[p, s, e] = ("fit", p, s, e) if ok else None
+            out.append(memo[p, s, e])
+        return out
+
+    for first in (2, 4):
+        calls = []
+
+        def counted(jobs):
+            calls.append(len(jobs))
+            return evaluate(jobs)
+
+        assert arcs._greedy(sizes, counted, first) == _greedy_one_end_per_call(
+            sizes, evaluate, first)
+    # a sequence where nothing fits: one call per start before, a few calls now
+    calls = []
+    runs = arcs._greedy([1000], lambda jobs: calls.append(len(jobs)) or [None] * len(jobs), 4)
+    assert runs == [[(s, s + 1, None) for s in range(999)]]
+    assert len(calls) < 1000 / 8

@@ -81,6 +81,8 @@ BISECTIONS = 16
 HELIX_MIN_POINTS = 5
 #: Largest turn (degrees) between successive chords inside a run tried as a biarc.
 BIARC_KINK_DEG = 20.0
+#: Starts whose shortest runs a sequence starting a run asks for at once (:func:`_greedy`).
+FRESH_AHEAD = 16
 
 #: (first axis, second axis, normal axis) of each plane, as in :data:`BSplineCAM.core.gcode`.
 PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
@@ -300,6 +302,18 @@ def _fit_runs(runs: Sequence[FloatArray], tolerance: float, vertical: np.ndarray
     return out
 
 
+def _nanmedian_rows(a: FloatArray) -> FloatArray:
+    """``np.nanmedian(a, axis=1)`` of a 2-D array (NaN for a row of NaNs, without a warning),
+    by one sort: numpy's own takes a masked-array path on small arrays that cost 0.3 ms a
+    call, and the helix fit is called once per greedy round."""
+    srt = np.sort(a, axis=1)  # NaNs last
+    count = np.count_nonzero(~np.isnan(a), axis=1)
+    rows = np.arange(len(a))
+    lo = srt[rows, np.maximum((count - 1) // 2, 0)]
+    hi = srt[rows, np.maximum(count // 2, 0)]
+    return np.where(count > 0, (lo + hi) / 2.0, np.nan)
+
+
 def _fit_helices(runs: Sequence[FloatArray], tolerance: float, sided: np.ndarray
                  ) -> list[_Fit | None]:
     """One helical G17 arc per 3-D run (x, y, z; the XY part mirrored so that a ``sided``
@@ -333,7 +347,7 @@ def _fit_helices(runs: Sequence[FloatArray], tolerance: float, sided: np.ndarray
     cols = np.arange(pts.shape[1])[None, :]
     interior = (cols >= 1) & (cols < (count - 1)[:, None])
     sag = np.where(interior, _circle_sagitta(c[:, None], u, v), np.nan)
-    s = np.nanmedian(sag, axis=1)
+    s = _nanmedian_rows(sag)
     s_max = c * math.tan(math.radians(MAX_SWEEP_DEG) / 4.0)
     s_min_radius = MAX_RADIUS - np.sqrt(np.maximum(MAX_RADIUS ** 2 - c * c, 0.0))
     median_ok = (np.abs(s) <= s_max) & (np.abs(s) >= s_min_radius) & (s != 0)
@@ -510,7 +524,13 @@ def _greedy(sizes: Sequence[int], evaluate: Callable[[list[tuple[int, int, int]]
     so that every round is one vectorised evaluation: per sequence a list of (start, end, fit
     or None), None meaning one step (end = start + 1).  From each start the run's end gallops
     (start + first, then doubling the step) until ``evaluate`` admits no fit, then bisects.
-    ``evaluate`` takes (sequence, start, end) triples and returns a fit or None for each."""
+    ``evaluate`` takes (sequence, start, end) triples and returns a fit or None for each.
+
+    Where no run fits (a stretch of straight feeds), each round would move a sequence on by
+    one position: so a sequence starting a run after such a failure asks at once for the
+    shortest runs from its next starts (twice as many each time they all fail, up to
+    FRESH_AHEAD), and takes them in order (a failure is the single step to the next start)
+    up to the first that fits; the runs are those of one end per round."""
     P = len(sizes)
     out: list[list[tuple]] = [[] for _ in range(P)]
     start = [0] * P
@@ -518,6 +538,7 @@ def _greedy(sizes: Sequence[int], evaluate: Callable[[list[tuple[int, int, int]]
     best: list = [None] * P
     lo = [0] * P
     hi: list = [None] * P  # bisection bracket once a run failed
+    ahead = [1] * P  # starts asked for at once by a sequence starting a run
 
     def commit(p: int) -> None:
         if best[p] is None:
@@ -530,21 +551,47 @@ def _greedy(sizes: Sequence[int], evaluate: Callable[[list[tuple[int, int, int]]
 
     active = list(range(P))
     while active:
-        ends = []
+        jobs = []
         runnable = []
+        fresh: list = []  # (sequence, its rows in jobs) starting runs
         for p in active:
             n = sizes[p]
             while start[p] < n - 1 and start[p] + first > n - 1:
                 commit(p)  # too few steps left for a run
             if start[p] >= n - 1:
                 continue
+            if hi[p] is None and best[p] is None:
+                # the shortest runs from this start and the next ones (each needs first
+                # steps left: end <= n - 1)
+                s0 = start[p]
+                k = min(ahead[p], n - first - s0)
+                fresh.append((p, len(jobs), k))
+                jobs += [(p, s0 + i, s0 + i + first) for i in range(k)]
+                continue
             end = min(start[p] + step[p], n - 1) if hi[p] is None else (lo[p] + hi[p]) // 2
-            ends.append(end)
-            runnable.append(p)
-        if not runnable:
+            jobs.append((p, start[p], end))
+            runnable.append((p, len(jobs) - 1))
+        if not jobs:
             break
-        fits = evaluate([(p, start[p], e) for p, e in zip(runnable, ends)])
-        for p, end, fit in zip(runnable, ends, fits):
+        fits = evaluate(jobs)
+        for p, at, k in fresh:
+            n = sizes[p]
+            ahead[p] = min(2 * ahead[p], FRESH_AHEAD)  # unless one fits
+            for i in range(k):
+                fit = fits[at + i]
+                if fit is None:
+                    commit(p)  # one step on: the next start's run is the next row
+                    continue
+                ahead[p] = 1
+                end = jobs[at + i][2]
+                best[p] = (end, fit)
+                if end == n - 1:
+                    commit(p)
+                else:
+                    step[p] *= 2
+                break
+        for p, r in runnable:
+            end, fit = jobs[r][2], fits[r]
             n = sizes[p]
             if hi[p] is None:  # galloping
                 if fit is not None:
@@ -566,7 +613,7 @@ def _greedy(sizes: Sequence[int], evaluate: Callable[[list[tuple[int, int, int]]
                     hi[p] = end
                 if hi[p] - lo[p] <= 1:
                     commit(p)
-        active = [p for p in runnable if start[p] < sizes[p] - 1]
+        active = [p for p in active if start[p] < sizes[p] - 1]
     return out
 
 
