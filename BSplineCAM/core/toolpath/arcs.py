@@ -553,7 +553,7 @@ def _greedy(sizes: Sequence[int], evaluate: Callable[[list[tuple[int, int, int]]
     while active:
         jobs = []
         runnable = []
-        fresh: list = []  # (sequence, its rows in jobs) starting runs
+        fresh: list = []  # sequences starting a run: (sequence, first row in jobs, rows)
         for p in active:
             n = sizes[p]
             while start[p] < n - 1 and start[p] + first > n - 1:
