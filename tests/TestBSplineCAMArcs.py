@@ -284,13 +284,7 @@ def test_greedy_runs_match_one_end_per_call(seed):
         return out
 
     for first in (2, 4):
-        calls = []
-
-        def counted(jobs):
-            calls.append(len(jobs))
-            return evaluate(jobs)
-
-        assert arcs._greedy(sizes, counted, first) == _greedy_one_end_per_call(
+        assert arcs._greedy(sizes, evaluate, first) == _greedy_one_end_per_call(
             sizes, evaluate, first)
     # a sequence where nothing fits: one call per start before, a few calls now
     calls = []

@@ -61,11 +61,9 @@ REFINE_ROUNDS = 6
 #: Probe points along a curve for the stepover across it.
 PROBES = 65
 #: Samples per probe column in the smallest step that find the trim edges between the
-#: iso-curves (:func:`_edge_curves`; at most EDGE_SAMPLES_MAX a column), and the bisections
-#: that place each edge (to 2^-30 of a sample spacing).
+#: iso-curves (:func:`_edge_curves`; at most EDGE_SAMPLES_MAX a column).
 EDGE_SAMPLES = 16
 EDGE_SAMPLES_MAX = 4096
-EDGE_BISECTIONS = 30
 
 
 class _FaceJets:
@@ -131,24 +129,19 @@ def _material_runs(inside, probe: FloatArray, f0: float, f1: float, df: float,
                    iso: IsoDirection) -> list[list[tuple[float, float]]]:
     """Per probe column (a fixed value of the parameter along the passes), the stretches of
     the fixed parameter in [f0, f1] inside the material, sampled every ``df`` at most (at
-    most ``EDGE_SAMPLES_MAX`` samples) and their ends placed by bisection."""
+    most ``EDGE_SAMPLES_MAX`` samples), their ends the inside ends of the crossings
+    (:func:`_trim_crossings` along the column: the directions swapped)."""
     n = min(EDGE_SAMPLES_MAX, max(2, math.ceil((f1 - f0) / max(df, 1e-300)) + 1))
     f = np.linspace(f0, f1, n)
     cols = len(probe)
-    ins = np.asarray(inside(*_uv(np.repeat(probe, n), np.tile(f, cols), iso)),
-                     bool).reshape(cols, n)
-    rows, js = np.nonzero(ins[:, 1:] != ins[:, :-1])
-    lo, hi = f[js], f[js + 1]
-    ends = ins[rows, js]  # True: the material ends in this interval
-    for _ in range(EDGE_BISECTIONS):
-        m = 0.5 * (lo + hi)
-        same = np.asarray(inside(*_uv(probe[rows], m, iso)), bool) == ends
-        lo = np.where(same, m, lo)
-        hi = np.where(same, hi, m)
-    x = 0.5 * (lo + hi)
+    column = np.repeat(np.arange(cols), n)
+    across = IsoDirection.W if iso is IsoDirection.U else IsoDirection.U
+    ins = np.asarray(inside(*_uv(np.tile(f, cols), probe[column], across)), bool)
+    rows, x, _ = _trim_crossings(inside, column, np.tile(f, cols), probe[column], ins, across)
+    ins = ins.reshape(cols, n)
     runs: list[list[tuple[float, float]]] = []
     for j in range(cols):
-        edges = x[rows == j].tolist()
+        edges = x[rows == j].tolist()  # in order along the column
         if ins[j, 0]:
             edges.insert(0, f0)
         if ins[j, -1]:
