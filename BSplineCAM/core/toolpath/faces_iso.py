@@ -275,8 +275,11 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
     n = max(8, math.ceil(length / step) + 1)
     along = np.linspace(a0, a1, n)
-    # the scallop-spaced curves, and partial ones along trim edges that cross them
-    edge = _edge_curves(inside, np.linspace(a0, a1, PROBES), fixed, iso)
+    # the scallop-spaced curves, and partial ones along trim edges that cross them, probed in
+    # the middle of PROBES columns (a column on the trim box's side would run along a trim
+    # edge, in or out by rounding: a document saved and reopened got other partial passes)
+    cols = a0 + (np.arange(PROBES) + 0.5) * ((a1 - a0) / PROBES)
+    edge = _edge_curves(inside, cols, fixed, iso)
     values = np.array(list(fixed) + [g for g, _, _ in edge])
     span_lo = np.array([-np.inf] * len(fixed) + [b for _, b, _ in edge])
     span_hi = np.array([np.inf] * len(fixed) + [b for _, _, b in edge])
