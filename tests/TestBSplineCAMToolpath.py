@@ -479,3 +479,50 @@ def test_zigzag_links_stay_down_and_never_gouge(case, case_raster):
         assert np.nanmax(z - pts[:, 2]) <= 1e-6
     moves = to_moves(tp)
     assert sum(m.kind == "rapid" for m in moves) == 3  # in once, out once
+
+
+def _douglas_peucker(points, tolerance, metric):
+    """Kept points of one polyline by the recursive Douglas-Peucker (1973): split at the
+    first point of largest deviation from the chord while it exceeds the tolerance."""
+    from BSplineCAM.core.toolpath.common import chord_deviation
+
+    keep = np.zeros(len(points), bool)
+    keep[[0, -1]] = True
+    stack = [(0, len(points) - 1)]
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            continue
+        inner = points[i + 1:j]
+        dev = chord_deviation(np.repeat(points[i:i + 1], len(inner), axis=0),
+                              np.repeat(points[j:j + 1], len(inner), axis=0), inner, metric)
+        k = int(np.argmax(dev))
+        if dev[k] > tolerance:
+            keep[i + 1 + k] = True
+            stack += [(i, i + 1 + k), (i + 1 + k, j)]
+    return keep
+
+
+@pytest.mark.parametrize("metric", ["vertical", "distance", "planar"])
+def test_simplify_matches_recursive_douglas_peucker(metric):
+    """:func:`common.simplify` (all polylines at once, a round per level of splits) keeps
+    the points the recursive algorithm keeps, polyline by polyline, on noisy random curves
+    and on a plateau whose points deviate alike."""
+    from BSplineCAM.core.toolpath.common import simplify
+
+    rng = np.random.default_rng(7)
+    lines = []
+    for k in range(6):
+        n = int(rng.integers(2, 400))
+        t = np.sort(rng.uniform(0, 50, n))
+        z = np.sin(t / (2 + k)) * 3 + rng.normal(0, 0.01, n)
+        lines.append(np.column_stack([t, np.cos(t / 7) * k, z]))
+    # a plateau on a level chord: its points deviate exactly alike in every metric
+    x = np.arange(9.0)
+    lines.append(np.column_stack([x, np.zeros(9), [0, 0, 1, 1, 1, 1, 1, 0, 0]]))
+    points = np.vstack(lines)
+    starts = np.concatenate([[0], np.cumsum([len(q) for q in lines])])
+    got = simplify(points, starts, 0.02, metric)
+    want = np.concatenate([_douglas_peucker(q, 0.02, metric) for q in lines])
+    assert got.sum() > 2 * len(lines)
+    np.testing.assert_array_equal(got, want)

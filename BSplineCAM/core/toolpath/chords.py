@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from ..typing import FloatArray
+from .common import max_into
 
 #: A chord may dip below the exact CL height by at most this (mm): numerically zero.
 DIP_LIMIT = 1e-7
@@ -126,16 +127,6 @@ class ChordCheck:
     unresolved: int
 
 
-def _max_into(out: FloatArray, keys: np.ndarray, values: FloatArray) -> None:
-    """out[k] = max(out[k], values with key k) for non-decreasing ``keys``: np.maximum.at by
-    segments (much faster on numpy 1.x)."""
-    if len(keys) == 0:
-        return
-    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-    heads = keys[starts]
-    out[heads] = np.maximum(out[heads], np.maximum.reduceat(values, starts))
-
-
 def _hermite_max(z0, z1, m0, m1, c0, c1):
     """Max over tau in [0, 1] of H(tau) - (c0 + tau (c1 - c0)) and its tau, H the cubic
     Hermite interpolant of values z0, z1 and end slopes m0, m1 (per unit tau)."""
@@ -224,7 +215,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
         split = (rough | recut) & todo & (length > MIN_SPLIT)
         # Best interval of every chord still open.
         best_excess = np.full(nvert, -np.inf)
-        _max_into(best_excess, cid, np.fmax(gh, ends))
+        max_into(best_excess, cid, np.fmax(gh, ends))
         # Query every interval whose modelled maximum lies inside it, above its exact ends,
         # and near the chord's best: a second bump may hide a larger model error.
         cand = reliable & todo & ~split & (gh > ends + 0.5 * MODEL_ERROR)
@@ -269,7 +260,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
             failed = np.zeros(nvert, bool)
             failed[ch[~ok]] = True
             bound = np.full(nvert, -np.inf)
-            _max_into(bound, ch, exact + err)
+            max_into(bound, ch, exact + err)
             order = np.lexsort((-exact, ch))
             head = order[np.r_[True, ch[order][1:] != ch[order][:-1]]]
             okc = np.unique(ch[~failed[ch]])

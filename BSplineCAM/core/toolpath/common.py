@@ -400,6 +400,16 @@ def split_runs(valid: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
 
 
+def max_into(out: FloatArray, keys: np.ndarray, values: FloatArray) -> None:
+    """out[k] = max(out[k], values with key k) for non-decreasing ``keys``: np.maximum.at by
+    segments (much faster on numpy 1.x)."""
+    if len(keys) == 0:
+        return
+    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
+    heads = keys[starts]
+    out[heads] = np.maximum(out[heads], np.maximum.reduceat(values, starts))
+
+
 def simplify(points: FloatArray, starts: np.ndarray, tolerance: float, metric: str) -> np.ndarray:
     """Douglas–Peucker (1973) on many polylines at once; returns the mask of kept points.
 
@@ -423,15 +433,15 @@ def simplify(points: FloatArray, starts: np.ndarray, tolerance: float, metric: s
         b = points[kept[pos]]
         p = points[free]
         dev = chord_deviation(a, b, p, metric)
-        seg = pos  # free points between the same kept pair share pos
+        seg = pos  # free points between the same kept pair share pos (non-decreasing)
         worst = np.full(len(kept) + 1, -np.inf)
-        np.maximum.at(worst, seg, dev)
+        max_into(worst, seg, dev)
         bad = dev > tolerance
         bad &= dev >= worst[seg]
         if not bad.any():
             break
-        cand = free[bad]
-        _, first = np.unique(seg[bad], return_index=True)
+        cand, hit = free[bad], seg[bad]
+        first = np.r_[True, hit[1:] != hit[:-1]]  # the first worst point of each segment
         keep[cand[first]] = True
     return keep
 
@@ -561,11 +571,12 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
                 moves.append(Move("rapid", x0, y0, approach))
             if approach > z0:
                 moves.append(Move("feed", x0, y0, z0))
-        moves.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in p[1:])
+        # tolist: Python floats at once (iterating the rows makes a float per element)
+        moves.extend(Move("feed", x, y, z) for x, y, z in p[1:].tolist())
         link = links[k] if k < len(links) else None
         linked = link is not None
         if linked:
-            moves.extend(Move("feed", float(x), float(y), float(z)) for x, y, z in link[1:])
+            moves.extend(Move("feed", x, y, z) for x, y, z in link[1:].tolist())
         else:
             moves.append(Move("rapid", float(p[-1, 0]), float(p[-1, 1]), clear))
     return moves
