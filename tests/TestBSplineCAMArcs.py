@@ -14,7 +14,14 @@ from BSplineCAM.core import Surface
 from BSplineCAM.core.errors import ParameterError
 from BSplineCAM.core.gcode import PLANE_AXES, MoveKind, linearise, read_gcode
 from BSplineCAM.core.toolpath import Move, generate, program_moves, to_moves
-from BSplineCAM.core.toolpath.arcs import Arc, counts, fit_arcs, fit_polyline, plain_gcode
+from BSplineCAM.core.toolpath.arcs import (
+    Arc,
+    counts,
+    feed_length,
+    fit_arcs,
+    fit_polyline,
+    plain_gcode,
+)
 
 CASE = ROOT / "examples" / "case-study.json"
 
@@ -169,6 +176,76 @@ def test_case_study_moves_and_one_sidedness(case_study):
             ("kind", "start", "end", "centre", "plane", "feed", "line")}})
         gaps = vertical_gaps(p, sub, 0, 1e-8)
         assert gaps.min() >= -2e-6 and gaps.max() <= 0.001 + 2e-6
+
+
+def _runs_one_vertex_at_a_time(points):
+    """The plane runs of a polyline found vertex by vertex: from each start, extend while some
+    coordinate stays within PLANE_EPS of the start's."""
+    from BSplineCAM.core.toolpath.arcs import PLANE_EPS
+
+    out, n, i = [], len(points), 0
+    while i < n - 1:
+        same = np.abs(points[i + 1] - points[i]) <= PLANE_EPS
+        j = i + 1
+        while j + 1 < n:
+            nxt = same & (np.abs(points[j + 1] - points[i]) <= PLANE_EPS)
+            if not nxt.any():
+                break
+            same, j = nxt, j + 1
+        out.append((i, j, 18 if same[1] else 19 if same[0] else 17 if same[2] else None))
+        i = j
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_plane_runs_match_a_vertex_by_vertex_search(seed):
+    """:func:`arcs._runs` (windows that double) against the plain search written out above,
+    on polylines of random stretches: constant Y, X or Z (drifting by up to the tolerance,
+    and runs long and short against the window), and stretches in no plane."""
+    from BSplineCAM.core.toolpath.arcs import PLANE_EPS, RUN_WINDOW, _runs
+
+    rng = np.random.default_rng(seed)
+    pieces = [rng.uniform(0, 50, (1, 3))]
+    for _ in range(40):
+        k = int(rng.choice([1, 2, 3, RUN_WINDOW - 1, RUN_WINDOW, RUN_WINDOW + 1, 70]))
+        last = pieces[-1][-1]
+        step = rng.uniform(-1, 1, (k, 3))
+        axis = int(rng.integers(0, 4))  # 3: in no plane
+        if axis < 3:
+            step[:, axis] = rng.uniform(-0.4, 0.4, k) * PLANE_EPS
+            step[:, axis] = 0.0 if rng.random() < 0.5 else step[:, axis]
+        pieces.append(last + np.cumsum(step, axis=0))
+    points = np.vstack(pieces)
+    assert _runs(points) == _runs_one_vertex_at_a_time(points)
+
+
+def test_feed_length_of_lines_helices_and_arcs_in_each_plane():
+    """:func:`feed_length` against closed forms: a sloped line, a quarter helix in G17
+    (ccw), a quarter arc in G18 and a three-quarter arc in G19 (cw), rapids not counted."""
+    moves = [
+        Move("rapid", 0.0, 0.0, 5.0),
+        Move("feed", 10.0, 0.0, 0.0),                          # sqrt(100 + 25)
+        Arc("ccw", 0.0, 10.0, -2.0, 0.0, 0.0, 0.0, 10.0, 17),  # quarter turn, 2 mm down
+        Move("rapid", 0.0, 10.0, -2.0),
+        Arc("ccw", 10.0, 10.0, -12.0, 0.0, 10.0, -12.0, 10.0, 18),  # (z, x): 0 -> 90 deg
+        Move("rapid", 0.0, 0.0, 4.0),
+        # G19, in (y, z) about (0, 0, 0), radius 4, seen from +X: cw from 90 deg to 180
+        # deg is the long way round, 270 deg
+        Arc("cw", 0.0, -4.0, 0.0, 0.0, 0.0, 0.0, 4.0, 19),
+    ]
+    expected = (math.sqrt(125.0) + math.hypot(10.0 * math.pi / 2, 2.0)
+                + 10.0 * math.pi / 2 + 4.0 * 1.5 * math.pi)
+    assert feed_length(moves) == pytest.approx(expected, rel=1e-12)
+    assert feed_length(moves[:1]) == 0.0
+
+
+def test_feed_length_of_the_case_study_program_as_read(case_study):
+    """The arcs program's feed length is what the G-code reader measures on its text."""
+    _, tp = case_study
+    moves = program_moves(tp, arcs=True)
+    program = read_gcode(plain_gcode(moves, decimals=6))
+    feed = program.kind != MoveKind.RAPID
+    assert feed_length(moves) == pytest.approx(float(program.lengths()[feed].sum()), rel=1e-7)
 
 
 def test_case_study_simulated_from_text(case_study):

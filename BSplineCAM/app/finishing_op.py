@@ -293,7 +293,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
                                arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
-        out = report(toolpath, commands)
+        out = report(toolpath, commands, moves)
         if rest is not None:
             out["rest"] = rest_report(rest)
         obj.Report = json.dumps(out, sort_keys=True)
@@ -330,7 +330,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
                                      max(obj.SafeHeight.Value, lowest), arcs)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
-        out = report(toolpath, commands)
+        out = report(toolpath, commands, moves)
         if rest is not None:
             out["rest"] = rest_report(rest)
         out["faces"] = [f.name for f in faceset.faces if f.selected]
@@ -431,56 +431,17 @@ class ArcWords:
         return out
 
 
-def _arc_length(name: str, params: dict, start, end, plane: int) -> float:
-    """Length (mm) of a G2/G3 Path command from ``start`` to ``end``: R form (short arc) or
-    I/J centre offsets, helical travel along the plane's normal included."""
-    axes = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}[plane]
-    a1, a2, normal = axes
-    s = np.array([start[a1], start[a2]])
-    e = np.array([end[a1], end[a2]])
-    if "R" in params:
-        r = abs(float(params["R"]))
-        half = min(1.0, float(np.linalg.norm(e - s)) / (2.0 * r)) if r > 0 else 0.0
-        sweep = 2.0 * np.arcsin(half)
-    else:
-        offsets = {17: "IJ", 18: "KI", 19: "JK"}[plane]
-        c = s + np.array([float(params.get(k, 0.0)) for k in offsets])
-        r = float(np.linalg.norm(s - c))
-        t0 = np.arctan2(*(s - c)[::-1])
-        t1 = np.arctan2(*(e - c)[::-1])
-        sweep = (t1 - t0) % (2 * np.pi) if name in ("G3", "G03") else (t0 - t1) % (2 * np.pi)
-    return float(np.hypot(r * sweep, end[normal] - start[normal]))
-
-
-def feed_length(commands) -> float:
-    """Length (mm) of the feed moves (G1) of Path commands, each from the previous position:
-    the cutting length Verify measures on the posted program's text."""
-    total = 0.0
-    position = None
-    plane = 17
-    for command in commands:
-        params = command.Parameters
-        if command.Name in ("G17", "G18", "G19"):
-            plane = int(command.Name[1:])
-            continue
-        if command.Name not in ("G0", "G00", "G1", "G01", "G2", "G02", "G3", "G03") or not params:
-            continue
-        target = [params.get(axis, position[i] if position else 0.0) for i, axis in enumerate("XYZ")]
-        if command.Name in ("G1", "G01") and position is not None:
-            total += float(np.linalg.norm(np.subtract(target, position)))
-        elif command.Name not in ("G0", "G00") and position is not None:
-            total += _arc_length(command.Name, params, position, target, plane)
-        position = target
-    return total
-
-
-def report(toolpath, commands=None) -> dict:
-    """The op's statistics.  ``cutting_length_mm`` is the length of the program's feed moves
-    (approach feeds included), one definition with Verify's; ``pass_length_mm`` is the length
-    along the passes and stay-down links alone (the core's figure); with ``commands``, also
+def report(toolpath, commands=None, moves=None) -> dict:
+    """The op's statistics.  ``cutting_length_mm`` is the length of the feed moves of the
+    program's ``moves`` (core moves and arcs, approach feeds included; the commands are made
+    of them), one definition with Verify's (:func:`BSplineCAM.core.toolpath.arcs.feed_length`);
+    ``pass_length_mm`` is the length along the passes and stay-down links alone (the core's
+    figure, also the cutting length without ``moves``); with ``commands``, also
     ``program_moves`` (G0-G3) and ``arc_moves`` (G2/G3)."""
+    from ..core.toolpath.arcs import feed_length
+
     stats = toolpath.stats
-    cutting = stats.cutting_length_mm if commands is None else feed_length(commands)
+    cutting = stats.cutting_length_mm if moves is None else feed_length(moves)
     out = {
         "strategy": toolpath.strategy,
         "passes": stats.passes,

@@ -171,15 +171,16 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed,
                                      rough.clearance_height)
         self.commandlist.extend(commands)
-        obj.Report = json.dumps(rough_report(rough, commands, tool), sort_keys=True,
+        obj.Report = json.dumps(rough_report(rough, commands, moves, tool), sort_keys=True,
                                 default=float)
         for note in rough.stats.get("notes", []):
             FreeCAD.Console.PrintWarning(f"{obj.Label}: {note}\n")
 
 
-def rough_report(rough, commands, tool) -> dict:
-    """The op's statistics: the core's figures plus the program's moves and feed length."""
-    from .finishing_op import feed_length
+def rough_report(rough, commands, moves, tool) -> dict:
+    """The op's statistics: the core's figures plus the program's moves and the feed length
+    of the moves the commands are made of."""
+    from ..core.toolpath.arcs import feed_length
 
     out = {k: v for k, v in rough.stats.items() if isinstance(v, (int, float, str, list))}
     out.update({
@@ -191,7 +192,7 @@ def rough_report(rough, commands, tool) -> dict:
         "entries": dict(rough.stats.get("entries", {})),
         "tool": {"shape": tool.shape.value, "diameter_mm": tool.diameter,
                  "corner_radius_mm": tool.corner_radius},
-        "cutting_length_mm": round(feed_length(commands), 6),
+        "cutting_length_mm": round(feed_length(moves), 6),
         "program_moves": sum(c.Name in ("G0", "G1", "G2", "G3") for c in commands),
         "clearance_height_mm": rough.clearance_height,
     })

@@ -56,6 +56,7 @@ from typing import NamedTuple, Union
 import numpy as np
 
 from ..errors import ParameterError
+from ..gcode import PLANE_AXES
 from ..typing import FloatArray
 from .common import Move, check_positive
 
@@ -70,6 +71,8 @@ MAX_SWEEP_DEG = 150.0
 MIN_CHORD = 0.02
 #: Coordinates equal within this (mm) define the plane of a run.
 PLANE_EPS = 1e-9
+#: Vertices of the first window in which :func:`_runs` looks for a run's end.
+RUN_WINDOW = 16
 #: Arcs clear the polyline by at least this (mm): rounding of the closed forms.
 MARGIN = 1e-7
 #: Gaps above -ROUNDING (mm) count as on the free side: floating-point rounding.
@@ -83,9 +86,6 @@ HELIX_MIN_POINTS = 5
 BIARC_KINK_DEG = 20.0
 #: Starts whose shortest runs a sequence starting a run asks for at once (:func:`_greedy`).
 FRESH_AHEAD = 16
-
-#: (first axis, second axis, normal axis) of each plane, as in :data:`BSplineCAM.core.gcode`.
-PLANE_AXES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 
 
 class Arc(NamedTuple):
@@ -128,10 +128,10 @@ class _Batch(NamedTuple):
 def _pad(runs: Sequence[FloatArray]) -> _Batch:
     count = np.array([len(r) for r in runs])
     width = int(count.max())
-    pts = np.zeros((len(runs), width, runs[0].shape[1]))
-    for k, r in enumerate(runs):
-        pts[k, :len(r)] = r
-        pts[k, len(r):] = r[-1]  # padding repeats the end point
+    first = np.concatenate([[0], np.cumsum(count)[:-1]])
+    # each row gathered from the runs laid end to end; padding repeats the end point
+    col = np.minimum(np.arange(width)[None, :], count[:, None] - 1)
+    pts = np.concatenate(runs)[first[:, None] + col]
     mask = np.arange(width)[None, :] < count[:, None]
     return _Batch(pts, mask, count)
 
@@ -677,21 +677,32 @@ def _with_biarcs(polylines: Sequence[FloatArray], fitted: list[list[tuple]], tol
 
 def _runs(points: FloatArray) -> list[tuple[int, int, int | None]]:
     """Split a 3-D polyline into maximal runs lying in one coordinate plane: (start, stop
-    inclusive, plane or None).  Y constant -> 18, else X constant -> 19, else Z -> 17."""
+    inclusive, plane or None).  Y constant -> 18, else X constant -> 19, else Z -> 17.
+
+    From each start i the run reaches the farthest vertex up to which some coordinate stays
+    within PLANE_EPS of vertex i's; each coordinate's extent is searched in windows that
+    double from RUN_WINDOW vertices.  A start whose next vertex keeps no coordinate is a
+    one-segment run in no plane."""
     out = []
     n = len(points)
     i = 0
     while i < n - 1:
-        same = np.abs(points[i + 1] - points[i]) <= PLANE_EPS
-        j = i + 1
-        while j + 1 < n:
-            nxt = same & (np.abs(points[j + 1] - points[i]) <= PLANE_EPS)
-            if not nxt.any():
-                break
-            same = nxt
-            j += 1
-        plane = 18 if same[1] else 19 if same[0] else 17 if same[2] else None
-        out.append((i, j, plane))
+        ext = np.full(3, -1)  # last vertex up to which each coordinate stays put
+        start, width = i + 1, RUN_WINDOW
+        while start < n and (ext < 0).any():
+            hi = min(n, start + width)
+            far = np.abs(points[start:hi] - points[i]) > PLANE_EPS
+            found = (ext < 0) & far.any(axis=0)
+            ext[found] = start + np.argmax(far, axis=0)[found] - 1
+            start, width = hi, 2 * width
+        ext[ext < 0] = n - 1
+        j = int(ext.max())
+        if j == i:
+            out.append((i, i + 1, None))
+            i += 1
+            continue
+        same = ext == j
+        out.append((i, j, 18 if same[1] else 19 if same[0] else 17 if same[2] else None))
         i = j
     return out
 
@@ -909,6 +920,34 @@ def counts(moves: Sequence[AnyMove]) -> dict:
             "rapids": rapids}
 
 
+def feed_length(moves: Sequence[AnyMove]) -> float:
+    """Length (mm) of the feed moves (lines and arcs) of ``moves``, each from the end of the
+    move before it (a feed with none before it has no length): the cutting length a program
+    made of them has, as :mod:`BSplineCAM.core.gcode` measures its text.  An arc sweeps from
+    its start to its end round its centre in its plane, the way its kind turns seen from the
+    plane's normal axis (an end on its start: no sweep), and a helix adds its travel along
+    that axis.  Lines are summed at once."""
+    n = len(moves)
+    if n < 2:
+        return 0.0
+    xyz = np.array([(m.x, m.y, m.z) for m in moves], dtype=float)
+    line = np.array([m.kind == "feed" for m in moves[1:]], dtype=bool)
+    seg = np.diff(xyz, axis=0)
+    total = float(np.sqrt((seg[line] ** 2).sum(axis=1)).sum())
+    for i in range(1, n):
+        arc = moves[i]
+        if not isinstance(arc, Arc):
+            continue
+        a1, a2, normal = PLANE_AXES[arc.plane]
+        centre = (arc.cx, arc.cy, arc.cz)
+        start, end = xyz[i - 1], xyz[i]
+        t0 = math.atan2(start[a2] - centre[a2], start[a1] - centre[a1])
+        t1 = math.atan2(end[a2] - centre[a2], end[a1] - centre[a1])
+        sweep = (t1 - t0 if arc.kind == "ccw" else t0 - t1) % (2.0 * math.pi)
+        total += math.hypot(arc.radius * sweep, end[normal] - start[normal])
+    return total
+
+
 def gcode_words(arc: Arc, decimals: int = 4) -> str:
     """The motion words of an arc in R form (``G2 X.. Y.. Z.. R..``): every post keeps R,
     while FreeCAD's linuxcnc, fanuc and mach3_mach4 posts drop K (needed by G18/G19)."""
@@ -941,5 +980,5 @@ def plain_gcode(moves: Sequence[AnyMove], feed: float = 1000.0, decimals: int = 
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["MAX_RADIUS", "MAX_SWEEP_DEG", "Arc", "contour_side", "counts", "fit_arcs",
-           "fit_polyline", "gcode_words", "plain_gcode"]
+__all__ = ["MAX_RADIUS", "MAX_SWEEP_DEG", "Arc", "contour_side", "counts", "feed_length",
+           "fit_arcs", "fit_polyline", "gcode_words", "plain_gcode"]
