@@ -99,11 +99,20 @@ def _uv(along: FloatArray, fixed: FloatArray, iso: IsoDirection) -> tuple[FloatA
     return (along, fixed) if iso is IsoDirection.U else (fixed, along)
 
 
+def _mid_probes(a0: float, a1: float) -> FloatArray:
+    """PROBES values of the parameter along the passes, mid-way in PROBES equal spans of the
+    trim box's [a0, a1]: none on the box's sides, where a probe (or a probe column) would lie
+    on a trim edge, in or out by rounding (a document saved and reopened got other curves
+    and other partial passes)."""
+    return a0 + (np.arange(PROBES) + 0.5) * ((a1 - a0) / PROBES)
+
+
 def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection,
                 a0: float, a1: float, f0: float, f1: float) -> list[float]:
     """Fixed-parameter values of the passes from f0 to f1, each step the least allowed on
-    this curve and the next one (probes inside the trim; all probes where none is)."""
-    probe = np.linspace(a0, a1, PROBES)
+    this curve and the next one (probes inside the trim, :func:`_mid_probes`; all probes
+    where none is)."""
+    probe = _mid_probes(a0, a1)
 
     def step(c: float) -> float:
         u, v = _uv(probe, np.full(PROBES, c), iso)
@@ -276,10 +285,8 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     n = max(8, math.ceil(length / step) + 1)
     along = np.linspace(a0, a1, n)
     # the scallop-spaced curves, and partial ones along trim edges that cross them, probed in
-    # the middle of PROBES columns (a column on the trim box's side would run along a trim
-    # edge, in or out by rounding: a document saved and reopened got other partial passes)
-    cols = a0 + (np.arange(PROBES) + 0.5) * ((a1 - a0) / PROBES)
-    edge = _edge_curves(inside, cols, fixed, iso)
+    # PROBES columns (:func:`_mid_probes`)
+    edge = _edge_curves(inside, _mid_probes(a0, a1), fixed, iso)
     values = np.array(list(fixed) + [g for g, _, _ in edge])
     span_lo = np.array([-np.inf] * len(fixed) + [b for _, b, _ in edge])
     span_hi = np.array([np.inf] * len(fixed) + [b for _, _, b in edge])
