@@ -709,6 +709,61 @@ def test_capped_distance_and_contours():
     assert area < 0  # clockwise
 
 
+
+def _blobs(shape, rng):
+    """Masks where cropping to the set and unset cells' boxes matters: none, all, a disc in
+    a corner, everything but a hole, random specks and their complement, one cell."""
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]]
+    disc = (xx - 3) ** 2 + (yy - 4) ** 2 <= 9
+    hole = (xx - shape[1] // 2) ** 2 + (yy - shape[0] // 2) ** 2 > 25
+    specks = rng.random(shape) < 0.01
+    one = np.zeros(shape, bool)
+    one[-1, max(shape[1] - 2, 0)] = True
+    return [np.zeros(shape, bool), np.ones(shape, bool), disc, hole, specks, ~specks, one]
+
+
+@pytest.mark.parametrize("cap", [1.0, 2.5, 6.0, 30.0, 200.0])
+def test_capped_distance_against_scipy_on_cropped_masks(cap):
+    """Exact (scipy's Euclidean distance transform) up to the cap and above it beyond, where
+    only part of the grid lies near both set and unset cells, with caps whose squares need
+    16-, 32-bit integers."""
+    from scipy import ndimage
+
+    rng = np.random.default_rng(11)
+    for shape in [(1, 1), (1, 40), (40, 1), (37, 90), (120, 60)]:
+        for mask in _blobs(shape, rng):
+            got = capped_distance(mask, cap)
+            assert got.shape == mask.shape and got.dtype == float
+            if not mask.any():
+                assert np.all(got > cap)
+                continue
+            ref = ndimage.distance_transform_edt(~mask)
+            near = ref <= cap
+            np.testing.assert_allclose(got[near], ref[near], atol=1e-12)
+            assert np.all(got[~near] > cap)
+
+
+def test_densify_and_polyline_distance():
+    """Points along a polyline at most ``step`` apart, every vertex kept, on its segments;
+    the distance to a polyline against one from dense samples of it."""
+    from BSplineCAM.core.toolpath.roughing import _densify, _polyline_distance
+
+    path = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 0.0], [3.0, 2.5], [-1.0, 4.0]])
+    for step in (0.3, 1.0, 10.0):
+        dense = _densify(path, step)
+        gaps = np.hypot(*np.diff(dense, axis=0).T)
+        assert gaps.max() <= step + 1e-12
+        for v in path:
+            assert np.min(np.hypot(*(dense - v).T)) == 0.0
+        assert np.allclose(_polyline_distance(dense, path), 0.0, atol=1e-12)
+        np.testing.assert_array_equal(_densify(path[:2], step), dense[:len(_densify(path[:2], step))])
+    rng = np.random.default_rng(2)
+    pts = rng.uniform(-3, 6, (300, 2))
+    fine = _densify(path, 1e-4)
+    ref = np.array([np.hypot(*(fine - p).T).min() for p in pts])
+    np.testing.assert_allclose(_polyline_distance(pts, path), ref, atol=1e-4)
+    np.testing.assert_allclose(_polyline_distance(pts, path[:1]), np.hypot(*(pts - path[0]).T))
+
 def test_stock_around():
     s = Stock.around((0, 10, -5, 5, 1, 4), 2.0)
     assert (s.x_min, s.x_max, s.y_min, s.y_max, s.z_min, s.z_max) == (-2, 12, -7, 7, 1, 6)

@@ -526,3 +526,34 @@ def test_simplify_matches_recursive_douglas_peucker(metric):
     want = np.concatenate([_douglas_peucker(q, 0.02, metric) for q in lines])
     assert got.sum() > 2 * len(lines)
     np.testing.assert_array_equal(got, want)
+
+
+def test_label_regions_against_scipy():
+    """4-connected components numbered in the row-major order of their first cell, as
+    scipy.ndimage.label numbers them: random masks, a spiral (one long region whose labels
+    must travel end to end), masks of one row or column, none set, all set."""
+    from scipy import ndimage
+
+    from BSplineCAM.core.toolpath.common import label_regions
+
+    rng = np.random.default_rng(4)
+    masks = [rng.random(shape) < p for shape in [(1, 1), (1, 30), (30, 1), (40, 50), (90, 70)]
+             for p in (0.0, 0.3, 0.55, 0.7, 1.0)]
+    spiral = np.zeros((41, 41), bool)
+    i, j, di, dj, length = 0, 0, 0, 1, 40  # a turtle: sides of 40, 40, 38, 38, 36, ...
+    for side in range(40):
+        for _ in range(length):
+            spiral[i, j] = True
+            i, j = i + di, j + dj
+        di, dj = dj, -di
+        if side % 2 == 1:
+            length -= 2
+        if length <= 0:
+            break
+    masks.append(spiral)
+    for mask in masks:
+        labels, count = label_regions(mask)
+        ref, n = ndimage.label(mask)
+        assert count == n
+        np.testing.assert_array_equal(labels, ref - 1)
+    assert label_regions(spiral)[1] == 1

@@ -338,27 +338,41 @@ class Region:
 
 
 def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
-    """4-connected components of a 2-D boolean mask by vectorised min-label propagation."""
+    """4-connected components of a 2-D boolean mask: (labels, count), -1 off the mask, the
+    components numbered in the row-major order of their first cell.
+
+    The mask's runs along the rows are the nodes; a run is joined to the runs of the next row
+    that share a column with it (a contiguous range of them, found by binary search), and
+    each run takes the least index of its component by min-label propagation with pointer
+    jumping over those few nodes (the runs in order, so that least run holds the first cell)."""
+    mask = np.asarray(mask, bool)
     rows, cols = mask.shape
-    big = rows * cols
-    labels = np.where(mask, np.arange(big).reshape(rows, cols), big)
-    while True:
-        prev = labels
-        nxt = labels.copy()
-        nxt[1:] = np.minimum(nxt[1:], labels[:-1])
-        nxt[:-1] = np.minimum(nxt[:-1], labels[1:])
-        nxt[:, 1:] = np.minimum(nxt[:, 1:], labels[:, :-1])
-        nxt[:, :-1] = np.minimum(nxt[:, :-1], labels[:, 1:])
-        labels = np.where(mask, nxt, big)
-        # pointer jumping: follow label -> label of that cell, speeds up long regions
-        flat = labels.ravel()
-        inside = flat < big
-        flat[inside] = np.minimum(flat[inside], flat[flat[inside]])
-        if np.array_equal(labels, prev):
-            break
-    unique, inverse = np.unique(labels[mask], return_inverse=True)
     out = np.full(mask.shape, -1)
-    out[mask] = inverse.ravel()
+    if not mask.any():
+        return out, 0
+    width = cols + 2
+    padded = np.zeros((rows, width), np.int8)
+    padded[:, 1:-1] = mask
+    edge = np.diff(padded, axis=1)  # +1 where a run starts, -1 just past its end
+    row, first = np.nonzero(edge == 1)
+    _, stop = np.nonzero(edge == -1)
+    start = row * width + first  # row-major keys, increasing with the run's index
+    end = row * width + stop
+    lo = np.searchsorted(end, start + width, side="right")  # next row's runs ending past it
+    hi = np.searchsorted(start, end + width, side="left")  # ... and starting before its end
+    count = np.maximum(hi - lo, 0)
+    a = np.repeat(np.arange(len(row)), count)
+    b = np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+    root = np.arange(len(row))
+    while True:
+        prev = root.copy()
+        np.minimum.at(root, a, root[b])
+        np.minimum.at(root, b, root[a])
+        root = root[root]
+        if np.array_equal(root, prev):
+            break
+    unique, comp = np.unique(root, return_inverse=True)
+    out[mask] = np.repeat(comp.ravel(), stop - first)
     return out, len(unique)
 
 

@@ -325,39 +325,72 @@ def _bilinear(field_: FloatArray, fx: FloatArray, fy: FloatArray) -> FloatArray:
 def capped_distance(mask: np.ndarray, cap: float) -> FloatArray:
     """Euclidean distance (cells) from each cell centre to the nearest set cell, exact up to
     ``cap`` and ceil(cap) + 1 beyond: min over |dy| <= cap of dy^2 + g(y + dy)^2, g the
-    distance along the row (the separable form of Felzenszwalb & Huttenlocher, 2012)."""
+    distance along the row (the separable form of Felzenszwalb & Huttenlocher, 2012).  The
+    squares are integers: they are kept in the narrowest integer type that holds them (the
+    column pass runs over the whole grid cap times)."""
     k = int(math.ceil(cap))
     big = k + 1
     ny, nx = mask.shape
-    cols = np.arange(nx)
-    left = np.where(mask, cols, -10 * (nx + big))
+    # only cells within big of both a set and an unset cell need the passes: beyond the set
+    # cells' box grown by big every cell is big away, beyond the unset cells' one it is set
+    rows, cols_ = mask.any(axis=1), mask.any(axis=0)
+    if not rows.any():
+        return np.full(mask.shape, float(big))
+    unset_rows, unset_cols = ~mask.all(axis=1), ~mask.all(axis=0)
+    if not unset_rows.any():
+        return np.zeros(mask.shape)
+    i0, i1 = _grown_span(rows, unset_rows, big)
+    j0, j1 = _grown_span(cols_, unset_cols, big)
+    if (i0, i1, j0, j1) != (0, ny, 0, nx):
+        out = np.where(mask, 0.0, float(big))
+        out[i0:i1, j0:j1] = capped_distance(mask[i0:i1, j0:j1], cap)
+        return out
+    top = big * big + k * k
+    kind = np.int16 if top < 2 ** 15 else (np.int32 if top < 2 ** 31 else np.int64)
+    far = 10 * (nx + big)
+    cols = np.arange(nx, dtype=np.int32 if far < 2 ** 30 else np.int64)
+    left = np.where(mask, cols, -far)
     np.maximum.accumulate(left, axis=1, out=left)
-    right = np.where(mask, cols, 10 * (nx + big))
-    right = np.minimum.accumulate(right[:, ::-1], axis=1)[:, ::-1]
-    g = np.minimum(np.minimum(cols - left, right - cols), big)
+    right = np.minimum.accumulate(np.where(mask, cols, far)[:, ::-1], axis=1)[:, ::-1]
+    g = np.minimum(np.minimum(cols - left, right - cols), big).astype(kind)
     f = g * g
     best = f.copy()
+    shifted = np.empty_like(f)
     for dy in range(1, min(k, ny - 1) + 1):
-        c = dy * dy
-        np.minimum(best[dy:], f[:-dy] + c, out=best[dy:])
-        np.minimum(best[:-dy], f[dy:] + c, out=best[:-dy])
-    return np.sqrt(np.minimum(best, big * big).astype(float))
+        c = kind(dy * dy)
+        t = shifted[:ny - dy]
+        np.add(f[:-dy], c, out=t)
+        np.minimum(best[dy:], t, out=best[dy:])
+        np.add(f[dy:], c, out=t)
+        np.minimum(best[:-dy], t, out=best[:-dy])
+    np.minimum(best, kind(big * big), out=best)
+    return np.sqrt(best, dtype=float)
+
+
+def _grown_span(a: np.ndarray, b: np.ndarray, grow: int) -> tuple[int, int]:
+    """[start, stop) of the overlap of the spans of the true entries of a and of b, each
+    grown by ``grow`` (within 0 .. len)."""
+    n = len(a)
+    ia, ib = np.flatnonzero(a), np.flatnonzero(b)
+    lo = max(int(ia[0]) - grow, int(ib[0]) - grow, 0)
+    hi = min(int(ia[-1]) + grow + 1, int(ib[-1]) + grow + 1, n)
+    return lo, max(hi, lo)
 
 
 def _polyline_distance(pts: FloatArray, path: FloatArray) -> FloatArray:
     """Distance (mm) from each point (k, 2) to the polyline ``path`` (n, 2)."""
     if len(path) == 1:
         return np.hypot(*(pts - path[0]).T)
-    a, b = path[:-1], path[1:]
-    ab = b - a
-    L2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    ax, ay = path[:-1, 0], path[:-1, 1]
+    abx, aby = path[1:, 0] - ax, path[1:, 1] - ay
+    L2 = np.maximum(abx * abx + aby * aby, 1e-300)
     out = np.full(len(pts), np.inf)
-    step = max(1, 2_000_000 // max(len(a), 1))
+    step = max(1, 2_000_000 // max(len(ax), 1))
     for k in range(0, len(pts), step):
-        p = pts[k:k + step, None, :]
-        t = np.clip(np.einsum("kij,ij->ki", p - a[None], ab) / L2, 0.0, 1.0)
-        d = np.hypot(*np.moveaxis(p - (a[None] + t[..., None] * ab[None]), -1, 0))
-        out[k:k + step] = d.min(axis=1)
+        rx = pts[k:k + step, :1] - ax
+        ry = pts[k:k + step, 1:] - ay
+        t = np.clip((rx * abx + ry * aby) / L2, 0.0, 1.0)
+        out[k:k + step] = np.hypot(rx - t * abx, ry - t * aby).min(axis=1)
     return out
 
 
@@ -372,15 +405,20 @@ def _corner_min(field_: FloatArray, fx: FloatArray, fy: FloatArray) -> FloatArra
 
 
 def _densify(pts: FloatArray, step: float) -> FloatArray:
-    """Points along a polyline (k, 2) no farther apart than ``step``."""
+    """Points along a polyline (k, 2) no farther apart than ``step``: each segment cut in
+    equal pieces."""
     if len(pts) < 2:
         return pts.copy()
-    out = [pts[:1]]
-    for a, b in zip(pts[:-1], pts[1:]):
-        n = max(1, int(math.ceil(float(np.hypot(*(b - a))) / step)))
+    if len(pts) == 2:  # one segment (most calls): no gathers
+        d = pts[1] - pts[0]
+        n = max(1, int(math.ceil(float(np.hypot(d[0], d[1])) / step)))
         t = (np.arange(1, n + 1) / n)[:, None]
-        out.append(a + t * (b - a))
-    return np.concatenate(out)
+        return np.concatenate([pts[:1], pts[0] + t * d])
+    seg = pts[1:] - pts[:-1]
+    n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / step).astype(np.intp), 1)
+    owner = np.repeat(np.arange(len(seg)), n)
+    t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1) / n[owner]
+    return np.concatenate([pts[:1], pts[:-1][owner] + t[:, None] * seg[owner]])
 
 
 def marching_squares(F: FloatArray) -> list:
@@ -485,10 +523,11 @@ def marching_squares(F: FloatArray) -> list:
             key = k1l[q] if k0l[q] == key else k0l[q]
             keys.append(key)
 
-    point_of = {}
-    for s in range(len(sc)):
-        point_of.setdefault(k0l[s], p0[s])
-        point_of.setdefault(k1l[s], p1[s])
+    # each crossing's point where it first occurs (p0 then p1 of each segment, in order)
+    key_seq = np.stack([k0, k1], axis=1).ravel()
+    point_seq = np.stack([p0, p1], axis=1).reshape(-1, 2)
+    crossing, first_at = np.unique(key_seq, return_index=True)
+    k0a = np.asarray(k0)
     for s in range(len(sc)):
         if used[s]:
             continue
@@ -502,12 +541,12 @@ def marching_squares(F: FloatArray) -> list:
             back_keys, back_segs = walk(s, k0l[s])
             keys = [*back_keys[::-1], k0l[s], k1l[s], *fwd_keys]
             segs = [*back_segs[::-1], s, *fwd_segs]
-        poly = np.array([point_of[kk] for kk in keys])
+        keys_a = np.array(keys)
+        poly = point_seq[first_at[np.searchsorted(crossing, keys_a)]]
         # majority vote of the segments' orientation tests along the chain's direction
-        vote = 0
-        for idx, q in enumerate(segs):
-            forward = k0l[q] == keys[idx]
-            vote += 1 if forward == bool(good[q]) else -1
+        segs_a = np.array(segs)
+        agree = int(np.count_nonzero((k0a[segs_a] == keys_a[:len(segs)]) == good[segs_a]))
+        vote = 2 * agree - len(segs)
         if vote < 0:
             poly = poly[::-1]
         lines.append(poly)
