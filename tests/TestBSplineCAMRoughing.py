@@ -551,6 +551,57 @@ def test_engaged_width_of_a_feed_against_a_band():
     assert job.engaged_width((0.0, -9.0), (5.0, -9.0)) == 0.0
 
 
+
+def test_feeds_checked_at_once_match_a_cell_by_cell_reference():
+    """engaged_widths and in_region_many (the lead-in search checks its tries in one go)
+    against loops over cells and samples: the extent across each feed of the uncut cells
+    within R of it and ahead of its start (plus a cell), and whether samples a tenth of a
+    cell apart along it stay in {T <= z} (allowing the half-cell sampling's miss: a region
+    edge is met within a cell of the reference's verdict).  Feeds of no length, empty
+    batches and feeds over no uncut cell included."""
+    cell = 0.25
+    job, xs, ys = bare_job(cell, 12.0)
+    rng = np.random.default_rng(7)
+    X, Y = np.meshgrid(xs, ys)
+    job.uncut = (np.hypot(X - 2.0, Y + 1.0) < 6.0) | (rng.random(X.shape) < 0.05)
+    job.uncut &= (X > -4.0) | (Y > -4.0)  # a cleared corner
+    job.T = np.where(np.hypot(X + 3.0, Y - 2.0) < 3.0, 5.0, 0.0)
+    A = rng.uniform(-11, 11, (60, 2))
+    B = A + rng.uniform(-6, 6, (60, 2))
+    B[:3] = A[:3]  # no length
+    A[3], B[3] = (-11.0, -11.0), (-10.0, -11.0)  # nothing uncut within R
+    A[4], B[4] = (-8.0, 2.0), (2.0, 2.0)  # across the region's hole
+    A[5], B[5] = (-10.0, 2.5), (-3.0, 2.5)  # into it
+    R = job.R
+    cx, cy = X[job.uncut], Y[job.uncut]
+    widths = job.engaged_widths(A, B)
+    inside = job.in_region_many(A, B, 1.0)
+    for i, (a, b) in enumerate(zip(A, B)):
+        L = math.dist(a, b)
+        if L < 1e-9:
+            assert widths[i] == 0.0
+        else:
+            d = (b - a) / L
+            along = (cx - a[0]) * d[0] + (cy - a[1]) * d[1]
+            across = (cy - a[1]) * d[0] - (cx - a[0]) * d[1]
+            swept = [(0 < al <= L and abs(ac) <= R) or (al > L and (al - L) ** 2 + ac ** 2 <= R * R)
+                     for al, ac in zip(along, across)]
+            ref = float(across[swept].max() - across[swept].min()) + cell if any(swept) else 0.0
+            assert widths[i] == pytest.approx(ref, abs=1e-9), i
+        t = np.linspace(0.0, 1.0, max(2, int(math.dist(a, b) / (0.1 * cell)) + 2))
+        pts = a + t[:, None] * (b - a)
+        blocked = np.hypot(pts[:, 0] + 3.0, pts[:, 1] - 2.0) < 3.0 - cell
+        near = np.hypot(pts[:, 0] + 3.0, pts[:, 1] - 2.0) < 3.0 + 2 * cell
+        if blocked.any():
+            assert not inside[i], i
+        elif not near.any():
+            assert inside[i], i
+        assert inside[i] == job.in_region(a, b, 1.0)
+        assert widths[i] == job.engaged_width(a, b)
+    assert widths[3] == 0.0
+    assert not inside[4] and not inside[5]
+    assert len(job.engaged_widths(A[:0], B[:0])) == len(job.in_region_many(A[:0], B[:0], 1.0)) == 0
+
 def test_stairs_along_a_shallow_wall_are_straightened_inwards():
     """A wall whose allowed side x <= w(y) steps by a cell every 5 mm (the tip height of a
     3 degree slope rises in one-cell plateaus): its contour runs in stairs, each jog a short

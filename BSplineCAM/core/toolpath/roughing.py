@@ -341,7 +341,7 @@ def capped_distance(mask: np.ndarray, cap: float) -> FloatArray:
         return np.zeros(mask.shape)
     i0, i1 = _grown_span(rows, unset_rows, big)
     j0, j1 = _grown_span(cols_, unset_cols, big)
-    if (i0, i1, j0, j1) != (0, ny, 0, nx):
+    if (i1 - i0) * (j1 - j0) < 0.75 * ny * nx:  # worth a crop
         out = np.where(mask, 0.0, float(big))
         out[i0:i1, j0:j1] = capped_distance(mask[i0:i1, j0:j1], cap)
         return out
@@ -565,7 +565,8 @@ class _Writer:
 
     def add(self, kind: str, x: float, y: float, z: float) -> None:
         p = (float(x), float(y), float(z))
-        if self.pos is not None and np.allclose(p, self.pos, atol=1e-9, rtol=0):
+        if self.pos is not None and all(a == b or abs(a - b) <= 1e-9
+                                        for a, b in zip(p, self.pos)):
             return
         self.moves.append(Move(kind, *p))
         self.pos = p
@@ -828,20 +829,31 @@ class _Job:
         diagonal) drop in the surface estimate to the level plus the profile at their
         farthest point, so that the estimate bounds the material over the whole cell.
         Distances come from the path's samples rounded to cells (good to 3/4 cell), exact to
-        the path's segments in the band where that rounding could decide either."""
-        f = self.idx(_densify(path_xy, 0.5 * self.cell))
-        i0, i1, j0, j1 = self.window(f, self.Rc + 2)
-        m = np.zeros((i1 - i0, j1 - j0), bool)
-        ii = np.clip(np.rint(f[:, 1]).astype(int) - i0, 0, i1 - i0 - 1)
-        jj = np.clip(np.rint(f[:, 0]).astype(int) - j0, 0, j1 - j0 - 1)
-        m[ii, jj] = True
-        d = capped_distance(m, self.Rc + 1)
-        dist = np.minimum(d + 0.75, self.Rc + 1.0) * self.cell  # >= the true distance
-        band = np.flatnonzero((d > self.Rc - 3.0) & (d <= self.Rc + 1.0))
-        if len(band):
-            by, bx = np.divmod(band, j1 - j0)
-            pts = self.xy(np.column_stack([bx + j0, by + i0]).astype(float))
-            dist.flat[band] = _polyline_distance(pts, np.asarray(path_xy, dtype=float))
+        the path's segments in the band where that rounding could decide either; a path of
+        one segment (most calls) has them exact over its whole window, at less cost."""
+        path_xy = np.asarray(path_xy, dtype=float)
+        if len(path_xy) == 2:
+            i0, i1, j0, j1 = self.window(self.idx(path_xy), self.Rc + 2)
+            g = self.grid
+            px = (g.x0 + (np.arange(j0, j1) + 0.5) * g.cell)[None, :] - path_xy[0, 0]
+            py = (g.y0 + (np.arange(i0, i1) + 0.5) * g.cell)[:, None] - path_xy[0, 1]
+            ab = path_xy[1] - path_xy[0]
+            t = np.clip((px * ab[0] + py * ab[1]) / max(float(ab @ ab), 1e-300), 0.0, 1.0)
+            dist = np.hypot(px - t * ab[0], py - t * ab[1])
+        else:
+            f = self.idx(_densify(path_xy, 0.5 * self.cell))
+            i0, i1, j0, j1 = self.window(f, self.Rc + 2)
+            m = np.zeros((i1 - i0, j1 - j0), bool)
+            ii = np.clip(np.rint(f[:, 1]).astype(int) - i0, 0, i1 - i0 - 1)
+            jj = np.clip(np.rint(f[:, 0]).astype(int) - j0, 0, j1 - j0 - 1)
+            m[ii, jj] = True
+            d = capped_distance(m, self.Rc + 1)
+            dist = np.minimum(d + 0.75, self.Rc + 1.0) * self.cell  # >= the true distance
+            band = np.flatnonzero((d > self.Rc - 3.0) & (d <= self.Rc + 1.0))
+            if len(band):
+                by, bx = np.divmod(band, j1 - j0)
+                pts = self.xy(np.column_stack([bx + j0, by + i0]).astype(float))
+                dist.flat[band] = _polyline_distance(pts, path_xy)
         cut = dist <= self.R
         self.uncut[i0:i1, j0:j1] &= ~cut
         fl = self.floor[i0:i1, j0:j1]
@@ -930,7 +942,22 @@ class _Job:
 
     def in_region(self, a, b, z) -> bool:
         """The straight feed from a to b (xy) stays in {T <= z}."""
-        return self.path_in_region(np.array([a[:2], b[:2]], dtype=float), z)
+        return bool(self.in_region_many(np.asarray(a, dtype=float)[None, :2],
+                                        np.asarray(b, dtype=float)[None, :2], z)[0])
+
+    def in_region_many(self, A: FloatArray, B: FloatArray, z: float) -> np.ndarray:
+        """:meth:`in_region` of the feeds from A[i] to B[i] (n, 2), sampled at once: the
+        points of :func:`_densify` of each, half a cell apart."""
+        D = B - A
+        n = np.maximum(np.ceil(np.hypot(D[:, 0], D[:, 1]) / (0.5 * self.cell)).astype(np.intp), 1)
+        owner = np.repeat(np.arange(len(A)), n)
+        t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1) / n[owner]
+        pts = np.concatenate([A, A[owner] + t[:, None] * D[owner]])
+        f = self.idx(pts)
+        high = _bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3
+        out = ~high[:len(A)]
+        out &= np.bincount(owner, weights=high[len(A):], minlength=len(A)) == 0
+        return out
 
     def path_in_region(self, path: FloatArray, z: float) -> bool:
         """Every feed along the polyline ``path`` (xy) stays in {T <= z} (:meth:`in_region`
@@ -943,25 +970,35 @@ class _Job:
         job simulation measures a move: the extent across the move of all the uncut cells it
         sweeps (within R of it, ahead of its start), plus a cell.  A move entering a band at a
         slant cuts a swath wider than the width at any one of its positions."""
-        a = np.asarray(a[:2], dtype=float)
-        b = np.asarray(b[:2], dtype=float)
-        length = math.dist(a, b)
-        if length < 1e-9:
-            return 0.0
-        d = (b - a) / length
-        f = self.idx(np.array([a, b]))
-        i0, i1, j0, j1 = self.window(f, self.Rc + 2)
+        return float(self.engaged_widths(np.asarray(a, dtype=float)[None, :2],
+                                         np.asarray(b, dtype=float)[None, :2])[0])
+
+    def engaged_widths(self, A: FloatArray, B: FloatArray) -> FloatArray:
+        """:meth:`engaged_width` of the feeds from A[i] to B[i] (n, 2), over the uncut cells
+        of the window round all of them at once."""
+        out = np.zeros(len(A))
+        length = np.array([math.dist(a, b) for a, b in zip(A.tolist(), B.tolist())])
+        live = np.flatnonzero(length >= 1e-9)
+        if not len(live):
+            return out
+        A, B, length = A[live], B[live], length[live]
+        i0, i1, j0, j1 = self.window(self.idx(np.concatenate([A, B])), self.Rc + 2)
         iy, ix = np.nonzero(self.uncut[i0:i1, j0:j1])
         if not len(iy):
-            return 0.0
-        rel = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float)) - a
-        along = rel @ d
-        across = rel @ np.array([-d[1], d[0]])
-        swept = (along > 0) & (np.abs(across) <= self.R) & (along <= length) | (
-            (along > length) & ((along - length) ** 2 + across * across <= self.R * self.R))
-        if not swept.any():
-            return 0.0
-        return float(across[swept].max() - across[swept].min()) + self.cell
+            return out
+        cells = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float))
+        d = (B - A) / length[:, None]
+        rx = cells[None, :, 0] - A[:, :1]
+        ry = cells[None, :, 1] - A[:, 1:]
+        along = rx * d[:, :1] + ry * d[:, 1:]
+        across = ry * d[:, :1] - rx * d[:, 1:]
+        L = length[:, None]
+        swept = (along > 0) & (np.abs(across) <= self.R) & (along <= L) | (
+            (along > L) & ((along - L) ** 2 + across * across <= self.R * self.R))
+        hi = np.where(swept, across, -np.inf).max(axis=1)
+        lo = np.where(swept, across, np.inf).min(axis=1)
+        out[live] = np.where(swept.any(axis=1), hi - lo + self.cell, 0.0)
+        return out
 
     def lead_in(self, p: FloatArray, z: float) -> int | None:
         """Index k of a vertex of pass p (xy) that the tool, at level z nearby, may reach by
@@ -1019,14 +1056,15 @@ class _Job:
         checked = 0
         for group in (ks == 0, ks > 0):
             sub = np.where(group[None, :], dist, np.inf)
-            for flat in np.argsort(sub, axis=None, kind="stable")[:LEAD_IN_TRIES]:
-                if not np.isfinite(sub.flat[flat]):
-                    break
-                ci, kj = divmod(int(flat), len(ks))
+            tries = np.argsort(sub, axis=None, kind="stable")[:LEAD_IN_TRIES]
+            tries = tries[np.isfinite(sub.flat[tries])]
+            # the feeds of the tries in one go: long enough, in the region, narrow enough
+            ci_all, kj_all = np.divmod(tries, len(ks))
+            good = dist[ci_all, kj_all] > 1e-9
+            good[good] = self.in_region_many(C[ci_all[good]], p[ks[kj_all[good]]], z)
+            good[good] = self.engaged_widths(C[ci_all[good]], p[ks[kj_all[good]]]) <= self.s
+            for ci, kj in zip(ci_all[good].tolist(), kj_all[good].tolist()):
                 c, k = C[ci], int(ks[kj])
-                if dist[ci, kj] <= 1e-9 or not self.in_region(c, p[k], z) or \
-                        self.engaged_width(c, p[k]) > self.s:
-                    continue
                 route = _lead_route(p, k)
                 length = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(route, axis=0).T))])
                 m = int(np.searchsorted(length, 2.0 * arc[k] + self.tool.diameter))
@@ -1209,8 +1247,11 @@ class _Job:
 
     def copied(self, state: dict) -> dict:
         """A deep copy of a state, the grids and objects that never change shared."""
-        shared = (self.grid, self.T, self.Hp, self.tool, self.stock, self.monitor, self.notes,
-                  getattr(self, "in_stock", None), getattr(self, "outside_mm", None))
+        shared = [self.grid, self.T, self.Hp, self.tool, self.stock, self.monitor, self.notes,
+                  getattr(self, "in_stock", None), getattr(self, "outside_mm", None)]
+        writer = state.get("writer")
+        if writer is not None:
+            shared += writer.moves  # immutable: the copy's list holds the same moves
         return copy.deepcopy(dict(state), {id(v): v for v in shared})
 
     def restore(self, state: dict) -> None:
