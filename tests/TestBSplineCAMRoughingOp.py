@@ -480,6 +480,35 @@ class TestJobCommand(unittest.TestCase):
                 self.assertEqual(set(job["rs274_by_post"]), {"linuxcnc", "grbl"})
                 self.assertTrue(all(r["ok"] for r in job["rs274_by_post"].values()))
 
+    def test_finish_past_the_stock_margin(self):
+        """A part (a block with rounded top edges, as BREP) finished with a 6 mm ball down
+        its rounded sides, where the ball's centre runs out to its radius beyond the part,
+        past a 1 mm stock margin: the rest passes clear what is left within the stock (they
+        were refused: the stock grid did not cover the passes) and the job verifies."""
+        import Part
+
+        from BSplineCAM.orchestration import cli
+
+        box = Part.makeBox(30, 20, 8)
+        top = [e for e in box.Edges if e.BoundBox.ZMin > 8 - 1e-9]
+        shape = box.makeFillet(3.0, top)
+        with tempfile.TemporaryDirectory() as tmp:
+            brep = Path(tmp) / "block.brep"
+            shape.exportBrep(str(brep))
+            out = Path(tmp) / "job"
+            status = cli.main(["job", str(brep), "--stock-margin", "1", "--rough", "flat:8",
+                               "--stepdown", "4", "--allowance", "0.3", "--finish", "ball:6",
+                               "--scallop", "0.2", "--tolerance", "0.01", "--no-rs274",
+                               "--out", str(out)])
+            self.assertEqual(status, 0)
+            verified = json.loads((out / "verify.json").read_text())
+            self.assertTrue(verified["ok"], verified["checks"])
+            program = read_gcode((out / "block.ngc").read_text(), "block.ngc")
+            t2 = program.end[program.tool == 2]
+            self.assertLess(float(t2[:, 1].min()), -2.5)  # the finish past the 1 mm margin
+            job = json.loads((out / "job.json").read_text())
+            self.assertGreater(job["rest"]["passes"], 0, job["rest"])
+
     def test_stepdown_beyond_the_cutting_edge_writes_nothing(self):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "job"

@@ -176,9 +176,17 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         stock = stock_after_ops(job, obj, obj.RestFrom, max(0.25 * limit, 0.05), progress)
         if stock is None:
             return None
+        # the finishing passes' box, within the stock's grid: a ball on a part's side runs up
+        # to its radius beyond the part, past a stock margin narrower than that, where no
+        # stock is left to clear
         points = np.concatenate(toolpath.passes)
-        extent = (float(points[:, 0].min()), float(points[:, 0].max()),
-                  float(points[:, 1].min()), float(points[:, 1].max()))
+        g = stock.grid
+        extent = (max(float(points[:, 0].min()), g.x0),
+                  min(float(points[:, 0].max()), g.x0 + g.nx * g.cell),
+                  max(float(points[:, 1].min()), g.y0),
+                  min(float(points[:, 1].max()), g.y0 + g.ny * g.cell))
+        if not (extent[1] > extent[0] and extent[3] > extent[2]):
+            return None
         diameter = 2.0 * self.radius
         rest = generate_rest(cl_height, (stock.grid, stock.height), diameter, limit,
                              0.25 * diameter, extent, angle=float(obj.Angle.Value),
