@@ -441,6 +441,30 @@ class TestCylinderStock(unittest.TestCase):
                 self.doc.removeObject(name)
 
 
+class TestAddRoughing(unittest.TestCase):
+    def test_adding_roughing_computes_no_op(self):
+        """Adding the roughing to a job whose finishing op is set up computes no op: the
+        roughing's tool bit recomputes the document (FreeCAD 0.20), which computed the
+        finishing op once from the bare block (a part's whole finish, thrown away at the
+        job's recompute).  Then one recompute computes both, the finish from the roughed
+        stock (its rest passes)."""
+        doc = FreeCAD.newDocument("TestBSplineCAMAddRoughing")
+        try:
+            _, job, finish = pipeline.build_job(bump(), FINISH, cam.Cutting(), doc)
+            pipeline.add_roughing(job, ROUGH, cam.Cutting())
+            rough = job.Operations.Group[0]
+            self.assertEqual(finish.Report, "")
+            self.assertEqual(rough.Report, "")
+            self.assertTrue(finish.Active and rough.Active)
+            doc.recompute()
+            report = json.loads(finish.Report)
+            self.assertNotIn("error", report)
+            self.assertGreater(report["rest"]["passes"], 0)
+            self.assertNotIn("error", json.loads(rough.Report))
+        finally:
+            FreeCAD.closeDocument(doc.Name)
+
+
 class TestJobCommand(unittest.TestCase):
     """``bsplinecam job`` in this FreeCAD: block to part on the bump, every output checked."""
 

@@ -91,10 +91,25 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
     # the op first: CAM's ops pick their controller when made, and a job's first op with
     # several controllers to choose from fails headless (FreeCAD 0.20-1.1 PathUtils)
     op = Create("SurfaceRough", parentJob=job)
-    # inactive until it is set up: making the new controller's tool bit recomputes the
-    # document in the GUI (FreeCAD 0.20's ToolBit copies its shape), which would otherwise
-    # rough the whole stock with the finishing ball and the op's defaults first
-    op.Active = False
+    # inactive until it is set up, and the job's other ops with it: making the new
+    # controller's tool bit recomputes the document (FreeCAD 0.20's ToolBit copies its
+    # shape, headless too), which would otherwise rough the whole stock with the finishing
+    # ball and the op's defaults, and compute the finishing ops once without the roughed
+    # stock, all thrown away at the next recompute
+    others = [o for o in job.Operations.Group if o is not op and getattr(o, "Active", False)]
+    for other in (op, *others):
+        other.Active = False
+    try:
+        _set_up_roughing(job, op, roughing, cutting)
+    finally:
+        for other in others:
+            other.Active = True
+    op.Active = True
+    return op
+
+
+def _set_up_roughing(job, op, roughing: RoughingParameters, cutting: cam.Cutting) -> None:
+    """:func:`add_roughing`'s work on the new op ``op``, the job's ops inactive meanwhile."""
     for tc in job.Tools.Group:
         tc.ToolNumber = int(tc.ToolNumber) + 1
     tc = cam.add_controller(job, roughing.shape, roughing.diameter, roughing.corner_radius,
@@ -108,8 +123,6 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
         if other is not op and hasattr(other, "RestFrom"):
             other.RestFrom = [*other.RestFrom, op]
     set_roughing(op, roughing)
-    op.Active = True
-    return op
 
 
 #: The stock block's extensions beyond the part that the margin sets (not the bottom).
