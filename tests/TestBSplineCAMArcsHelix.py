@@ -300,3 +300,22 @@ def test_case_study_biarcs_fewer_moves_one_sided(case_study_moves):
             ("kind", "start", "end", "centre", "plane", "feed", "line")}})
         gaps = vertical_gaps(p, sub)
         assert gaps.min() >= -2e-6 and gaps.max() <= tol + 2e-6
+
+
+def test_nanmedian_rows_against_numpy():
+    """The helix fit's row median against np.nanmedian: rows of odd and even counts of
+    numbers among NaNs, a row of NaNs (NaN), one number, ties."""
+    import warnings
+
+    from BSplineCAM.core.toolpath.arcs import _nanmedian_rows
+
+    rng = np.random.default_rng(8)
+    a = rng.normal(size=(200, 7))
+    a[rng.random(a.shape) < 0.35] = np.nan
+    a[0] = np.nan
+    a[1] = [np.nan] * 6 + [2.5]
+    a[2] = [1.0, 1.0, 3.0, 3.0, np.nan, np.nan, 1.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # numpy warns on the row of NaNs
+        ref = np.nanmedian(a, axis=1)
+    np.testing.assert_array_equal(_nanmedian_rows(a), ref)

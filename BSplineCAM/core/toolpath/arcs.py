@@ -309,8 +309,8 @@ def _nanmedian_rows(a: FloatArray) -> FloatArray:
     srt = np.sort(a, axis=1)  # NaNs last
     count = np.count_nonzero(~np.isnan(a), axis=1)
     rows = np.arange(len(a))
-    lo = srt[rows, np.maximum((count - 1) // 2, 0)]
-    hi = srt[rows, np.maximum(count // 2, 0)]
+    lo = srt[rows, np.maximum((count - 1) // 2, 0)]  # a row of NaNs: index 0, masked below
+    hi = srt[rows, count // 2]
     return np.where(count > 0, (lo + hi) / 2.0, np.nan)
 
 
