@@ -343,8 +343,8 @@ def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
 
     The mask's runs along the rows are the nodes; a run is joined to the runs of the next row
     that share a column with it (a contiguous range of them, found by binary search), and
-    each run takes the least index of its component by min-label propagation with pointer
-    jumping over those few nodes (the runs in order, so that least run holds the first cell)."""
+    each run takes the least index of its component (the runs in order, so that least run
+    holds the first cell) by hooking and pointer jumping over those few nodes."""
     mask = np.asarray(mask, bool)
     rows, cols = mask.shape
     out = np.full(mask.shape, -1)
@@ -364,13 +364,25 @@ def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
     a = np.repeat(np.arange(len(row)), count)
     b = np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
     root = np.arange(len(row))
-    while True:
-        prev = root.copy()
-        np.minimum.at(root, a, root[b])
-        np.minimum.at(root, b, root[a])
-        root = root[root]
-        if np.array_equal(root, prev):
+    while len(a):
+        # hook the larger root of every edge joining two trees under the smaller one (each
+        # root under the least offered), then compress every path to its root: a few rounds
+        # even along a spiral (Shiloach & Vishkin 1982)
+        ra, rb = root[a], root[b]
+        apart = ra != rb
+        if not apart.any():
             break
+        a, b = a[apart], b[apart]
+        hi, lo = np.maximum(ra[apart], rb[apart]), np.minimum(ra[apart], rb[apart])
+        order = np.argsort(hi, kind="stable")
+        hi, lo = hi[order], lo[order]
+        heads = np.flatnonzero(np.r_[True, hi[1:] != hi[:-1]])
+        root[hi[heads]] = np.minimum(root[hi[heads]], np.minimum.reduceat(lo, heads))
+        while True:
+            up = root[root]
+            if np.array_equal(up, root):
+                break
+            root = up
     unique, comp = np.unique(root, return_inverse=True)
     out[mask] = np.repeat(comp.ravel(), stop - first)
     return out, len(unique)
