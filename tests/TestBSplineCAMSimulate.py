@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from BSplineCAM.core.errors import ParameterError
 from BSplineCAM.core.gcode import Segments, read_canonical, read_gcode
-from BSplineCAM.core.simulate import Grid, Tool, simulate, simulate_program
+from BSplineCAM.core.simulate import RIM_MM, Grid, Tool, simulate, simulate_program
 
 RS274 = shutil.which("rs274")
 TOP = 10.0
@@ -42,7 +42,9 @@ def test_straight_groove_over_a_plane(shape: str, corner: float) -> None:
     xs, ys = grid.centres()
     col = np.searchsorted(xs, 20.0)
     q = ys - 10.05
-    expected = np.minimum(TOP - d + tool.profile(q), TOP)
+    # the tool's outermost RIM_MM cuts nothing (cells exactly R off the path stay)
+    reach = np.abs(q) < R - RIM_MM
+    expected = np.where(reach, np.minimum(TOP - d + tool.profile(q), TOP), TOP)
     np.testing.assert_allclose(sim.height[:, col], expected, atol=2e-5)
     cut = sim.height[:, col] < TOP - 1e-6
     # groove width at the stock top, closed form per profile
@@ -150,7 +152,13 @@ def test_sloped_segment_matches_brute_force(shape, xy, z0, z1) -> None:
     # swept rim, where the profile turns vertical; short steep moves, slope dz/dxy up to
     # thousands) that moves its height by far more than 2e-5 mm.  A cell above the reference
     # must be below it at a corner of the square of half-side delta around its centre.
-    high = sim.height > ref + 2e-5
+    d = p1[:2] - p0[:2]
+    t = np.clip(((X - p0[0]) * d[0] + (Y - p0[1]) * d[1]) / max(d @ d, 1e-300), 0, 1)
+    dist = np.hypot(X - p0[0] - t * d[0], Y - p0[1] - t * d[1])
+    # the tool's outermost RIM_MM cuts nothing: those cells stay (never below the reference)
+    edge = dist > tool.radius - RIM_MM - position_tolerance(tool)
+    assert np.all(sim.height[edge] >= ref[edge] - 2e-5)
+    high = (sim.height > ref + 2e-5) & ~edge
     corners = position_tolerance(tool) * np.array([[-1, -1, 1, 1], [-1, 1, -1, 1]])
     near = brute_envelope(p0, p1, tool, X[high] + corners[0, :, None],
                           Y[high] + corners[1, :, None])
@@ -158,9 +166,7 @@ def test_sloped_segment_matches_brute_force(shape, xy, z0, z1) -> None:
     step = np.linalg.norm(p1 - p0) / 4000
     # the stamps overestimate by at most the slope of the profile times the sample step;
     # cells within 1e-4 mm of the swept rim (where the profile is vertical) may go either way
-    d = p1[:2] - p0[:2]
-    t = np.clip(((X - p0[0]) * d[0] + (Y - p0[1]) * d[1]) / max(d @ d, 1e-300), 0, 1)
-    rim = np.abs(np.hypot(X - p0[0] - t * d[0], Y - p0[1] - t * d[1]) - tool.radius) < 1e-4
+    rim = np.abs(dist - tool.radius) < 1e-4
     close = (ref - sim.height)[~rim]
     assert np.percentile(close, 99) <= 20 * step + 2e-5
 
@@ -186,6 +192,7 @@ def test_long_level_move_is_exact_to_its_end(shape: str, corner: float) -> None:
     delta = position_tolerance(tool)  # the profile is non-decreasing: bounds at dist -+ delta
     low = np.minimum(p0[2] + tool.profile(np.maximum(dist - delta, 0.0)), 5.0)
     high = np.minimum(p0[2] + tool.profile(dist + delta), 5.0)
+    high[dist + delta > tool.radius - RIM_MM] = 5.0  # the tool's outermost RIM_MM cuts nothing
     assert np.all((low - 2e-5 <= sim) & (sim <= high + 2e-5))
     area = 2 * tool.radius * math.hypot(*d) + math.pi * tool.radius ** 2
     assert np.count_nonzero(sim < 5.0) * grid.cell ** 2 == pytest.approx(area, rel=0.01)
@@ -261,3 +268,24 @@ def test_removed_volume_matches_linuxcnc(tmp_path, shape: str, corner: float) ->
     assert theirs.removed_volume() == pytest.approx(volume, rel=1e-4)
     assert np.abs(ours.height - theirs.height).max() < 0.01
     assert ours.collisions == theirs.collisions == ()
+
+
+@pytest.mark.parametrize("shape, corner", [("ball", 0.0), ("flat", 0.0), ("bullnose", 1.0)])
+def test_tool_touching_a_wall_leaves_its_column(shape: str, corner: float) -> None:
+    """A tool run along a wall its radius away (a waterline contour beside a vertical wall)
+    touches it without cutting: the Z-map cells centred on the wall's plane keep the stock
+    (they dropped to the contact height: a verification found a gouge of the wall's height
+    on a part), the next cells towards the path are cut.  The grid's centres lie on round
+    coordinates, as CAD walls do."""
+    R = 3.0
+    tool = Tool(2 * R, shape, corner)
+    grid = Grid(-2.05, -2.05, 0.1, 250, 150)  # centres at multiples of 0.1 mm
+    sim = run(program("G0 X0 Y8 Z20", "G0 Z5", "G1 Z0 F100", "G1 X15", "G1 Y8.5", "G0 Z20"),
+              tool, grid)
+    xs, ys = grid.centres()
+    cols = (xs > 1.0) & (xs < 14.0)
+    wall = int(np.argmin(np.abs(ys - 5.0)))
+    assert abs(ys[wall] - 5.0) < 1e-9
+    np.testing.assert_array_equal(sim.height[wall, cols], TOP)
+    inner = sim.height[wall + 1, cols]  # 2.9 mm from the path
+    np.testing.assert_allclose(inner, tool.profile(np.array(2.9))[()], atol=2e-5)

@@ -37,6 +37,12 @@ from .typing import FloatArray
 BATCH_CELLS = 1 << 17
 #: A rapid that removes more than this (mm) is a collision.
 COLLISION_TOLERANCE_MM = 0.01
+#: The tool's outermost RIM_MM (mm) cuts nothing in the Z-map.  A tool whose side only
+#: touches a vertical wall (a waterline contour the radius from it, to the program's four
+#: decimals) would drop the column of a cell centred on the wall (grids are aligned to round
+#: coordinates, and so are a CAD part's walls) to the contact height: a gouge of the wall's
+#: height where the tool removed nothing.
+RIM_MM = 1e-4
 _BISECTION_STEPS = 24
 #: Worker threads for the envelopes (the machine's cores, at most 4).
 THREADS = max(1, min(4, os.cpu_count() or 1))
@@ -426,7 +432,7 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
     # is qa - L.
     wide = max(np.abs(dx).max(initial=0.0), np.abs(dy).max(initial=0.0)) > 2 * R
     terms = (lambda v: v) if wide else (lambda v: v.astype(f32))
-    qa, qa1, qp2, rho = (scratch or _Scratch()).arrays(4, (len(L), H, W))
+    qa, qa1, qp2, rho, beyond = (scratch or _Scratch()).arrays(5, (len(L), H, W))
     np.add(terms(dy * uy[e]), terms(dx * ux[e]), out=qa)  # from p0
     if wide:
         np.add(terms(dy * uy[e]), terms(dx * ux[e] - L[e]), out=qa1)  # from p1
@@ -434,6 +440,13 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
         np.subtract(qa, L.astype(f32)[e], out=qa1)
     np.subtract(terms(dy * ux[e]), terms(dx * uy[e]), out=qp2)
     np.square(qp2, out=qp2)
+    # cells farther than R - RIM_MM from the swept axis (across, or beyond an end) are left
+    # (float32 puts them within ~1e-6 R)
+    np.negative(qa, out=beyond)
+    np.maximum(beyond, qa1, out=beyond)
+    np.maximum(beyond, f32(0.0), out=beyond)
+    np.square(beyond, out=beyond)
+    beyond += qp2
     np.subtract(f32(R * R), qp2, out=rho)
     with np.errstate(invalid="ignore"):
         np.sqrt(rho, out=rho)  # NaN beyond the tool's reach across the path
@@ -477,6 +490,7 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
             np.sqrt(gap, out=gap)
             t += (z0 + rc).astype(f32)[e]
             t -= gap
+        t[beyond > f32((R - RIM_MM) ** 2)] = np.nan
     return t
 
 
