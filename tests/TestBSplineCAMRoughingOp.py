@@ -533,6 +533,26 @@ class TestJobCommand(unittest.TestCase):
             job = json.loads((out / "job.json").read_text())
             self.assertGreater(job["rest"]["passes"], 0, job["rest"])
 
+    def test_failed_check_is_said(self):
+        """A job whose finish leaves the scallop over its limit (waterline on the mostly
+        shallow bump) ends with status 1 and a line per failed check on stderr, with the
+        strategy's hint, besides verify.json."""
+        import contextlib
+        import io
+
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "job"
+            err = io.StringIO()
+            with contextlib.redirect_stderr(err):
+                status = self.run_job(out, "--strategy", "waterline", "--no-rs274")
+            self.assertEqual(status, 1)
+            verified = json.loads((out / "verify.json").read_text())
+            self.assertFalse(verified["checks"]["scallop_max_mm"]["ok"])
+            lines = [ln for ln in err.getvalue().splitlines() if "check failed" in ln]
+            self.assertEqual(len(lines), 1, err.getvalue())
+            self.assertIn("scallop_max_mm", lines[0])
+            self.assertIn("steep_shallow", lines[0])
+
     def test_stepdown_beyond_the_cutting_edge_writes_nothing(self):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "job"

@@ -225,6 +225,15 @@ def cmd_job(args: argparse.Namespace) -> int:
     emit({"out": str(Path(args.out).resolve()), **report["verify"],
           "notes": report.get("roughing", {}).get("notes", []),
           "rs274": report.get("rs274", {}).get("ok")})
+    for name, check in verified.get("checks", {}).items():
+        if not check["ok"]:
+            hint = ""
+            if name == "scallop_max_mm" and args.strategy == Strategy.WATERLINE.value:
+                hint = (" (waterline finishes the walls steeper than 30 degrees only; "
+                        "--strategy steep_shallow adds a raster over the rest)")
+            print(f"bsplinecam job: check failed: {name} {check['value']:.6g} over its limit "
+                  f"{check['limit']:.6g}{hint}; see {Path(args.out) / 'verify.json'}",
+                  file=sys.stderr)
     ok = report.get("rs274", {"ok": True})["ok"] and verified.get("ok", True)
     return 0 if ok else EXIT_CHECK_FAILED
 
