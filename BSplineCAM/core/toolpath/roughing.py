@@ -415,10 +415,16 @@ def _densify(pts: FloatArray, step: float) -> FloatArray:
         t = (np.arange(1, n + 1) / n)[:, None]
         return np.concatenate([pts[:1], pts[0] + t * d])
     seg = pts[1:] - pts[:-1]
+    owner, t = _pieces(seg, step)
+    return np.concatenate([pts[:1], pts[:-1][owner] + t[:, None] * seg[owner]])
+
+
+def _pieces(seg: FloatArray, step: float) -> tuple[np.ndarray, FloatArray]:
+    """Segments (k, 2) cut in equal pieces no longer than ``step``: the segment of each
+    piece's end and its fraction along it (1/n .. 1)."""
     n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / step).astype(np.intp), 1)
     owner = np.repeat(np.arange(len(seg)), n)
-    t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1) / n[owner]
-    return np.concatenate([pts[:1], pts[:-1][owner] + t[:, None] * seg[owner]])
+    return owner, (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1) / n[owner]
 
 
 def marching_squares(F: FloatArray) -> list:
@@ -527,7 +533,6 @@ def marching_squares(F: FloatArray) -> list:
     key_seq = np.stack([k0, k1], axis=1).ravel()
     point_seq = np.stack([p0, p1], axis=1).reshape(-1, 2)
     crossing, first_at = np.unique(key_seq, return_index=True)
-    k0a = np.asarray(k0)
     for s in range(len(sc)):
         if used[s]:
             continue
@@ -545,7 +550,7 @@ def marching_squares(F: FloatArray) -> list:
         poly = point_seq[first_at[np.searchsorted(crossing, keys_a)]]
         # majority vote of the segments' orientation tests along the chain's direction
         segs_a = np.array(segs)
-        agree = int(np.count_nonzero((k0a[segs_a] == keys_a[:len(segs)]) == good[segs_a]))
+        agree = int(np.count_nonzero((k0[segs_a] == keys_a[:len(segs)]) == good[segs_a]))
         vote = 2 * agree - len(segs)
         if vote < 0:
             poly = poly[::-1]
@@ -949,9 +954,7 @@ class _Job:
         """:meth:`in_region` of the feeds from A[i] to B[i] (n, 2), sampled at once: the
         points of :func:`_densify` of each, half a cell apart."""
         D = B - A
-        n = np.maximum(np.ceil(np.hypot(D[:, 0], D[:, 1]) / (0.5 * self.cell)).astype(np.intp), 1)
-        owner = np.repeat(np.arange(len(A)), n)
-        t = (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1) / n[owner]
+        owner, t = _pieces(D, 0.5 * self.cell)
         pts = np.concatenate([A, A[owner] + t[:, None] * D[owner]])
         f = self.idx(pts)
         high = _bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3
