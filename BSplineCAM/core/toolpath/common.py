@@ -373,11 +373,12 @@ def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
         if not apart.any():
             break
         a, b = a[apart], b[apart]
-        hi, lo = np.maximum(ra[apart], rb[apart]), np.minimum(ra[apart], rb[apart])
-        order = np.argsort(hi, kind="stable")
-        hi, lo = hi[order], lo[order]
-        heads = np.flatnonzero(np.r_[True, hi[1:] != hi[:-1]])
-        root[hi[heads]] = np.minimum(root[hi[heads]], np.minimum.reduceat(lo, heads))
+        upper = np.maximum(ra[apart], rb[apart])
+        lower = np.minimum(ra[apart], rb[apart])
+        order = np.argsort(upper, kind="stable")
+        upper, lower = upper[order], lower[order]
+        heads = np.flatnonzero(np.r_[True, upper[1:] != upper[:-1]])
+        root[upper[heads]] = np.minimum(root[upper[heads]], np.minimum.reduceat(lower, heads))
         while True:
             up = root[root]
             if np.array_equal(up, root):
