@@ -245,3 +245,34 @@ def test_smoothly_pushed_vertices_are_not_taken_for_jumps():
     assert push["jump_chords"] == 0 and push["dipping_chords"] == 0
     assert push["worst_dip_mm"] <= 1e-7
     assert_above_drop(fs, tp)
+
+
+def test_no_contour_rubs_a_check_wall_under_a_fillet():
+    """A selected top and fillet whose end turns vertical at x = rho, along a line rising from
+    z = H0 to H1, over an unselected vertical wall up to that line (a part's side under its
+    rounded edge): at a level between, the ball's side meets only the wall where the end is
+    higher than the ball's centre, so no contour runs beside the wall there (each such contour
+    rubbed the check face: on examples/part.step five levels along its side, 15 % of the
+    waterline's cutting length); the fillet's own contours stay."""
+    H0, H1, rho, length = 8.0, 12.0, 5.0, 8.0
+    c = math.sqrt(0.5)  # a quarter cylinder from (0, y, H + rho) to (rho, y, H), H along y
+    arc = [(0.0, rho), (rho, rho), (rho, 0.0)]
+    fillet = NurbsSurface(np.array([[[x, 0.0, z + H0], [x, length, z + H1]] for x, z in arc]),
+                          [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1,
+                          weights=np.array([[1.0, 1.0], [c, c], [1.0, 1.0]]))
+    top = NurbsSurface(np.array([[[-10.0, 0.0, H0 + rho], [-10.0, length, H1 + rho]],
+                                 [[0.0, 0.0, H0 + rho], [0.0, length, H1 + rho]]]),
+                       [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
+    wall = NurbsSurface(np.array([[[rho, 0.0, 0.0], [rho, length, 0.0]],
+                                  [[rho, 0.0, H0], [rho, length, H1]]]), [0, 0, 1, 1],
+                        [0, 0, 1, 1], 1, 1)
+    fs = FaceSet([Face(top, rectangle(top), index=1), Face(fillet, rectangle(fillet), index=2),
+                  Face(wall, rectangle(wall), index=3, selected=False)])
+    tp = faces_waterline.generate_faces_waterline(fs, 2 * R, 0.3, 0.01)
+    pts = np.concatenate(tp.passes)
+    end = H0 + (H1 - H0) * pts[:, 1] / length  # the fillet's end over the wall
+    beside = pts[:, 0] > rho + R - 0.05
+    assert np.any(pts[:, 2] + R > end + 1.0)  # the fillet's own contours
+    assert np.any(beside)  # where the end is at the ball's centre, the contour meets it
+    low = beside & (pts[:, 2] + R < end - 0.05)
+    assert not low.any(), pts[low][:5]

@@ -45,7 +45,7 @@ import time
 import numpy as np
 
 from ..errors import ParameterError
-from ..faces import sample_points
+from ..faces import inside, sample_points
 from ..typing import FloatArray
 from .common import (
     Jet,
@@ -201,6 +201,41 @@ def _contacts(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, xy: FloatAr
         tilt = np.linalg.norm((c - d.point) / R - n, axis=1)
         good[idx] = tilt <= tilt_max
     return tip, good
+
+
+def _wall_on_face(faceset: FaceSet, query: FaceQuery, xy: FloatArray, z: FloatArray,
+                  tol: float, steps: int = 12) -> np.ndarray:
+    """Whether the face of the ball's contact at xy (just above a jump) reaches down to the
+    height z (mm) at that contact's xy, within ``tol``: the wall a ball's side meets below a
+    rim is then that face (a tube's side under its rim) and not another one (a check face's
+    side under a fillet that ends vertical, which a contour there would only rub).  The point
+    below the contact is projected onto the face by Gauss-Newton steps from the contact's
+    parameters, kept in the face's domain and material."""
+    _tip, face, u, v, _sel = query.heights(xy)
+    out = np.zeros(len(xy), bool)
+    for k in np.unique(face[face >= 0]).tolist():
+        idx = np.flatnonzero(face == k)
+        f = faceset.faces[k]
+        (u0, u1), (v0, v1) = f.surface.domain
+        uu, vv = u[idx].copy(), v[idx].copy()
+        target = np.column_stack([f.surface.evaluate(uu, vv)[:, :2], z[idx]])
+        for _ in range(steps):
+            d = f.surface.derivatives(uu, vv)
+            r = d.point - target
+            a11 = np.einsum("ij,ij->i", d.su, d.su)
+            a12 = np.einsum("ij,ij->i", d.su, d.sw)
+            a22 = np.einsum("ij,ij->i", d.sw, d.sw)
+            b1 = np.einsum("ij,ij->i", d.su, r)
+            b2 = np.einsum("ij,ij->i", d.sw, r)
+            det = a11 * a22 - a12 * a12
+            safe = np.where(np.abs(det) > 1e-300, det, 1.0)
+            uu = np.clip(uu - np.where(np.abs(det) > 1e-300, (a22 * b1 - a12 * b2) / safe, 0.0),
+                         u0, u1)
+            vv = np.clip(vv - np.where(np.abs(det) > 1e-300, (a11 * b2 - a12 * b1) / safe, 0.0),
+                         v0, v1)
+        gap = np.linalg.norm(f.surface.evaluate(uu, vv) - target, axis=1)
+        out[idx] = (gap <= tol) & inside(f, uu, vv)
+    return out
 
 
 def _project(query: FaceQuery, q: FloatArray, level: FloatArray, steps: int = 2) -> FloatArray:
@@ -501,10 +536,14 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     _tip, good = _contacts(faceset, query, signs, xy)
     if jump.any():
         # the ball beside a jump touches what it follows on its rim: the contact that counts
-        # is the one just above the level, tilted by up to sqrt(2 width / R) from the normal
+        # is the one just above the level, tilted by up to sqrt(2 width / R) from the normal,
+        # with the wall the ball's side meets at the level on that face too
         up = p0[jump] + t_up[jump, None] * (p1[jump] - p0[jump])
         tilt = SURFACE_TILT + 2.0 * math.sqrt(2.0 * width / tool.radius)
-        good[jump] = _contacts(faceset, query, signs, up, tilt)[1]
+        ok = _contacts(faceset, query, signs, up, tilt)[1]
+        ok[ok] = _wall_on_face(faceset, query, up[ok], zl[jump][ok] + tool.radius,
+                               tool.tolerance)
+        good[jump] = ok
     monitor(0.5)
     # split each contour to its runs on selected surface contacts; each run end next to a
     # dropped point is carried on along the level to where the contact leaves the face

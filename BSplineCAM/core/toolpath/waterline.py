@@ -337,8 +337,9 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
         d = vxy[nxt] - vxy
         length = np.hypot(d[:, 0], d[:, 1])
         normal = np.column_stack([-d[:, 1], d[:, 0]]) / np.maximum(length, 1e-300)[:, None]
+        # halves first: an infinite slope's stand-in (the largest float) must not overflow
         grad = np.where(np.isfinite(check.grad), check.grad,
-                        0.5 * (np.nan_to_num(gv) + np.nan_to_num(gv[nxt])))
+                        0.5 * np.nan_to_num(gv) + 0.5 * np.nan_to_num(gv[nxt]))
         rate = np.einsum("ij,ij->i", grad, normal)
         normal *= -np.sign(np.where(rate == 0, 1.0, rate))[:, None]  # downhill
         rate = np.maximum(np.abs(rate), 1e-3)
@@ -390,7 +391,9 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
             # gradient, stays beside a jump
             jumped[jump] = True
             jumped[nxt[jump]] = True
-            slope = np.maximum(np.hypot(gv[:, 0], gv[:, 1]), np.hypot(grad[:, 0], grad[:, 1]))
+            with np.errstate(over="ignore"):  # a jump's stand-in slope: inf, as meant
+                slope = np.maximum(np.hypot(gv[:, 0], gv[:, 1]),
+                                   np.hypot(grad[:, 0], grad[:, 1]))
             slope[1:] = np.maximum(slope[1:], np.where(prev[1:], slope[:-1], 0.0))
             moved = amount > 0
             jumped |= moved & ~np.isfinite(slope)
