@@ -26,7 +26,9 @@ of that field.
   a wall or an edge, the contact on its rim) the crossing is bracketed to tolerance / 8 and
   the point kept on the air side (at or below the level, or no face); it counts as a contour
   point when the contact just above the jump is a selected surface contact (tilted by up to
-  the bracket's sqrt(2 width / R)).  Between such points the contour is carried along the
+  the bracket's sqrt(2 width / R)) and its face reaches down to the ball's centre below it
+  (:func:`_wall_on_face`: a tube's side under its rim; not a check face's side under a fillet
+  that ends vertical, which such a contour would only rub).  Between such points the contour is carried along the
   jump to tolerance / 2 (:func:`_densify_jumps`), and push_out finds its shifts there by
   searching for the free side rather than from the meaningless gradient.
 * A contour is kept only where the ball's contact lies on a selected face AND is a surface
