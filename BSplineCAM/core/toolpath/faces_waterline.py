@@ -28,9 +28,9 @@ of that field.
   point when the contact just above the jump is a selected surface contact (tilted by up to
   the bracket's sqrt(2 width / R)) and its face reaches down to the ball's centre below it
   (:func:`_wall_on_face`: a tube's side under its rim; not a check face's side under a fillet
-  that ends vertical, which such a contour would only rub).  Between such points the contour is carried along the
-  jump to tolerance / 2 (:func:`_densify_jumps`), and push_out finds its shifts there by
-  searching for the free side rather than from the meaningless gradient.
+  that ends vertical, which such a contour would only rub).  Between such points the contour
+  is carried along the jump to tolerance / 2 (:func:`_densify_jumps`), and push_out finds its
+  shifts there by searching for the free side rather than from the meaningless gradient.
 * A contour is kept only where the ball's contact lies on a selected face AND is a surface
   contact, the centre on the face's normal through it (|(c - p) / R - n| <= ``SURFACE_TILT``):
   a ball hanging on a trim edge (a hole's rim, a face's outer edge) touches only the edge and
