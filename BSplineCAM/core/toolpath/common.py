@@ -376,9 +376,7 @@ def label_regions(mask: np.ndarray) -> tuple[np.ndarray, int]:
         upper = np.maximum(ra[apart], rb[apart])
         lower = np.minimum(ra[apart], rb[apart])
         order = np.argsort(upper, kind="stable")
-        upper, lower = upper[order], lower[order]
-        heads = np.flatnonzero(np.r_[True, upper[1:] != upper[:-1]])
-        root[upper[heads]] = np.minimum(root[upper[heads]], np.minimum.reduceat(lower, heads))
+        min_into(root, upper[order], lower[order])
         while True:
             up = root[root]
             if np.array_equal(up, root):
@@ -427,14 +425,24 @@ def split_runs(valid: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
 
 
-def max_into(out: FloatArray, keys: np.ndarray, values: FloatArray) -> None:
-    """out[k] = max(out[k], values with key k) for non-decreasing ``keys``: np.maximum.at by
+def _reduce_into(op: np.ufunc, out: np.ndarray, keys: np.ndarray, values: np.ndarray) -> None:
+    """out[k] = op(out[k], values with key k) for non-decreasing ``keys``: ``op.at`` by
     segments (much faster on numpy 1.x)."""
     if len(keys) == 0:
         return
     starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
     heads = keys[starts]
-    out[heads] = np.maximum(out[heads], np.maximum.reduceat(values, starts))
+    out[heads] = op(out[heads], op.reduceat(values, starts))
+
+
+def max_into(out: FloatArray, keys: np.ndarray, values: FloatArray) -> None:
+    """out[k] = max(out[k], values with key k) for non-decreasing ``keys``."""
+    _reduce_into(np.maximum, out, keys, values)
+
+
+def min_into(out: np.ndarray, keys: np.ndarray, values: np.ndarray) -> None:
+    """out[k] = min(out[k], values with key k) for non-decreasing ``keys``."""
+    _reduce_into(np.minimum, out, keys, values)
 
 
 def simplify(points: FloatArray, starts: np.ndarray, tolerance: float, metric: str) -> np.ndarray:

@@ -965,8 +965,9 @@ class _Job:
     def path_in_region(self, path: FloatArray, z: float) -> bool:
         """Every feed along the polyline ``path`` (xy) stays in {T <= z} (:meth:`in_region`
         of each, sampled at once)."""
-        f = self.idx(_densify(np.asarray(path, dtype=float)[:, :2], 0.5 * self.cell))
-        return not np.any(_bilinear(self.T, f[:, 0], f[:, 1]) > z + 1e-3)
+        p = np.asarray(path, dtype=float)[:, :2]
+        a, b = (p[:-1], p[1:]) if len(p) > 1 else (p, p)
+        return bool(self.in_region_many(a, b, z).all())
 
     def engaged_width(self, a, b) -> float:
         """Width of cut (mm) of a feed from a to b (xy) at the level, by the uncut grid, as the
