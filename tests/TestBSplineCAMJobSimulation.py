@@ -362,6 +362,31 @@ def test_helix_closing_turn_is_part_of_the_entry() -> None:
     assert report.radial_engagement_max_mm <= 10.0 + CELL
 
 
+def test_closing_lap_of_a_ramp_round_a_closed_pass_is_part_of_the_entry() -> None:
+    """A ramp down 2 mm along the first half of a square pass's first side, then the rest of
+    the square at the level and back along the ramp's track to its end (the closing lap,
+    which clears the wedge the ramp left), then a step out of the square: the closing lap
+    counts as entry, though moves off the ramp's track came between; the square's other
+    sides (one ends on the track, its midpoint off it) and the step out do not."""
+    ramp = [f"G1 X{5 * k} Z{-0.5 * k:.1f}" for k in range(1, 5)]
+    text = program("T1 M6", "G0 X0 Y0 Z5", "G0 Z0.5", "G1 Z0 F300", *ramp,
+                   "G1 X40", "G1 Y40", "G1 X0", "G1 Y0", "G1 X10", "G1 X20",
+                   "G1 Y10", "G0 Z5")
+    prog = read_gcode(text)
+    from BSplineCAM.core.job_simulation import entry_moves
+
+    marked = entry_moves(prog)
+    feeds = np.flatnonzero(prog.kind != 0)
+    assert marked[feeds[1:5]].all()  # the ramp
+    assert not marked[feeds[5:9]].any()  # round the square
+    assert marked[feeds[9]] and marked[feeds[10]]  # the closing lap
+    assert not marked[feeds[11]]  # the step out
+    job = simulate_job(prog, {1: FLAT10}, grid_for(-10, 50, -10, 50), (-10, 50, -10, 50, -5, 0))
+    lap = np.isin(job.segments.move, feeds[9:11])
+    assert job.entry[lap].all() and float(job.axial[lap].max()) > 1.0  # it cut the wedge
+    assert job.tools[1].entries >= 1
+
+
 # -- a cylinder stock (CAM's "CreateCylinder") ------------------------------------------------
 CYLINDER = CylinderStock(25.0, 0.0, 20.0, -10.0, 0.0)
 

@@ -937,6 +937,37 @@ def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
     assert over < over_plain
 
 
+def test_levels_still_over_when_bent_are_cut_at_a_smaller_stepover(monkeypatch):
+    """Bent fronts alone leave cuts wider than 1.1 s beside the boss near the block's corner
+    (where they bend and close in on each other); with the levels still over cut again at
+    a share of the stepover (STEPOVER_SCALES), the job simulation finds no move outside
+    the entries wider than 1.1 s plus a cell, and the narrowed levels are reported."""
+    from BSplineCAM.core.toolpath import roughing
+
+    stock = Stock(-30, 30, -30, 30, 0.0, 15.0)
+    tool = Tool(10.0, "flat")
+    s = 4.0
+
+    def run():
+        rough = generate_roughing(boss_near_corner, stock, tool, stepdown=2.0, stepover=s,
+                                  radial_allowance=0.3, axial_allowance=0.3)
+        radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+        assert collisions == 0
+        return rough, int((radial > 1.1 * s + SIM_CELL).sum())
+
+    narrowed, over = run()
+    monkeypatch.setattr(roughing, "STEPOVER_SCALES", ())
+    bent, over_bent = run()
+    assert bent.stats["narrowed_levels"] == []
+    assert over_bent > 0
+    assert over == 0
+    levels = narrowed.stats["narrowed_levels"]
+    assert levels and all(0 < share < 1 for _, share in levels)
+    assert {z for z, _ in levels} <= set(narrowed.stats["bent_levels"])
+    # closer fronts: more cutting, not a different part
+    assert narrowed.stats["cutting_length_mm"] > bent.stats["cutting_length_mm"]
+
+
 # -- a cylinder stock (CAM's "CreateCylinder") ------------------------------------------------
 CYLINDER = CylinderStock(3.0, -2.0, 20.0, 0.0, 12.0)
 PLANE_Z = 4.0

@@ -7,7 +7,8 @@
 #               one program with tool changes through FreeCAD's linuxcnc, grbl, fanuc and
 #               mach3_mach4 posts, each checked by rs274
 #   3. verify:  (inside job) the linuxcnc program's text simulated from the stock block with
-#               both tools and measured against the design: gouge, scallop, rapids, engagement
+#               both tools and measured against the design: gouge, scallop, rapids, and the
+#               roughing's radial engagement within 1.1 x its stepover
 # Exits non-zero if any stage fails its check.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -57,10 +58,12 @@ print(f"  machined from the block: gouge {ver['gouge_max_mm'] * 1000:.2f} um, sc
       f"({ver['machining_time_with_acceleration_s'] / 60:.1f} min with acceleration)")
 for name, check in ver["checks"].items():
     print(f"    {'ok  ' if check['ok'] else 'FAIL'} {name}: {check['value']} (limit {check['limit']})")
+# the roughing's engagement is a target for `job` in general (see the README's known
+# limits); the case study meets it, so here it is a check like the others
 for name, target in ver.get("targets", {}).items():
-    print(f"    {'ok  ' if target['ok'] else 'OVER'} {name}: {target['value']} (target {target['limit']}; "
-          "a target, see the README's known limits)")
+    print(f"    {'ok  ' if target['ok'] else 'FAIL'} {name}: {target['value']} (limit {target['limit']})")
 ok = status == 0 and cross["exact_route_ok"] and ver["ok"] and all(
-    r["ok"] for r in job.get("rs274_by_post", {}).values())
+    r["ok"] for r in job.get("rs274_by_post", {}).values()) and all(
+    t["ok"] for t in ver.get("targets", {}).values())
 sys.exit(0 if ok else 1)
 PY

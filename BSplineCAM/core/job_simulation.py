@@ -23,11 +23,12 @@ the depth threshold ``max(ENGAGEMENT_DEPTH_MM, cell / 10)``:
 * cutting length = feed moves with at least one engaged cell; air length = the other feed
   moves (mm).
 * entry = a feed move whose program move descends by more than ENTRY_DESCENT_MM (plunge,
-  ramp, helix), and the level moves right after such a run that stay on its XY path (end
-  and midpoint within ENTRY_REACH_MM of it, plus the chord tolerance of arcs): the closing
-  turn of a helix or the way back along a ramp, which clear the wedge the descent left
-  (:func:`entry_moves`).  A move that leaves the path, even inside the descent's XY box,
-  is no entry.  Entries are counted and their largest engagement reported apart; the radial
+  ramp, helix), and the level feed moves after such a run, up to the next descent, lift or
+  rapid, that lie on its XY path (end and midpoint within ENTRY_REACH_MM of it, plus the
+  chord tolerance of arcs): the closing turn of a helix, the way back along a ramp, or the
+  end of a pass round which a ramp descended, which clear the wedge the descent left
+  (:func:`entry_moves`).  A move off the path, even inside the descent's XY box, is no
+  entry.  Entries are counted and their largest engagement reported apart; the radial
   maximum and the means leave them out (a roughing strategy bounds engagement outside its
   entries only).  Means are weighted by the moves' lengths, over cutting non-entry moves.
 * material removal rate = removed volume / time (feed), over windows of consecutive cutting
@@ -83,9 +84,11 @@ def entry_moves(program: Program, segments: Segments | None = None,
                 slack: float = ENTRY_REACH_MM) -> np.ndarray:
     """Per program move: True for the moves of an entry (see the module docstring).
     ``segments`` (the program linearised) give the path of arcs (helices) by their chords;
-    without them, by their end points.  A level move after a descending run is part of the
-    entry while its end and its midpoint lie within ``slack`` (mm) of the run's XY path: it
-    goes back over the ramp or round the helix, clearing the wedge the descent left."""
+    without them, by their end points.  A level move after a descending run, before the next
+    descent, lift or rapid, is part of the entry if its end and its midpoint lie within
+    ``slack`` (mm) of the run's XY path: it goes back over the ramp, round the helix or
+    round the rest of a closed pass to the ramp's start, clearing the wedge the descent
+    left."""
     feed = np.asarray(program.kind) != 0
     start = np.asarray(program.start, dtype=float)
     end = np.asarray(program.end, dtype=float)
@@ -101,11 +104,14 @@ def entry_moves(program: Program, segments: Segments | None = None,
         level = end[b - 1, 2]
         j = b
         while j < n and feed[j] and not out[j] and abs(end[j, 2] - level) <= ENTRY_DESCENT_MM:
-            probe = np.array([end[j, :2], 0.5 * (start[j, :2] + end[j, :2])])
-            if float(_distance_to_segments(probe, p0, p1).max()) > slack:
-                break
-            out[j] = True
             j += 1
+        if j > b:
+            # the level moves that follow, up to the next descent, lift or rapid: those
+            # on the run's path are the way back or the closing lap of a closed pass
+            mid = 0.5 * (start[b:j, :2] + end[b:j, :2])
+            probe = np.concatenate([end[b:j, :2], mid])
+            far = _distance_to_segments(probe, p0, p1).reshape(2, -1).max(axis=0) > slack
+            out[b:j] = ~far
     return out
 
 

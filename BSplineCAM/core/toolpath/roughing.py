@@ -59,13 +59,16 @@ A pass running head-on into a wall, or past the end of the previous pass along a
 slants across the fronts, ends with material on both sides; there the width of cut reaches
 about R + s/2 (the crescent between two end disks s apart: 7.4 mm for a 10 mm mill at a 4 mm
 stepover and a 2 mm stepdown on examples/case-study.json).  So each level is replayed on
-its uncut grid, and where its fronts cut wider than ENGAGEMENT_LIMIT s plus a cell next to
-a wall it is cut again with fronts that grow by less within WALL_LAYER_RADII tool radii of
-the walls: they bend and come to the wall at a slant, and the narrower cut is kept
-(:meth:`_Job.level_best`).  Known limit: bent fronts cut a little wider than s where they
-bend and where two of them close in on each other beside a wall: on the case study at 2 mm
-the widest cut went from 7.4 to 4.9 mm (moves over 1.1 s plus a cell: 27 -> 11), at the
-cost of about 3 times the compute (a level over the bound is cut three times).  Rings round a helix are cut on their exact circle (the
+its uncut grid, and where its fronts cut wider than ENGAGEMENT_LIMIT s it is cut again
+with fronts that grow by less within WALL_LAYER_RADII tool radii of the walls: they bend
+and come to the wall at a slant (:meth:`_Job.level_best`).  Bent fronts cut a little wider
+than s where they bend and where two of them close in on each other beside a wall (on the
+case study at 2 mm the widest cut went from 7.4 to 4.9 mm), so a level still over is cut
+again with its bent fronts at shares of the stepover (STEPOVER_SCALES) until one keeps
+within the limit: closer fronts leave thinner wedges.  The narrowest cut is kept.  On the
+case study at 2 mm: widest cut 4.3 mm (no move over 1.1 s plus the simulation's cell, 12
+before), five of its ten levels at 90 % or less of the stepover, 16 % more cutting length
+and about 1.3 times the compute.  Rings round a helix are cut on their exact circle (the
 radius their grid contour has) in chords within RING_CHORD_MM: the grid's contour wanders
 by about a cell, and a chord of it pointing outwards cut up to 6.2 mm wide at a 4 mm
 stepover.  A fine level's fronts round the floor cut below it (a pocket) grow as rings by
@@ -135,17 +138,22 @@ LEAD_IN_ROUTES = 8
 #: radii of a wall a front grows by less, down to a share of the stepover at the wall (one of
 #: WALL_LAYER_STEPS; the share rises quadratically with the distance, so that the front
 #: bends smoothly), and so comes to the wall at a slant instead of head-on.  A level is cut
-#: so only when its plain fronts cut wider than ENGAGEMENT_LIMIT stepovers plus a cell next
-#: to a wall, and only if that cuts narrower (:meth:`_Job.level_best`).
+#: so only when its plain fronts cut wider than ENGAGEMENT_LIMIT stepovers, and kept only
+#: if that cuts narrower (:meth:`_Job.level_best`).
 WALL_LAYER_RADII = 2.0
 WALL_LAYER_STEPS = (0.8, 0.65)
+#: Shares of the stepover by which a level's bent fronts grow when at the full stepover
+#: they still cut wider than ENGAGEMENT_LIMIT (:meth:`_Job.level_best`): closer fronts
+#: leave thinner wedges where they meet the walls and each other.
+STEPOVER_SCALES = (0.9, 0.8, 0.7)
 #: A floor ring's front grows by :func:`ring_steps` of the radius it has there
 #: (:func:`front_radius`, smoothed by box means reaching FRONT_SMOOTH_RADII tool radii to each
 #: side), by at least MIN_FRONT_STEP stepovers.
 FRONT_SMOOTH_RADII = 0.5
 MIN_FRONT_STEP = 0.25
-#: Widest cut accepted (times the stepover, plus a grid cell) before a level's bent fronts
-#: are tried: the bound the clearing aims at.
+#: Widest cut accepted (times the stepover; :meth:`_Job.engaged_width`, which counts a grid
+#: cell for the cells' own width) before a level's bent fronts are tried: the bound the
+#: clearing keeps.
 ENGAGEMENT_LIMIT = 1.1
 #: A ramp backwards into an open pass starts where the material's top lies at most
 #: BACK_RAMP_TOL_MM above the ramp's top, found in at most BACK_RAMP_ROUNDS rounds
@@ -685,6 +693,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
         "entries": {"helical": job.helical, "outside": job.outside, "ramp": job.ramps,
                     "lead_in": job.lead_ins},
         "bent_levels": job.bent_levels,
+        "narrowed_levels": job.narrowed_levels,
         "entry_spans": job.entry_spans,
         "link_moves": job.links,
         "retracts": job.writer.retracts,
@@ -803,6 +812,7 @@ class _Job:
         self.ramps = 0
         self.lead_ins = 0  # straight descents on the floor already cut, then a lead-in
         self.bent_levels: list = []  # levels (z) cut with the fronts bent towards the walls
+        self.narrowed_levels: list = []  # [z, share of the stepover] of those cut narrower
         self.lifts = 0
         self.entry_spans: list = []
         self.links: list[int] = []
@@ -1224,26 +1234,37 @@ class _Job:
     # one level
     def level_best(self, z, z_above, in_stock, air, li, nlevels, step_up=False) -> None:
         """Cut level z by :meth:`level`; where its widest cut next to a wall
-        (:meth:`widest_cut`) passes ENGAGEMENT_LIMIT stepovers plus a cell, cut it again with
-        the fronts bent towards the walls, at each of WALL_LAYER_STEPS, and keep the cut
-        that is narrowest (of the plain one the moves ending within a tool radius of a wall
-        measured, of the bent ones those within the bending layer and a tool radius)."""
+        (:meth:`widest_cut`) passes ENGAGEMENT_LIMIT stepovers, cut it again with the fronts
+        bent towards the walls, at each of WALL_LAYER_STEPS, and if none keeps within the
+        limit, again so with the fronts grown by each of STEPOVER_SCALES of the stepover in
+        turn, until one does or a smaller stepover no longer cuts narrower.  The narrowest
+        cut is kept (of the plain fronts the moves ending within a tool radius of a wall
+        measured, of the others every move outside the entries)."""
         before = self.snapshot()
         self.level(z, z_above, in_stock, air, li, nlevels, step_up)
-        best = self.widest_cut(z, self.R + 3 * self.cell)
-        if best <= ENGAGEMENT_LIMIT * self.s + self.cell:
+        limit = ENGAGEMENT_LIMIT * self.s
+        best = self.widest_cut(z, None)
+        if best <= limit:
             return
-        kept, bent = self.snapshot(), False
-        for i, step in enumerate(WALL_LAYER_STEPS):
-            last = i == len(WALL_LAYER_STEPS) - 1
-            self.restore(before if last else self.copied(before))
-            self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step)
-            width = self.widest_cut(z, (WALL_LAYER_RADII + 1) * self.R + 3 * self.cell)
-            if width < best:
-                best, kept, bent = width, self.snapshot(), True
+        kept, used = self.snapshot(), None
+        for scale in (1.0,) + STEPOVER_SCALES:
+            narrower = False
+            for step in WALL_LAYER_STEPS:
+                self.restore(self.copied(before))
+                self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step,
+                           scale=scale)
+                width = self.widest_cut(z, None)
+                if width < best:
+                    best, kept, used, narrower = width, self.snapshot(), scale, True
+                if best <= limit:
+                    break
+            if best <= limit or (scale < 1.0 and not narrower):
+                break
         self.restore(kept)
-        if bent:
+        if used is not None:
             self.bent_levels.append(float(z))
+        if used is not None and used < 1.0:
+            self.narrowed_levels.append([float(z), used])
 
     def snapshot(self) -> dict:
         """A copy of the run's state (:meth:`copied`)."""
@@ -1264,19 +1285,23 @@ class _Job:
         self.__dict__.clear()
         self.__dict__.update(state)
 
-    def widest_cut(self, z: float, reach: float) -> float:
+    def widest_cut(self, z: float, reach: float | None) -> float:
         """Widest cut (mm, :meth:`engaged_width`) of the level's feed moves at z outside its
-        entries that end within ``reach`` (mm) of a wall, replayed in order on the level's
-        uncut grid (every feed move, entries included, cuts its swath)."""
+        entries that end within ``reach`` (mm) of a wall (None: all of them), replayed in
+        order on the level's uncut grid (every feed move, entries included, cuts its
+        swath)."""
         moves = self.writer.moves
         first = self.level_first
         entry = np.zeros(len(moves) + 1, bool)
         for a, b in self.entry_spans:
             if b > first:
                 entry[max(a, first):b] = True
-        cap = reach / self.cell
         tip = self.T
-        near = capped_distance(tip > z + _EPS, cap + 1) <= cap
+        if reach is None:
+            near = np.ones(tip.shape, bool)
+        else:
+            cap = reach / self.cell
+            near = capped_distance(tip > z + _EPS, cap + 1) <= cap
         ny, nx = near.shape
         saved = self.uncut, self.floor, self.surface
         self.uncut = self.level_uncut.copy()
@@ -1315,7 +1340,7 @@ class _Job:
         return worst
 
     def level(self, z, z_above, in_stock, air, li, nlevels, step_up=False,
-              layer: float | None = None) -> None:
+              layer: float | None = None, scale: float = 1.0) -> None:
         tip, cell = self.T, self.cell
         if not hasattr(self, "surface"):
             self.surface = np.where(in_stock, self.stock.z_max, -np.inf)
@@ -1363,7 +1388,7 @@ class _Job:
         wall = np.where(A, tip - z - cell, tip - z)
         # allowed cells beside a disallowed one: the rim the rings grow towards
         rim = (capped_distance(~A, 2.0) <= 1.0) & A if rings else None
-        base = np.full(A.shape, self.s)
+        base = np.full(A.shape, self.s * scale)
         if layer is not None:
             # fronts grow by less near the walls, so that they bend and meet them at a slant
             width = WALL_LAYER_RADII * self.R
