@@ -1248,17 +1248,16 @@ class _Job:
             return
         kept, used = self.snapshot(), None
         for scale in (1.0,) + STEPOVER_SCALES:
-            narrower = False
             for step in WALL_LAYER_STEPS:
                 self.restore(self.copied(before))
                 self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step,
                            scale=scale)
                 width = self.widest_cut(z, None)
                 if width < best:
-                    best, kept, used, narrower = width, self.snapshot(), scale, True
+                    best, kept, used = width, self.snapshot(), scale
                 if best <= limit:
                     break
-            if best <= limit or (scale < 1.0 and not narrower):
+            if best <= limit:
                 break
         self.restore(kept)
         if used is not None:
@@ -1405,7 +1404,7 @@ class _Job:
                 # edge in the material that of a straight pass (see the module docstring
                 # for the rings that near a wall)
                 if ring.radius is not None:
-                    ds = ring_step(ring.radius, self.R, self.s)
+                    ds = ring_step(ring.radius, self.R, self.s * scale)
                     near = ~A & ring.near_rim
                     if near.any():
                         # nearest wall, and the farthest point of the component's rim
@@ -1431,7 +1430,7 @@ class _Job:
                     if rho is None:
                         rho = front_radius(Q, cell, self.R)
                     step[ring.mask] = np.minimum(step[ring.mask],
-                                                 ring_steps(rho[ring.mask], self.R, self.s))
+                                                 ring_steps(rho[ring.mask], self.R, self.s * scale))
             F = np.maximum(dQ - step, wall)
             F[A & ~self.allowed] = 1.0
             Qn = F <= 0.0
