@@ -1233,13 +1233,11 @@ class _Job:
 
     # one level
     def level_best(self, z, z_above, in_stock, air, li, nlevels, step_up=False) -> None:
-        """Cut level z by :meth:`level`; where its widest cut next to a wall
-        (:meth:`widest_cut`) passes ENGAGEMENT_LIMIT stepovers, cut it again with the fronts
+        """Cut level z by :meth:`level`; where its widest cut (:meth:`widest_cut`, every move
+        outside the entries) passes ENGAGEMENT_LIMIT stepovers, cut it again with the fronts
         bent towards the walls, at each of WALL_LAYER_STEPS, and if none keeps within the
         limit, again so with the fronts grown by each of STEPOVER_SCALES of the stepover in
-        turn, until one does or a smaller stepover no longer cuts narrower.  The narrowest
-        cut is kept (of the plain fronts the moves ending within a tool radius of a wall
-        measured, of the others every move outside the entries)."""
+        turn (not for a ball), until one does.  The narrowest cut is kept."""
         before = self.snapshot()
         self.level(z, z_above, in_stock, air, li, nlevels, step_up)
         limit = ENGAGEMENT_LIMIT * self.s
@@ -1247,7 +1245,10 @@ class _Job:
         if best <= limit:
             return
         kept, used = self.snapshot(), None
-        for scale in (1.0,) + STEPOVER_SCALES:
+        # a ball's cut at the level is not the grid's flat swath: closer fronts shave more
+        # of the previous passes' cusps (a sloped plane at 2.4 mm: 80 -> 114 moves over)
+        scales = (1.0,) if self.tool.shape.value == "ball" else (1.0,) + STEPOVER_SCALES
+        for scale in scales:
             for step in WALL_LAYER_STEPS:
                 self.restore(self.copied(before))
                 self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step,
