@@ -94,6 +94,48 @@ def test_pass_beside_a_cleared_region(stepover: float) -> None:
     assert report.radial_engagement_mean_mm == pytest.approx((10 + stepover) / 2, abs=CELL)
 
 
+@pytest.mark.parametrize("depth", [2.0, 6.0])
+def test_bullnose_pass_beside_a_cleared_region_is_measured_above_its_corner(depth) -> None:
+    """A 10 mm bull-nose of 2 mm corner radius slots, then passes 4 mm beside the slot: the
+    second pass also shaves the fillet the first one's corner left, but the radial
+    engagement counts only material above the corner (at most half the cut's depth): the
+    closed form s + R - (R - rc) - sqrt(rc^2 - (rc - h)^2), h = min(rc, depth / 2): the
+    stepover itself when the cut is deeper than twice the corner, 4.27 mm at 2 mm deep.  The
+    slot is the diameter either way."""
+    tool = Tool(10.0, "bullnose", 2.0)
+    s, R, rc = 4.0, 5.0, 2.0
+    text = program("T1 M6", *slot_lines(0.0, -depth), *slot_lines(s, -depth))
+    job = simulate_job(read_gcode(text), {1: tool}, grid_for(-20, 70, -20, 20),
+                       (0, 50, -20, 20, -10, 0))
+    first, second = feeds_of(job, 7), feeds_of(job, 12)
+    first, second = first[job.axial[first] > 0], second[job.axial[second] > 0]
+    assert abs(job.radial[first[0]] - 10.0) <= CELL + 1e-6
+    h = min(rc, depth / 2)
+    want = s + R - (R - rc) - math.sqrt(rc * rc - (rc - h) ** 2)
+    assert abs(job.radial[second[0]] - want) <= CELL + 1e-6
+    # the volume still counts the fillet: the pass shaves the previous one and leaves its
+    # own, so it removes s x depth per mm
+    assert job.volume[second[0]] == pytest.approx(50 * s * depth, rel=0.02)
+
+
+def test_ball_groove_beside_a_groove_is_measured_at_half_its_depth() -> None:
+    """A 10 mm ball grooves 2 mm deep into the top, then again 4 mm beside: the first
+    groove's material all stood at the top, its full width 2 sqrt(2 R d - d^2) = 8 mm
+    counts; of the second only the material higher than half the depth above its tip counts
+    (the cusp between the grooves is lower): from the first groove's flank at that height
+    to the second's far edge, s + 4 - sqrt(R^2 - (R - 1)^2) = 5 mm (6 mm counting the cusp)."""
+    R, s, depth = 5.0, 4.0, 2.0
+    text = program("T1 M6", *slot_lines(0.0, -depth), *slot_lines(s, -depth))
+    job = simulate_job(read_gcode(text), {1: Tool(10.0, "ball")}, grid_for(-20, 70, -20, 20),
+                       (0, 50, -20, 20, -10, 0))
+    first, second = feeds_of(job, 7), feeds_of(job, 12)
+    first, second = first[job.axial[first] > 0], second[job.axial[second] > 0]
+    edge = math.sqrt(2 * R * depth - depth * depth)  # the groove's half width at the top
+    flank = math.sqrt(R * R - (R - depth / 2) ** 2)  # its half width half way up
+    assert abs(job.radial[first[0]] - 2 * edge) <= CELL + 1e-6
+    assert abs(job.radial[second[0]] - (s + edge - flank)) <= CELL + 1e-6
+
+
 def test_ramp_is_an_entry_with_growing_axial_engagement() -> None:
     """A ramp into the block in ten moves: each move's axial engagement is its end depth
     (linear), all are entries, and the radial maximum leaves them out."""

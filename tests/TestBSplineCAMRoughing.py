@@ -552,6 +552,39 @@ def test_engaged_width_of_a_feed_against_a_band():
 
 
 
+def test_engaged_width_counts_a_bullnose_fillet_as_the_simulation_does():
+    """A 10 mm bull-nose of 2 mm corner radius slots along x through a 2 mm layer; the pass
+    4 mm beside it also shaves the fillet the slot's corner left (the surface estimate holds
+    it): its width of cut counts the fillet above half the cut's depth, as the job
+    simulation does (corner_height), s + R - (R - rc) - sqrt(rc^2 - (rc - 1)^2) = 4.27 mm,
+    where the uncut cells alone give the stepover; the slot cut again counts nothing (the
+    same fillets), a pass 1 mm off its axis counts the fillet it shaves (a flat end mill
+    leaves none: 1 mm of fresh material)."""
+    cell = 0.1
+    s, R, rc = 4.0, 5.0, 2.0
+    for tool in (Tool(10.0, "bullnose", rc), Tool(10.0, "flat")):
+        job, xs, ys = bare_job(cell, 20.0, tool, s)
+        job.z = 0.0
+        job.surface = np.full((len(ys), len(xs)), 2.0)
+        job.uncut = np.ones((len(ys), len(xs)), bool)
+        job.floor = np.full((len(ys), len(xs)), 2.0)
+        job.mark(np.array([[-25.0, 0.0], [25.0, 0.0]]))
+        beside = job.engaged_width((-10.0, s), (10.0, s))
+        # the slot again: the same tool on the same line leaves the same fillets
+        again = job.engaged_width((-10.0, 0.0), (10.0, 0.0))
+        assert again == 0.0
+        # 1 mm off the slot's axis: its flat reaches the fillet on that side, no fresh
+        # material (beyond |y| = 5, within R of y = 1 only at y = 6: reached, 1 mm)
+        off = job.engaged_width((-10.0, 1.0), (10.0, 1.0))
+        if tool.shape.value == "flat":
+            assert beside == pytest.approx(s + cell, abs=2 * cell)
+            assert off == pytest.approx(1.0 + cell, abs=2 * cell)
+        else:
+            want = s + R - (R - rc) - math.sqrt(rc * rc - (rc - 1.0) ** 2)
+            assert beside == pytest.approx(want + cell, abs=2 * cell)
+            assert off > 1.0 + 3 * cell  # the fillet beyond y = 3 counts
+
+
 def test_feeds_checked_at_once_match_a_cell_by_cell_reference():
     """engaged_widths and in_region_many (the lead-in search checks its tries in one go)
     against loops over cells and samples: the extent across each feed of the uncut cells

@@ -109,6 +109,19 @@ class Tool:
         return np.where(r <= R * (1 + 1e-12), out, np.inf)
 
 
+def corner_height(tool: Tool, axial: float) -> float:
+    """Height (mm) above the tip from which a cut's material counts for its radial engagement:
+    the top of the tool's corner (a bull-nose's corner radius, a ball's radius; 0 for a flat
+    end), at most half the cut's depth ``axial``, so that a cut shallower than the corner is
+    measured at half its depth.  A bull-nose pass s beside the previous one also shaves the
+    fillet the previous pass's corner left, lower than the corner: counted, two passes 4 mm
+    apart with a 10 mm tool of 2 mm corner radius would measure 5.8 mm."""
+    if tool.shape is ToolShape.FLAT:
+        return 0.0
+    corner = tool.radius if tool.shape is ToolShape.BALL else tool.corner_radius
+    return min(corner, 0.5 * axial)
+
+
 #: Most cells of a Z-map: about 100 bytes each while verifying (1.6 GB), and the time to
 #: simulate a program grows with them.
 MAX_ZMAP_CELLS = 16_000_000

@@ -96,7 +96,7 @@ import numpy as np
 
 from ..distance import squared_distance
 from ..errors import ParameterError
-from ..simulate import Grid, Tool
+from ..simulate import Grid, Tool, ToolShape, corner_height
 from ..stock import CylinderStock, Stock, StockShape
 from ..typing import FloatArray
 from .common import (
@@ -179,6 +179,10 @@ STAIR_CELLS = 1.0
 FLAT_SLOPE_DEG = 1.0
 #: Flat areas smaller than this many tool areas get no level of their own.
 FLAT_TOOL_AREAS = 2.0
+#: Height (mm) of the material under a bull-nose's or ball's corner, left by a pass beside,
+#: from which a move counts it in its width of cut (:meth:`_Job.engaged_widths`): the job
+#: simulation's engagement threshold at its 0.1 mm cells.
+FILLET_MM = 0.01
 _EPS = 1e-6
 #: Half a cell's diagonal, in cells.
 CELL_HALF_DIAGONAL = 0.5 * math.sqrt(2.0)
@@ -997,7 +1001,14 @@ class _Job:
             return out
         A, B, length = A[live], B[live], length[live]
         i0, i1, j0, j1 = self.window(self.idx(np.concatenate([A, B])), self.Rc + 2)
-        iy, ix = np.nonzero(self.uncut[i0:i1, j0:j1])
+        uncut = self.uncut[i0:i1, j0:j1]
+        flat = self.tool.shape is ToolShape.FLAT
+        if not flat:
+            # a bull-nose's or ball's passes leave fillets under their corners, which the
+            # surface estimate holds: material there counts as the simulation counts it
+            above = self.surface[i0:i1, j0:j1] - self.z
+            uncut = uncut | (above > FILLET_MM)
+        iy, ix = np.nonzero(uncut)
         if not len(iy):
             return out
         cells = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float))
@@ -1009,6 +1020,19 @@ class _Job:
         L = length[:, None]
         swept = (along > 0) & (np.abs(across) <= self.R) & (along <= L) | (
             (along > L) & ((along - L) ** 2 + across * across <= self.R * self.R))
+        if not flat:
+            # material left under a corner counts where the move's tool, over the whole cell,
+            # passes below it (a pass over the same line leaves the same fillet), and only
+            # what stands above corner_height of the move's deepest cut, as the simulation
+            # counts it (fresh material: the uncut cells, at the level's top)
+            h = above[iy, ix]  # the estimate bounds the material's top, uncut cells' too
+            fresh = self.uncut[i0:i1, j0:j1][iy, ix]
+            axial = np.where(swept, h[None, :], 0.0).max(axis=1)
+            corner = np.array([corner_height(self.tool, a) for a in axial.tolist()])
+            dist = np.where(along > L, np.hypot(along - L, across), np.abs(across))
+            bottom = self.tool.profile(dist + CELL_HALF_DIAGONAL * self.cell)
+            swept &= fresh[None, :] | ((h[None, :] > corner[:, None] + FILLET_MM)
+                                       & (h[None, :] > bottom + FILLET_MM))
         hi = np.where(swept, across, -np.inf).max(axis=1)
         lo = np.where(swept, across, np.inf).min(axis=1)
         out[live] = np.where(swept.any(axis=1), hi - lo + self.cell, 0.0)
