@@ -941,6 +941,19 @@ def boss_near_corner(xs, ys):
     return np.where((np.abs(X) <= 30) & (np.abs(Y) <= 30), h, np.nan)
 
 
+def _rough_boss_near_corner(s: float):
+    """The boss near the block's corner roughed with a 10 mm flat at stepover s, 2 mm down:
+    (roughing, radial engagement per cutting move outside entries by the job simulation,
+    moves over 1.1 s plus a cell); no rapid touches the stock."""
+    stock = Stock(-30, 30, -30, 30, 0.0, 15.0)
+    tool = Tool(10.0, "flat")
+    rough = generate_roughing(boss_near_corner, stock, tool, stepdown=2.0, stepover=s,
+                              radial_allowance=0.3, axial_allowance=0.3)
+    radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
+    assert collisions == 0
+    return rough, radial, int((radial > 1.1 * s + SIM_CELL).sum())
+
+
 def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
     """Fronts from the far sides of the block run head-on into the boss near its corner:
     with the plain fronts only (ENGAGEMENT_LIMIT infinite, never retried) the job
@@ -949,23 +962,13 @@ def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
     and fewer moves cut wider than 1.1 s, with no rapid touching the stock."""
     from BSplineCAM.core.toolpath import roughing
 
-    stock = Stock(-30, 30, -30, 30, 0.0, 15.0)
-    tool = Tool(10.0, "flat")
     s = 4.0
-
-    def run():
-        rough = generate_roughing(boss_near_corner, stock, tool, stepdown=2.0, stepover=s,
-                                  radial_allowance=0.3, axial_allowance=0.3)
-        radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
-        assert collisions == 0
-        return rough, radial, int((radial > 1.1 * s + SIM_CELL).sum())
-
-    bent, radial, over = run()
+    bent, radial, over = _rough_boss_near_corner(s)
     monkeypatch.setattr(roughing, "ENGAGEMENT_LIMIT", math.inf)
-    plain, radial_plain, over_plain = run()
+    plain, radial_plain, over_plain = _rough_boss_near_corner(s)
     assert plain.stats["bent_levels"] == []
     assert len(bent.stats["bent_levels"]) >= 3
-    assert float(radial_plain.max()) >= tool.radius + s / 2 - 0.5  # the head-on ends
+    assert float(radial_plain.max()) >= 5.0 + s / 2 - 0.5  # the head-on ends (R + s/2)
     assert float(radial.max()) <= float(radial_plain.max()) - 1.5
     assert over < over_plain
 
@@ -977,20 +980,9 @@ def test_levels_still_over_when_bent_are_cut_at_a_smaller_stepover(monkeypatch):
     the entries wider than 1.1 s plus a cell, and the narrowed levels are reported."""
     from BSplineCAM.core.toolpath import roughing
 
-    stock = Stock(-30, 30, -30, 30, 0.0, 15.0)
-    tool = Tool(10.0, "flat")
-    s = 4.0
-
-    def run():
-        rough = generate_roughing(boss_near_corner, stock, tool, stepdown=2.0, stepover=s,
-                                  radial_allowance=0.3, axial_allowance=0.3)
-        radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
-        assert collisions == 0
-        return rough, int((radial > 1.1 * s + SIM_CELL).sum())
-
-    narrowed, over = run()
+    narrowed, _, over = _rough_boss_near_corner(4.0)
     monkeypatch.setattr(roughing, "STEPOVER_SCALES", ())
-    bent, over_bent = run()
+    bent, _, over_bent = _rough_boss_near_corner(4.0)
     assert bent.stats["narrowed_levels"] == []
     assert over_bent > 0
     assert over == 0
