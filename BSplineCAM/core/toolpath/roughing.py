@@ -1265,19 +1265,19 @@ class _Job:
         before = self.snapshot()
         self.level(z, z_above, in_stock, air, li, nlevels, step_up)
         limit = ENGAGEMENT_LIMIT * self.s
-        best = self.widest_cut(z, None)
+        best = self.widest_cut(z)
         if best <= limit:
             return
         kept, used = self.snapshot(), None
         # a ball's cut at the level is not the grid's flat swath: closer fronts shave more
         # of the previous passes' cusps (a sloped plane at 2.4 mm: 80 -> 114 moves over)
-        scales = (1.0,) if self.tool.shape.value == "ball" else (1.0,) + STEPOVER_SCALES
+        scales = (1.0,) if self.tool.shape is ToolShape.BALL else (1.0,) + STEPOVER_SCALES
         for scale in scales:
             for step in WALL_LAYER_STEPS:
                 self.restore(self.copied(before))
                 self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step,
                            scale=scale)
-                width = self.widest_cut(z, None)
+                width = self.widest_cut(z)
                 if width < best:
                     best, kept, used = width, self.snapshot(), scale
                 if best <= limit:
@@ -1309,27 +1309,19 @@ class _Job:
         self.__dict__.clear()
         self.__dict__.update(state)
 
-    def widest_cut(self, z: float, reach: float | None) -> float:
+    def widest_cut(self, z: float) -> float:
         """Widest cut (mm, :meth:`engaged_width`) of the level's feed moves at z outside its
-        entries that end within ``reach`` (mm) of a wall (None: all of them), replayed in
-        order on the level's uncut grid (every feed move, entries included, cuts its
-        swath)."""
+        entries, replayed in order on the level's uncut grid and surface estimate as they
+        were at its start (every feed move, entries included, cuts its swath)."""
         moves = self.writer.moves
         first = self.level_first
         entry = np.zeros(len(moves) + 1, bool)
         for a, b in self.entry_spans:
             if b > first:
                 entry[max(a, first):b] = True
-        tip = self.T
-        if reach is None:
-            near = np.ones(tip.shape, bool)
-        else:
-            cap = reach / self.cell
-            near = capped_distance(tip > z + _EPS, cap + 1) <= cap
-        ny, nx = near.shape
         saved = self.uncut, self.floor, self.surface
         self.uncut = self.level_uncut.copy()
-        self.floor, self.surface = self.floor.copy(), self.surface.copy()
+        self.floor, self.surface = self.floor.copy(), self.level_surface.copy()
         worst = 0.0
         run: list = []  # consecutive feeds not measured, marked at once
 
@@ -1345,11 +1337,7 @@ class _Job:
                     flush()
                     continue
                 a, b = (p.x, p.y), (m.x, m.y)
-                measure = not entry[i] and abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6
-                if measure:
-                    j, k = np.rint(self.idx(b)[0]).astype(int)
-                    measure = bool(near[min(max(k, 0), ny - 1), min(max(j, 0), nx - 1)])
-                if measure:
+                if not entry[i] and abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6:
                     flush()
                     worst = max(worst, self.engaged_width(a, b))
                     self.mark(np.array([a, b]))
@@ -1382,6 +1370,7 @@ class _Job:
             Q |= A & (clear <= z + _EPS)
         self.level_first = len(self.writer.moves)
         self.level_uncut = self.uncut.copy()
+        self.level_surface = self.surface.copy()
         floor_rings = self.floor_rings(A & ~air, Q) if step_up else []
         entered = np.zeros(n + 1, bool)  # index -1 -> the last slot stays False
         entered[np.unique(labels[Q])] = True
