@@ -69,14 +69,14 @@ def _tool_number(value: float, where: str, word: str) -> int:
     return int(value)
 
 
-def _make_tool(diameter: float, shape: ToolShape, corner: float, where: str, word: str) -> Tool:
+def _make_tool(diameter: float, shape: ToolShape, corner: float, where: str) -> Tool:
     if not MIN_TOOL_DIAMETER <= diameter <= MAX_TOOL_DIAMETER:
-        raise ToolTableError(f"{where}: {word}: diameter must lie in [{MIN_TOOL_DIAMETER:g}, "
+        raise ToolTableError(f"{where}: diameter must lie in [{MIN_TOOL_DIAMETER:g}, "
                              f"{MAX_TOOL_DIAMETER:g}] mm, got {diameter:g} mm")
     try:
         return Tool(float(diameter), shape, float(corner))
     except ParameterError as exc:
-        raise ToolTableError(f"{where}: {word}: {exc}") from None
+        raise ToolTableError(f"{where}: {exc}") from None
 
 
 def parse_tools_option(text: str, option: str = "--tools") -> dict[int, Tool]:
@@ -104,23 +104,33 @@ def parse_tools_option(text: str, option: str = "--tools") -> dict[int, Tool]:
             raise ToolTableError(f"{where}: tool T{n} is given twice")
         if len(tools) >= MAX_TOOLS:
             raise ToolTableError(f"{option}: more than MAX_TOOLS={MAX_TOOLS} tools")
-        shape_name = parts[0].lower()
-        shape_name = "bullnose" if shape_name in ("bull", "bull-nose") else shape_name
-        try:
-            shape = ToolShape.parse(shape_name)
-        except ParameterError as exc:
-            raise ToolTableError(f"{where}: {exc}") from None
-        values = []
-        for p, name in zip(parts[1:], ("diameter", "corner radius")):
-            if not _NUMBER.fullmatch(p):
-                raise ToolTableError(f"{where}: {name} {p!r} is not a number (mm)")
-            values.append(_number(p, where, name))
-        corner = values[1] if len(values) > 1 else 0.0
-        if shape is ToolShape.BULLNOSE and len(values) < 2:
-            raise ToolTableError(f"{where}: a bull-nose tool needs its corner radius: "
-                                 "bullnose:<diameter mm>:<corner radius mm>")
-        tools[n] = _make_tool(values[0], shape, corner, where, "diameter")
+        tools[n] = parse_tool_spec(spec, where)
     return tools
+
+
+def parse_tool_spec(spec: str, where: str) -> Tool:
+    """A tool from ``shape:diameter[:corner radius]`` (mm; ``bull`` for bullnose); a
+    ToolTableError starts with ``where`` (the option and the item)."""
+    parts = [p.strip() for p in spec.split(":")]
+    if not 2 <= len(parts) <= 3:
+        raise ToolTableError(f"{where}: expected <shape>:<diameter mm>[:<corner radius mm>], "
+                             "e.g. flat:10 or bullnose:10:1")
+    shape_name = parts[0].lower()
+    shape_name = "bullnose" if shape_name in ("bull", "bull-nose") else shape_name
+    try:
+        shape = ToolShape.parse(shape_name)
+    except ParameterError as exc:
+        raise ToolTableError(f"{where}: {exc}") from None
+    values = []
+    for p, name in zip(parts[1:], ("diameter", "corner radius")):
+        if not _NUMBER.fullmatch(p):
+            raise ToolTableError(f"{where}: {name} {p!r} is not a number (mm)")
+        values.append(_number(p, where, name))
+    corner = values[1] if len(values) > 1 else 0.0
+    if shape is ToolShape.BULLNOSE and len(values) < 2:
+        raise ToolTableError(f"{where}: a bull-nose tool needs its corner radius: "
+                             "bullnose:<diameter mm>:<corner radius mm>")
+    return _make_tool(values[0], shape, corner, where)
 
 
 def _shape_from_comment(comment: str, where: str) -> tuple[ToolShape, float]:
@@ -178,7 +188,7 @@ def parse_tool_table(text: str, source: str = "tool table") -> dict[int, Tool]:
         if len(tools) >= MAX_TOOLS:
             raise ToolTableError(f"{where}: more than MAX_TOOLS={MAX_TOOLS} tools")
         shape, corner = _shape_from_comment(comment, where)
-        tools[number] = _make_tool(words["D"], shape, corner, where, f"D{words['D']:g}")
+        tools[number] = _make_tool(words["D"], shape, corner, f"{where}: D{words['D']:g}")
     return tools
 
 

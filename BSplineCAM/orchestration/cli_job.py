@@ -109,13 +109,13 @@ def register(sub) -> None:
 
 
 def parse_tool(text: str, option: str):
-    """A core Tool from SHAPE:DIAMETER[:CORNER] (the --tools syntax of verify, one tool)."""
-    from ..core.tooltable import parse_tools_option
+    """A core Tool from SHAPE:DIAMETER[:CORNER] (the --tools syntax of verify, one tool);
+    errors name the option and its value."""
+    from ..core.tooltable import parse_tool_spec
 
-    try:
-        return parse_tools_option(f"T1={text}")[1]
-    except ParameterError as exc:
-        raise ParameterError(f"{option} {text}: {exc}") from None
+    if not isinstance(text, str) or len(text) > 200:
+        raise ParameterError(f"{option}: expected <shape>:<diameter mm>[:<corner radius mm>]")
+    return parse_tool_spec(text, f"{option} {text}")
 
 
 def roughing_parameters(args: argparse.Namespace):
