@@ -518,7 +518,8 @@ class _Cutter:
         grid = self.grid
         d = p1[:2] - p0[:2]
         L = math.hypot(d[0], d[1])
-        above = min(float(p0[2]), float(p1[2])) + corner_height(tool, deepest) + self.threshold
+        above = (min(float(p0[2]), float(p1[2])) + float(corner_height(tool, deepest))
+                 + self.threshold)
         for upper in (True, False):  # the cells above the corner, else all
             lo, hi = math.inf, -math.inf
             lo2, hi2 = math.inf, -math.inf

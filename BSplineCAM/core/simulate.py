@@ -109,17 +109,19 @@ class Tool:
         return np.where(r <= R * (1 + 1e-12), out, np.inf)
 
 
-def corner_height(tool: Tool, axial: float) -> float:
+def corner_height(tool: Tool, axial):
     """Height (mm) above the tip from which a cut's material counts for its radial engagement:
     the top of the tool's corner (a bull-nose's corner radius, a ball's radius; 0 for a flat
     end), at most half the cut's depth ``axial``, so that a cut shallower than the corner is
     measured at half its depth.  A bull-nose pass s beside the previous one also shaves the
     fillet the previous pass's corner left, lower than the corner: counted, two passes 4 mm
-    apart with a 10 mm tool of 2 mm corner radius would measure 5.8 mm."""
+    apart with a 10 mm tool of 2 mm corner radius would measure 5.8 mm.  ``axial`` may be an
+    array (one height per cut)."""
     if tool.shape is ToolShape.FLAT:
-        return 0.0
-    corner = tool.radius if tool.shape is ToolShape.BALL else tool.corner_radius
-    return min(corner, 0.5 * axial)
+        corner = 0.0
+    else:
+        corner = tool.radius if tool.shape is ToolShape.BALL else tool.corner_radius
+    return np.minimum(corner, 0.5 * np.asarray(axial, dtype=float))
 
 
 #: Most cells of a Z-map: about 100 bytes each while verifying (1.6 GB), and the time to

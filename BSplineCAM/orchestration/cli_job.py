@@ -111,9 +111,9 @@ def register(sub) -> None:
 def parse_tool(text: str, option: str):
     """A core Tool from SHAPE:DIAMETER[:CORNER] (the --tools syntax of verify, one tool);
     errors name the option and its value."""
-    from ..core.tooltable import parse_tool_spec
+    from ..core.tooltable import MAX_LINE_CHARS, parse_tool_spec
 
-    if not isinstance(text, str) or len(text) > 200:
+    if not isinstance(text, str) or len(text) > MAX_LINE_CHARS:
         raise ParameterError(f"{option}: expected <shape>:<diameter mm>[:<corner radius mm>]")
     return parse_tool_spec(text, f"{option} {text}")
 

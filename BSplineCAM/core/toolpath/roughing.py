@@ -1028,7 +1028,7 @@ class _Job:
             h = above[iy, ix]  # the estimate bounds the material's top, uncut cells' too
             fresh = self.uncut[i0:i1, j0:j1][iy, ix]
             axial = np.where(swept, h[None, :], 0.0).max(axis=1)
-            corner = np.array([corner_height(self.tool, a) for a in axial.tolist()])
+            corner = corner_height(self.tool, axial)
             dist = np.where(along > L, np.hypot(along - L, across), np.abs(across))
             bottom = self.tool.profile(dist + CELL_HALF_DIAGONAL * self.cell)
             swept &= fresh[None, :] | ((h[None, :] > corner[:, None] + FILLET_MM)
