@@ -155,6 +155,26 @@ def test_dropcutter_case_study_brute_force(case, rng):
     assert np.all(z - ref < 1e-4)
 
 
+def test_dropcutter_threads_answer_as_one_thread(case, rng, monkeypatch):
+    """A large call is split over worker threads: each query gets the value, contact and
+    order it gets on one thread, bit for bit, and the brute force still bounds it."""
+    from BSplineCAM.core.toolpath import dropcutter
+
+    dc = DropCutter(case, 3.0)
+    xy = np.concatenate([rng.uniform(-4.0, 104.0, (997, 2)), [[0.0, 0.0], [50.0, 0.2]]])
+    alone = dc._centre_heights(xy)
+    monkeypatch.setattr(dropcutter, "THREADS", 3)
+    monkeypatch.setattr(dropcutter, "THREAD_QUERIES", 100)
+    split = dc.centre_heights(xy)
+    for a, b in zip(alone, split):
+        np.testing.assert_array_equal(a, b)
+    tip = dc.heights(xy[::50])[0]
+    ref = brute_force_heights(case, 3.0, xy[::50], samples=401)
+    assert np.array_equal(np.isnan(tip), np.isnan(ref))
+    ok = np.isfinite(ref)
+    assert np.all(tip[ok] >= ref[ok] - 1e-9)
+
+
 def test_dropcutter_tight_hollow_two_contacts():
     """A hollow narrower than the ball: the ball rests on both walls, never inside."""
     surface = tight_hollow()

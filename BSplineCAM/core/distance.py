@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .simulate import THREADS
+from .numeric import THREADS
 from .typing import FloatArray
 
 

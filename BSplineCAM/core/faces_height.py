@@ -32,7 +32,7 @@ import numpy as np
 from .errors import BSplineCAMError
 from .faces import Face
 from .footprint import fill_empty_cells
-from .simulate import THREADS
+from .numeric import THREADS
 from .typing import FloatArray
 
 #: A point is on a face when Newton lands within this distance of it (mm), or within

@@ -15,7 +15,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from .matrix import evaluate_patch_orders
-from .simulate import THREADS
+from .numeric import THREADS
 from .surface import Surface
 from .typing import ArrayLike, FloatArray
 

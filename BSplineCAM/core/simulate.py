@@ -21,7 +21,6 @@ height map loops over moves, at a few microseconds each.
 from __future__ import annotations
 
 import math
-import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -31,6 +30,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .gcode import Program, Segments, linearise, simulation_chord_tolerance
+from .numeric import THREADS
 from .typing import FloatArray
 
 #: Cells evaluated per batch: (K, H, W) temporaries stay in the processor's cache.
@@ -44,8 +44,6 @@ COLLISION_TOLERANCE_MM = 0.01
 #: height where the tool removed nothing.
 RIM_MM = 1e-4
 _BISECTION_STEPS = 24
-#: Worker threads for the envelopes (the machine's cores, at most 4).
-THREADS = max(1, min(4, os.cpu_count() or 1))
 
 
 class ToolShape(str, Enum):
