@@ -176,6 +176,34 @@ class DropCutter:
         f = np.where(d2 <= R2, p[..., 2] + np.sqrt(np.maximum(R2 - d2, 0.0)), -np.inf)
         return ~(f > value[:, None]).any(axis=1)
 
+    def _vertex_seed(self, q: FloatArray, i: np.ndarray, j: np.ndarray) -> tuple[FloatArray,
+                                                                                  FloatArray]:
+        """(u, w) of sample (i, j) moved to the vertex of the parabola through the maximand
+        at it and its two grid neighbours, along u and along w (at most one grid step), so
+        that Newton starts closer to the maximum; a sample on the grid's border, or whose
+        neighbours lie outside the ball, stays where it is."""
+        R2 = self.radius * self.radius
+        out = []
+        for axis, (n, t) in enumerate(((self.n_u, self.u), (self.n_w, self.w))):
+            k = (i, j)[axis]
+            inner = (k > 0) & (k < n - 1)
+            down, up = np.where(inner, k - 1, k), np.where(inner, k + 1, k)
+            f = []
+            for a, b in (((down, j), (i, j), (up, j)) if axis == 0
+                         else ((i, down), (i, j), (i, up))):
+                p = self.samples[a * self.n_w + b]
+                d2 = (p[:, 0] - q[:, 0]) ** 2 + (p[:, 1] - q[:, 1]) ** 2
+                f.append(np.where(d2 <= R2, p[:, 2] + np.sqrt(np.maximum(R2 - d2, 0.0)),
+                                  -np.inf))
+            f0, f1, f2 = f
+            with np.errstate(invalid="ignore"):  # -inf - -inf: a neighbour outside the ball
+                curv = f0 - 2.0 * f1 + f2
+                good = inner & np.isfinite(f0) & np.isfinite(f2) & (curv < 0)
+                shift = np.where(good, 0.5 * (f0 - f2) / np.where(good, curv, -1.0), 0.0)
+            step = 1.0 / (n - 1)
+            out.append(_unit(t[k] + np.clip(shift, -1.0, 1.0) * step))
+        return out[0], out[1]
+
     # -- refinement -------------------------------------------------------------------------
     def _jets(self, u: FloatArray, w: FloatArray) -> list[FloatArray]:
         """Point, Su, Sw, Suu, Suw, Sww at (u, w) already in [0, 1], each (m, 3)."""
@@ -311,8 +339,8 @@ class DropCutter:
         su = np.zeros(2 * m)
         sw = np.zeros(2 * m)
         gi, gj = np.divmod(two[ok], self.n_w)
-        su[ok], sw[ok] = self.u[gi], self.w[gj]
         qq = np.concatenate([q, q])
+        su[ok], sw[ok] = self._vertex_seed(qq[ok], gi, gj)
         z = np.full(2 * m, -np.inf)
         u = np.zeros(2 * m)
         w = np.zeros(2 * m)
