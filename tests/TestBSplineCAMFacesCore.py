@@ -129,7 +129,7 @@ def _doc(rng):
     (lambda d: d["surface"].update(poles="x"), r"Face2: surface poles"),
     (lambda d: d["surface"].update(weights=[[1.0]]), r"Face2: surface weights have shape"),
     (lambda d: d["surface"]["weights"][0].__setitem__(0, -1.0), r"weights must be positive"),
-    (lambda d: d["surface"].update(degree_u=12), r"Face2: surface: .*degree_u"),
+    (lambda d: d["surface"].update(degree_u=17), r"Face2: surface: .*degree_u"),
     (lambda d: d.update(outer=[[0, 0], [1, 0], [1, 1]]), r"Face2: outer loop is empty"),
     (lambda d: d.update(outer=[[0, 0], [1, 0], [1, "a"], [0, 0]]), r"Face2: outer must be"),
     (lambda d: d.update(holes={}), r"holes must be a list"),
@@ -376,6 +376,63 @@ def test_ocp_extraction_against_occt(ocp, tmp_path):
     selected = [f for f in faces if f.selected]
     assert sum(f.source == "BSplineSurface" for f in selected) == 1
     assert sum(f.source == "Toroid" for f in selected) == 1  # the hole's rim fillet
+
+
+def test_ocp_sphere_dimple_with_its_rim_filleted(ocp, tmp_path):
+    """A block with a spherical dimple whose rim is filleted: cadquery makes the fillet a
+    rational B-spline of degree 10, and the sphere's trim runs past its pole's parameter by
+    1.6e-7 rad.  Every face is taken, inside its domain, and evaluates as OCCT does."""
+    import cadquery as cq
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+
+    block = cq.Workplane().box(60, 40, 20, centered=False)
+    sphere = cq.Solid.makeSphere(15, cq.Vector(30, 20, 30), angleDegrees1=-90,
+                                 angleDegrees2=90)
+    dimple = block.cut(cq.Workplane().add(sphere))
+    rim = dimple.edges(cq.selectors.BoxSelector((10, 0, 19.9), (50, 40, 20.1))).edges("%CIRCLE")
+    step = tmp_path / "dimple.step"
+    cq.exporters.export(dimple.newObject(rim.vals()).fillet(3), str(step))
+    shape = ocp.read_part(step)
+    faces = ocp.faces_from_shape(shape, "up", tolerance=0.01)  # all faces, some selected
+    sources = ocp.shape_faces(shape)
+    degrees = {(f.surface.degree_u, f.surface.degree_v) for f in faces}
+    assert any(max(d) >= 10 for d in degrees), degrees
+    assert "Sphere" in {f.source for f in faces}
+    rng = np.random.default_rng(3)
+    for face, source in zip(faces, sources):
+        (u0, u1), (v0, v1) = face.surface.domain
+        for loop in face.loops:
+            assert loop[:, 0].min() >= u0 and loop[:, 0].max() <= u1, face.name
+            assert loop[:, 1].min() >= v0 and loop[:, 1].max() <= v1, face.name
+        work = source if face.source == "BSplineSurface" else ocp.shape_faces(
+            BRepBuilderAPI_NurbsConvert(source, True).Shape())[0]
+        a0, a1, b0, b1 = face.bounds()
+        uv = np.column_stack([rng.uniform(a0, a1, 60), rng.uniform(b0, b1, 60)])
+        uv = uv[cf.inside(face, uv[:, 0], uv[:, 1])]
+        vo = uv[:, 1] if not face.flipped_v else (
+            face.surface.knots_v[0] + face.surface.knots_v[-1] - uv[:, 1])
+        surf = BRep_Tool.Surface_s(work)
+        occt = np.array([(lambda p: (p.X(), p.Y(), p.Z()))(surf.Value(float(a), float(b)))
+                         for a, b in zip(uv[:, 0], vo)]).reshape(-1, 3)
+        ours = face.surface.evaluate(uv[:, 0], uv[:, 1]).reshape(-1, 3)
+        assert np.abs(ours - occt).max(initial=0.0) <= 1e-9 * 72.2, face.name
+
+
+def test_trim_points_just_outside_the_domain_go_onto_its_side():
+    from BSplineCAM.core.face_import import DOMAIN_SLACK, into_domain
+
+    domain = ((0.0, 2.0), (-1.0, 1.0))
+    loop = np.array([[-1e-4, -1.0 - 1e-7], [2.0, -1.0], [2.0 + 1e-5, 1.0], [0.0, 1.0],
+                     [-1e-4, -1.0 - 1e-7]])
+    (moved,) = into_domain([loop], domain, "Face7 (Sphere)")
+    np.testing.assert_array_equal(moved[:, 0], [0.0, 2.0, 2.0, 0.0, 0.0])
+    np.testing.assert_array_equal(moved[:, 1], [-1.0, -1.0, 1.0, 1.0, -1.0])
+    far = loop.copy()
+    far[1, 1] = -1.0 - 3 * DOMAIN_SLACK * 2.0
+    with pytest.raises(FaceError, match=r"Face7 \(Sphere\): its trim reaches 0.006 outside "
+                                        r"the surface's v domain \[-1, 1\]"):
+        into_domain([far], domain, "Face7 (Sphere)")
 
 
 def test_ocp_bad_input(ocp, tmp_path):

@@ -24,10 +24,16 @@ import numpy as np
 from . import faces as core_faces
 from .errors import BSplineCAMError
 from .faces import Face, FaceError
+from .numeric import clamp
 from .typing import FloatArray
 
 #: Largest distance of a face's NURBS from OCCT's original surface, over the face's size.
 RELATIVE_DEVIATION = 1e-9
+#: Trim loops may reach outside their surface's parameter domain by up to this share of its
+#: span in each direction (the parameter curves' own tolerance: a seam's curve on a sphere or
+#: torus lies 1e-7 to 1e-4 of the span beyond it); such points are moved onto the domain's
+#: side, where the face ends.  A trim reaching farther is refused.
+DOMAIN_SLACK = 1e-3
 
 
 def periodic_range(a: float, b: float, period: float, which: str,
@@ -55,6 +61,27 @@ def segment_box(bounds: Sequence[float], uv_box: Sequence[float], periods: Seque
     return u0, u1, v0, v1
 
 
+def into_domain(loops: Sequence[FloatArray], domain: Sequence[Sequence[float]],
+                name: str) -> list[FloatArray]:
+    """The trim ``loops`` ((k, 2) parameters) with points outside ``domain`` ((u0, u1),
+    (v0, v1)) by at most DOMAIN_SLACK of its span moved onto its side; FaceError naming the
+    face ``name`` for a loop reaching farther out."""
+    out = []
+    for loop in loops:
+        loop = np.asarray(loop, dtype=float)
+        for axis, (lo, hi) in enumerate(domain):
+            if not len(loop):
+                break
+            beyond = max(lo - float(loop[:, axis].min()), float(loop[:, axis].max()) - hi)
+            if beyond > DOMAIN_SLACK * (hi - lo):
+                raise FaceError(f"{name}: its trim reaches {beyond:.3g} outside the surface's "
+                                f"{'uv'[axis]} domain [{lo:.9g}, {hi:.9g}]")
+        (u0, u1), (v0, v1) = domain
+        out.append(np.column_stack([clamp(loop[:, 0], u0, u1), clamp(loop[:, 1], v0, v1)])
+                   if len(loop) else loop)
+    return out
+
+
 def checked_face(data: dict, outer: FloatArray, holes: list[FloatArray], flipped: bool,
                  deviation: Callable[[Face], float], size: float, *, index: int, name: str,
                  kind: str, selected: bool, tolerance: float) -> Face:
@@ -73,6 +100,7 @@ def checked_face(data: dict, outer: FloatArray, holes: list[FloatArray], flipped
         surface = core_faces.make_surface(name=name, **data)
     except BSplineCAMError as exc:
         raise FaceError(f"{name} ({kind}): {exc}") from None
+    outer, *holes = into_domain([outer, *holes], surface.domain, f"{name} ({kind})")
     face = Face(surface, outer, tuple(holes), index=index, name=name, selected=selected,
                 flipped_v=flipped, source=kind, tolerance=tolerance)
     measured = deviation(face)
