@@ -4,6 +4,7 @@ simulating the G-code text against the exact faces."""
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -116,3 +117,64 @@ def test_modelled_midpoints_leave_the_passes_unchanged(monkeypatch):
         assert p.shape == q.shape
         assert np.abs(p - q).max() <= 1e-9
     assert counts["model"] < 0.8 * counts["exact"], counts
+
+
+def _fillet_ring(centre=(20.0, 20.0), wall=12.0, rho=3.0, base=10.0):
+    """The concave fillet at the foot of a round boss (radius ``wall``) on a plate at ``base``:
+    the quarter circle of radius ``rho`` from (wall + rho, base) to (wall, base + rho) about
+    (wall + rho, base + rho), revolved about the boss's axis (rational quadratics both ways)."""
+    from BSplineCAM.core.faces import Face
+    from BSplineCAM.core.nurbs import NurbsSurface
+
+    c = math.sqrt(0.5)
+    square = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
+    wu = np.array([1, c, 1, c, 1, c, 1, c, 1])
+    profile = [(wall + rho, base), (wall, base), (wall, base + rho)]  # (r, z), corner middle
+    wv = np.array([1, c, 1])
+    poles = np.array([[[centre[0] + r * a, centre[1] + r * b, z] for r, z in profile]
+                      for a, b in square], dtype=float)
+    ku = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
+    s = NurbsSurface(poles, ku, [0, 0, 0, 1, 1, 1], 2, 2, weights=wu[:, None] * wv[None, :],
+                     name="Face2")
+    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
+    return Face(s, loop, index=2, source="Toroid")
+
+
+def _plate_with_hole(size=40.0, centre=(20.0, 20.0), hole=15.0, base=10.0):
+    from BSplineCAM.core.faces import Face
+    from BSplineCAM.core.nurbs import NurbsSurface
+
+    poles = np.array([[[0, 0, base], [0, size, base]], [[size, 0, base], [size, size, base]]],
+                     dtype=float)
+    s = NurbsSurface(poles, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1, name="Face1")
+    t = np.linspace(0.0, 2 * np.pi, 241)
+    ring = np.column_stack([centre[0] + hole * np.cos(t), centre[1] + hole * np.sin(t)]) / size
+    ring[-1] = ring[0]
+    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
+    return Face(s, loop, (ring,), index=1, source="Plane")
+
+
+def test_a_fillet_the_ball_fits_bounds_no_stepover():
+    """A plate and the 3 mm fillet round a boss's foot, machined with a 6 mm ball: the fillet's
+    cross-sections along the passes are hollows the ball fits, whose contacts' centres all
+    crowd at one point; they bound no stepover, so the lines lie about the flat stepover
+    apart (they were 0.05 mm apart across the whole plate: 50 times the path), and the
+    lines that cross the fillet fill it.  A 5 mm ball (a 2.5 mm radius in a 3 mm hollow) keeps
+    its bound there."""
+    from BSplineCAM.core.toolpath.common import ToolParameters
+    from BSplineCAM.core.toolpath.faces_raster import _stepover_field
+    from BSplineCAM.core.toolpath.raster import cross_section_stepover, scallop_line_offsets
+
+    fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+    along, across = np.array([1.0, 0.0]), np.array([0.0, 1.0])
+    tool = ToolParameters.validate(6.0, 0.1, 0.002)
+    b, allowed, _ = _stepover_field(fs, tool, along, across)
+    lines = scallop_line_offsets(b, allowed, -3.0, 43.0, tool, 0.5 * tool.flat_stepover)
+    flat_lines = 46.0 / tool.flat_stepover
+    assert len(lines) < 1.3 * flat_lines, (len(lines), flat_lines)
+    # the bound itself: a hollow of the ball's radius, or a little wider, bounds nothing; one
+    # a fifth wider than the ball does
+    up = np.array([[0.0, 0.0, 1.0]] * 3)
+    kappa = np.array([1 / 3.0, 1 / 3.1, 1 / 3.6])
+    s = cross_section_stepover(3.0, 0.1, kappa, up, across, along)
+    assert np.isinf(s[:2]).all() and 0 < s[2] < 2.0

@@ -342,3 +342,76 @@ def test_direct_dilation_equals_distance_transform(radius):
             direct = direct[k:-k, k:-k] if outside else direct
             np.testing.assert_array_equal(direct, expect)
         np.testing.assert_array_equal(distance.dilate_disk(mask, radius, outside), expect)
+
+
+# -- a wall between two selected faces -----------------------------------------------------------
+def _plane_face(x0: float, x1: float, z: float, index: int):
+    """A selected horizontal face over [x0, x1] x [0, 10] at height z (degree-1 NURBS)."""
+    from BSplineCAM.core.faces import Face
+    from BSplineCAM.core.nurbs import NurbsSurface
+
+    poles = np.array([[[x0, 0, z], [x0, 10, z]], [[x1, 0, z], [x1, 10, z]]], dtype=float)
+    surface = NurbsSurface(poles, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1, name=f"Face{index}")
+    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
+    return Face(surface, loop, index=index, source="Plane")
+
+
+def test_a_wall_between_selected_faces_is_a_border():
+    """Two selected faces one above the other's side (z 10 on x < 10, z 14 beyond, the wall
+    between them not in the model): seen from above they touch, but no ball reaches the foot
+    of the wall, so the cells within a radius of it belong to the edge band.  A raster at the
+    exact tip heights (the ball resting on the upper face's edge beside the wall) leaves the
+    wall's foot as much as the closed form says, in the edge band; the scallop inside is the
+    raster's own."""
+    r = 1.0
+    faces = [_plane_face(0.0, 10.0, 10.0, 1), _plane_face(10.0, 20.0, 14.0, 2)]
+    xs = np.arange(-1.0, 21.0 + 1e-9, 0.25)
+    tip = np.where(xs >= 10.0, 14.0,
+                   np.where(xs > 10.0 - r, 14.0 - r + np.sqrt(np.maximum(
+                       r * r - (10.0 - xs) ** 2, 0.0)), 10.0))
+    lines = ["%", "G17 G21 G90 G54", "T1 M6", "S10000 M3", "G0 Z30"]
+    for i, (x, z) in enumerate(zip(xs, tip)):
+        a, b = (-2.0, 12.0) if i % 2 == 0 else (12.0, -2.0)
+        lines += [f"G0 X{x:.4f} Y{a}", f"G1 Z{z:.4f} F600", f"G1 Y{b} F1200", "G0 Z30"]
+    program = read_gcode("\n".join([*lines, "M5", "M2", "%"]) + "\n")
+    m = verify_faces(faces, program, Tool(2 * r), cell=0.1).metrics
+    assert m["gouge_max_mm"] < 1e-4
+    assert m["scallop_max_mm"] < 0.07  # passes 0.25 mm apart: 0.0078 mm cusps, and rounding
+    # the wall's foot: at each cell centre in front of it the lowest ball over it
+    cx = np.arange(9.0, 10.0, 0.1) + 0.05
+    d = np.abs(cx[:, None] - xs[None, :])
+    ball = np.where(d <= r, tip[None, :] + r - np.sqrt(np.maximum(r * r - d * d, 0.0)), np.inf)
+    left = float((ball.min(axis=1) - 10.0).max())
+    assert left > 0.5
+    assert m["edge_scallop_max_mm"] == pytest.approx(left, abs=0.02)
+    assert m["coverage"] == pytest.approx(1.0)
+
+
+def _cone_ring(r0: float = 5.0, r1: float = 10.0, z0: float = 0.0, z1: float = 2.0):
+    """A conical ring about the z axis, radius r0 at z0 to r1 at z1: u the angle (a rational
+    quadratic full circle, its seam along +x), v the profile (degree 1)."""
+    from BSplineCAM.core.faces import Face
+    from BSplineCAM.core.nurbs import NurbsSurface
+
+    c = math.sqrt(0.5)
+    square = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
+    w = np.array([1, c, 1, c, 1, c, 1, c, 1])
+    poles = np.array([[[r * a, r * b, z] for r, z in ((r0, z0), (r1, z1))] for a, b in square],
+                     dtype=float)
+    weights = np.repeat(w[:, None], 2, axis=1)
+    ku = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
+    surface = NurbsSurface(poles, ku, [0, 0, 1, 1], 2, 1, weights=weights, name="Face1")
+    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
+    return Face(surface, loop, index=1, source="Cone")
+
+
+def test_heights_across_a_closed_face_seam():
+    """A ring closed on itself (a cone's or torus's seam along +x): the cells on either side of
+    the seam are found on it, with the cone's height, whichever side their seed lies on."""
+    ring = _cone_ring()
+    angles = np.radians(np.r_[np.linspace(-3.0, 3.0, 61), np.arange(0.0, 360.0, 7.0)])
+    radius = np.r_[np.full(61, 7.3), np.linspace(5.2, 9.8, 52)]
+    x, y = radius * np.cos(angles), radius * np.sin(angles)
+    hm = FacesHeight([ring], 0.1).points(x, y)
+    assert hm.found.all()
+    np.testing.assert_allclose(hm.z, 2.0 * (radius - 5.0) / 5.0, atol=1e-6)

@@ -134,6 +134,24 @@ def _orders(surface, u: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArr
     return surface.evaluate(u, v), surface.evaluate(u, v, du=1), surface.evaluate(u, v, dw=1)
 
 
+def _closed_directions(surface, domain: tuple[float, float, float, float]) -> tuple[bool, bool]:
+    """Whether the surface closes on itself along u and along v: its points at the two ends of
+    the direction's domain agree to 1e-9 of its size at 17 parameters across (a periodic
+    surface, or a cylinder, cone, sphere or torus converted by OCCT)."""
+    u0, u1, v0, v1 = domain
+    t = np.linspace(0.0, 1.0, 17)
+    size = float(np.ptp(np.asarray(surface.poles, dtype=float).reshape(-1, 3), axis=0).max())
+    out = []
+    for ends, across in (((u0, u1), v0 + (v1 - v0) * t), ((v0, v1), u0 + (u1 - u0) * t)):
+        pts = []
+        for end in ends:
+            e = np.full(len(across), end)
+            pts.append(surface.evaluate(e, across) if len(out) == 0
+                       else surface.evaluate(across, e))
+        out.append(bool(np.abs(pts[0] - pts[1]).max() <= 1e-9 * max(size, 1e-300)))
+    return out[0], out[1]
+
+
 class _FaceSeeds:
     """One face's lookup raster of samples (parameters, XY and Jacobian) and its trim."""
 
@@ -145,6 +163,7 @@ class _FaceSeeds:
         poles = np.asarray(s.poles, dtype=float).reshape(-1, 3)
         self.zmax = float(poles[:, 2].max())  # the convex hull bounds the surface
         self.trim = _Trim(face)
+        self.closed = _closed_directions(s, (u0, u1, v0, v1))
         k0 = SPAN_SAMPLES[0]
         nu, nv = _spans(s.knots_u, (u0, u1)), _spans(s.knots_v, (v0, v1))
         # coarse pass: the largest XY chord between neighbouring samples of each span
@@ -215,6 +234,21 @@ class _FaceSeeds:
         j = np.clip(np.floor((y - self.lo[1]) / self.step).astype(np.int64), 0, self.shape[1] - 1)
         return i * self.shape[1] + j
 
+    def _wrapped(self, u: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """(u, v) with a step past a closed direction's end carried round to its start (a
+        cylinder's or torus's seam: the seed may lie on the other side of it)."""
+        u0, u1, v0, v1 = self.domain
+        if self.closed[0]:
+            u = np.where(u > u1, u - (u1 - u0), np.where(u < u0, u + (u1 - u0), u))
+        if self.closed[1]:
+            v = np.where(v > v1, v - (v1 - v0), np.where(v < v0, v + (v1 - v0), v))
+        return u, v
+
+    def _into_domain(self, u: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
+        u0, u1, v0, v1 = self.domain
+        u, v = self._wrapped(u, v)
+        return np.clip(u, u0, u1), np.clip(v, v0, v1)
+
     def invert(self, x: FloatArray, y: FloatArray, tol: float
                ) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray]:
         """Newton on S_xy(u, v) = (x, y) from the lookup seeds: (indices of the points found on
@@ -228,8 +262,8 @@ class _FaceSeeds:
         dy = y[active] - self.xy[k, 1]
         inv = self.inv[k]
         u0, u1, v0, v1 = self.domain
-        u = np.clip(self.u[k] + inv[:, 0, 0] * dx + inv[:, 0, 1] * dy, u0, u1)
-        v = np.clip(self.v[k] + inv[:, 1, 0] * dx + inv[:, 1, 1] * dy, v0, v1)
+        u, v = self._into_domain(self.u[k] + inv[:, 0, 0] * dx + inv[:, 0, 1] * dy,
+                                 self.v[k] + inv[:, 1, 0] * dx + inv[:, 1, 1] * dy)
         max_step = 0.25 * max(u1 - u0, v1 - v0)
         hit_i, hit_z, hit_u, hit_v, hit_su, hit_sv = [], [], [], [], [], []
         pos = np.arange(len(active))
@@ -253,8 +287,7 @@ class _FaceSeeds:
             du = (sv[:, 1] * rx - sv[:, 0] * ry) / det
             dv = (su[:, 0] * ry - su[:, 1] * rx) / det
             scale = np.minimum(1.0, max_step / np.maximum(np.hypot(du, dv), 1e-300))
-            tu = u + scale * du
-            tv = v + scale * dv
+            tu, tv = self._wrapped(u + scale * du, v + scale * dv)
             # held on the domain's edge by a step that leaves it: not on this face
             leaving = (((u == u0) & (tu < u0)) | ((u == u1) & (tu > u1))
                        | ((v == v0) & (tv < v0)) | ((v == v1) & (tv > v1)))

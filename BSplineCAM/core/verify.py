@@ -50,6 +50,11 @@ GOUGE_TOLERANCE_MM = 1e-3
 DEFAULT_RAPID_RATE = 5000.0  # mm/min
 DEFAULT_COVERAGE_TOLERANCE = 0.1  # mm
 DEFAULT_STOCK_MARGIN = 1.0  # mm
+#: Where the design height between two neighbouring cells rises more steeply than this, a
+#: wall the selected faces meet stands there, though seen from above they touch (a boss's
+#: side between its two fillets): the selection has a border there.  A smooth face ending
+#: vertical rises less over its last cell (a 3 mm fillet: 76 degrees over 0.1 mm).
+STEEP_BORDER_DEG = 85.0
 
 
 class StockTop(str, Enum):
@@ -195,7 +200,8 @@ def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: flo
     closing = 1.5
     closed = ~dilate_disk(dilate_disk(selected, closing, outside=False) == 0, closing,
                           outside=True)
-    inner = selected & closed & ~_dilate(~closed, tool.radius / cell)
+    inner = selected & closed & ~_dilate(~closed | _steep_steps(design, model, cell),
+                                         tool.radius / cell)
     if not np.any(inner):
         raise ParameterError(
             f"the selected faces shrunk by the tool radius ({tool.radius:g} mm) are empty: "
@@ -463,6 +469,23 @@ def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.n
         "footprint_cells": int(inside.sum()),
         "inner_cells": int(inner.sum()),
     }
+
+
+def _steep_steps(design: FloatArray, model: np.ndarray, cell: float) -> np.ndarray:
+    """Cells of the model whose design height differs from a neighbour's (along x or y, both
+    on the model) by more than one cell at STEEP_BORDER_DEG."""
+    rise = cell * math.tan(math.radians(STEEP_BORDER_DEG))
+    z = np.where(model, design, np.nan)
+    out = np.zeros(z.shape, bool)
+    for axis in (0, 1):
+        with np.errstate(invalid="ignore"):
+            step = np.abs(np.diff(z, axis=axis)) > rise  # NaN (off the model): False
+        lo = [slice(None)] * 2
+        hi = [slice(None)] * 2
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        out[tuple(lo)] |= step
+        out[tuple(hi)] |= step
+    return out
 
 
 def _dilate(mask: np.ndarray, radius: float) -> np.ndarray:

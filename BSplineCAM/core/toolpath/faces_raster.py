@@ -32,6 +32,7 @@ from .common import (
     ToolpathStats,
     check_angle,
     normal_curvature,
+    principal_curvatures,
 )
 from .faceset import FaceSet
 from .raster import (
@@ -138,7 +139,8 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
         tz = -(n[:, 0] * across[0] + n[:, 1] * across[1]) / nzc
         t = np.column_stack([np.full(len(tz), across[0]), np.full(len(tz), across[1]), tz])
         kappa = normal_curvature(jet, t)
-        xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, across, along)
+        xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, across, along,
+                                    principal_curvatures(jet)[1])
         sin_slope = np.hypot(n[:, 0], n[:, 1])
         cap = math.sin(math.radians(STEEPEST_REACHED))
         # steeper samples are not reached by the passes: their allowance does not count

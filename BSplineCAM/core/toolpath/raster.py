@@ -28,6 +28,7 @@ from .common import (
     ToolParameters,
     curved_stepover,
     normal_curvature,
+    principal_curvatures,
     simplify,
 )
 from .dropcutter import DropCutter
@@ -40,8 +41,14 @@ GENTLE = 1.0
 SCREEN = 0.25
 
 
+#: Share of the ball's curvature within which a concave cross-section counts as one the ball
+#: fits (:func:`cross_section_stepover`).
+NEAR_FIT = 0.05
+
+
 def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: FloatArray,
-                           across: FloatArray, along: FloatArray) -> FloatArray:
+                           across: FloatArray, along: FloatArray,
+                           kappa_max: FloatArray | None = None) -> FloatArray:
     """Largest XY distance between passes (mm) leaving cusps at most ``scallop`` high, measured
     vertically as a Z-map (and the verification) sees them.
 
@@ -72,6 +79,20 @@ def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: 
     # curved_stepover is the arc between the contacts, rho theta; the passes are spaced by
     # their ball centres, on the offset curve of radius rho -+ R: (1 - kappa R) rho theta.
     spacing = curved_stepover(radius, h_n, kappa2) * np.clip(1.0 - kappa2 * radius, 0.0, None)
+    # A hollow the ball fits (a concave radius up to R / (1 - NEAR_FIT), across the passes or,
+    # with ``kappa_max`` (the largest concave principal curvature), in any direction) or
+    # cannot enter: the centres of its contacts crowd on a curve (the offset surface
+    # degenerates), so this bound would shrink to nothing wherever the passes cross it (a
+    # 3 mm fillet round a boss's foot and a 6 mm ball: every pass over the plate 0.05 mm
+    # apart, 50 times the path).  Such a contact bounds no stepover: the passes that cross
+    # the hollow fill it where they cross, those along it leave material (a fillet round a
+    # boss is left at the two sides parallel to the passes; the verification's edge band
+    # beside the boss's wall shows it), and a hollow the ball cannot enter is reported
+    # unreachable.
+    fits = kappa2 * radius >= 1.0 - NEAR_FIT
+    if kappa_max is not None:
+        fits |= np.asarray(kappa_max) * radius >= 1.0 - NEAR_FIT
+    spacing = np.where(fits, np.inf, spacing)
     return spacing / sec2
 
 
@@ -175,7 +196,8 @@ class RasterPlanner:
         tz = -(n[:, 0] * c[0] + n[:, 1] * c[1]) / nz
         t = np.column_stack([np.full(len(tz), c[0]), np.full(len(tz), c[1]), tz])
         kappa = normal_curvature(jet, t)
-        xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, c, self.along)
+        xy = cross_section_stepover(tool.radius, tool.scallop, kappa, n, c, self.along,
+                                    principal_curvatures(jet)[1])
         xy = np.maximum(xy, 0.02 * tool.flat_stepover)
         b_off = (jet.p[:, :2] + tool.radius * n[:, :2]) @ c
         order = np.argsort(b_off)
