@@ -236,8 +236,25 @@ def generate_faces(faceset, strategy: str, tool_diameter: float, scallop: float,
     (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``) or
     steep_shallow (:func:`~BSplineCAM.core.toolpath.rest.generate_faces_steep_shallow`:
     contours on walls steeper than ``threshold`` degrees, raster at ``angle`` on the rest).
-    tool_diameter, scallop and tolerance in mm.  A strategy or direction faces do not have
+    tool_diameter, scallop and tolerance in mm.  ``unreachable`` lists the regions of the
+    selected faces the ball cannot reach (:func:`.reach.unreachable_corners`: inside corners
+    and hollows tighter than it), whatever the strategy.  A strategy or direction faces do not have
     raises :class:`~BSplineCAM.core.errors.ParameterError` naming ``where`` and the property or option (``names``)."""
+    toolpath = _faces_toolpath(faceset, strategy, tool_diameter, scallop, tolerance, angle,
+                               direction, iso_direction, progress, where, names, threshold)
+    from .reach import unreachable_corners
+
+    lo, hi = faceset.bounds(selected_only=True)
+    toolpath.unreachable = unreachable_corners(
+        faceset.faces, [f.selected for f in faceset.faces],
+        (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])), 0.5 * float(tool_diameter))
+    return toolpath
+
+
+def _faces_toolpath(faceset, strategy: str, tool_diameter: float, scallop: float,
+                    tolerance: float, angle: float, direction: str, iso_direction: str,
+                    progress, where: str, names: tuple[str, str], threshold: float):
+    """:func:`generate_faces` without the unreachable regions."""
     strategy_name, direction_name = names
     if strategy not in FACE_STRATEGIES:
         raise ParameterError(f"{where}: {strategy_name} {strategy!r} is not available on faces: use "
