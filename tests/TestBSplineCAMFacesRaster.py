@@ -119,25 +119,33 @@ def test_modelled_midpoints_leave_the_passes_unchanged(monkeypatch):
     assert counts["model"] < 0.8 * counts["exact"], counts
 
 
-def _fillet_ring(centre=(20.0, 20.0), wall=12.0, rho=3.0, base=10.0):
-    """The concave fillet at the foot of a round boss (radius ``wall``) on a plate at ``base``:
-    the quarter circle of radius ``rho`` from (wall + rho, base) to (wall, base + rho) about
-    (wall + rho, base + rho), revolved about the boss's axis (rational quadratics both ways)."""
+def revolved_face(profile, weights=None, centre=(0.0, 0.0), index=1, source="Revolved"):
+    """A face of revolution about the vertical axis through ``centre``: u the angle (a
+    rational quadratic full circle, its seam along +x), v the profile, a Bezier curve of
+    poles ``profile`` [(r, z), ...] and ``weights`` (degree len - 1)."""
     from BSplineCAM.core.faces import Face
     from BSplineCAM.core.nurbs import NurbsSurface
 
     c = math.sqrt(0.5)
     square = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
     wu = np.array([1, c, 1, c, 1, c, 1, c, 1])
-    profile = [(wall + rho, base), (wall, base), (wall, base + rho)]  # (r, z), corner middle
-    wv = np.array([1, c, 1])
-    poles = np.array([[[centre[0] + r * a, centre[1] + r * b, z] for r, z in profile]
-                      for a, b in square], dtype=float)
+    wv = np.ones(len(profile)) if weights is None else np.asarray(weights, dtype=float)
+    poles = np.array([[[centre[0] + r * x, centre[1] + r * y, z] for r, z in profile]
+                      for x, y in square], dtype=float)
     ku = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    s = NurbsSurface(poles, ku, [0, 0, 0, 1, 1, 1], 2, 2, weights=wu[:, None] * wv[None, :],
-                     name="Face2")
+    q = len(profile) - 1
+    s = NurbsSurface(poles, ku, [0] * (q + 1) + [1] * (q + 1), 2, q,
+                     weights=wu[:, None] * wv[None, :], name=f"Face{index}")
     loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
-    return Face(s, loop, index=2, source="Toroid")
+    return Face(s, loop, index=index, source=source)
+
+
+def _fillet_ring(centre=(20.0, 20.0), wall=12.0, rho=3.0, base=10.0):
+    """The concave fillet at the foot of a round boss (radius ``wall``) on a plate at ``base``:
+    the quarter circle of radius ``rho`` from (wall + rho, base) to (wall, base + rho) about
+    (wall + rho, base + rho), revolved about the boss's axis (rational quadratics both ways)."""
+    profile = [(wall + rho, base), (wall, base), (wall, base + rho)]  # (r, z), corner middle
+    return revolved_face(profile, [1.0, math.sqrt(0.5), 1.0], centre, 2, "Toroid")
 
 
 def _plate_with_hole(size=40.0, centre=(20.0, 20.0), hole=15.0, base=10.0):

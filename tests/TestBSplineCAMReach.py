@@ -7,26 +7,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from TestBSplineCAMFacesRaster import _fillet_ring, _plate_with_hole
+from TestBSplineCAMFacesRaster import _fillet_ring, _plate_with_hole, revolved_face
 
-from BSplineCAM.core.faces import Face
-from BSplineCAM.core.nurbs import NurbsSurface
 from BSplineCAM.core.toolpath.reach import opening, unreachable_corners
 
 
 def _frustum(centre=(20.0, 20.0), r0=10.0, z0=10.0, r1=5.0, z1=20.0):
-    """The side of a cone frustum standing on the plate: radius r0 at z0 to r1 at z1, u the
-    angle (rational quadratic circle), v up the side (degree 1); its normal points out."""
-    c = math.sqrt(0.5)
-    square = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
-    w = np.array([1, c, 1, c, 1, c, 1, c, 1])
-    poles = np.array([[[centre[0] + r * a, centre[1] + r * b, z] for r, z in ((r0, z0), (r1, z1))]
-                      for a, b in square], dtype=float)
-    ku = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    s = NurbsSurface(poles, ku, [0, 0, 1, 1], 2, 1, weights=np.repeat(w[:, None], 2, axis=1),
-                     name="Face2")
-    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
-    return Face(s, loop, index=2, source="Cone")
+    """The side of a cone frustum standing on the plate: radius r0 at z0 to r1 at z1 (its
+    normal points out)."""
+    return revolved_face([(r0, z0), (r1, z1)], centre=centre, index=2, source="Cone")
 
 
 def test_opening_of_a_v_groove_against_its_closed_form():

@@ -388,21 +388,11 @@ def test_a_wall_between_selected_faces_is_a_border():
 
 
 def _cone_ring(r0: float = 5.0, r1: float = 10.0, z0: float = 0.0, z1: float = 2.0):
-    """A conical ring about the z axis, radius r0 at z0 to r1 at z1: u the angle (a rational
-    quadratic full circle, its seam along +x), v the profile (degree 1)."""
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
+    """A conical ring about the z axis, radius r0 at z0 to r1 at z1: u the angle (its seam
+    along +x), v the profile."""
+    from TestBSplineCAMFacesRaster import revolved_face
 
-    c = math.sqrt(0.5)
-    square = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
-    w = np.array([1, c, 1, c, 1, c, 1, c, 1])
-    poles = np.array([[[r * a, r * b, z] for r, z in ((r0, z0), (r1, z1))] for a, b in square],
-                     dtype=float)
-    weights = np.repeat(w[:, None], 2, axis=1)
-    ku = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    surface = NurbsSurface(poles, ku, [0, 0, 1, 1], 2, 1, weights=weights, name="Face1")
-    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
-    return Face(surface, loop, index=1, source="Cone")
+    return revolved_face([(r0, z0), (r1, z1)], index=1, source="Cone")
 
 
 def test_heights_across_a_closed_face_seam():

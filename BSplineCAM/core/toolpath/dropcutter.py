@@ -182,20 +182,14 @@ class DropCutter:
         at it and its two grid neighbours, along u and along w (at most one grid step), so
         that Newton starts closer to the maximum; a sample on the grid's border, or whose
         neighbours lie outside the ball, stays where it is."""
-        R2 = self.radius * self.radius
         out = []
         for axis, (n, t) in enumerate(((self.n_u, self.u), (self.n_w, self.w))):
             k = (i, j)[axis]
             inner = (k > 0) & (k < n - 1)
             down, up = np.where(inner, k - 1, k), np.where(inner, k + 1, k)
-            f = []
-            for a, b in (((down, j), (i, j), (up, j)) if axis == 0
-                         else ((i, down), (i, j), (i, up))):
-                p = self.samples[a * self.n_w + b]
-                d2 = (p[:, 0] - q[:, 0]) ** 2 + (p[:, 1] - q[:, 1]) ** 2
-                f.append(np.where(d2 <= R2, p[:, 2] + np.sqrt(np.maximum(R2 - d2, 0.0)),
-                                  -np.inf))
-            f0, f1, f2 = f
+            f0, f1, f2 = (self._maximand(q, self.samples[a * self.n_w + b])
+                          for a, b in (((down, j), (i, j), (up, j)) if axis == 0
+                                       else ((i, down), (i, j), (i, up))))
             with np.errstate(invalid="ignore"):  # -inf - -inf: a neighbour outside the ball
                 curv = f0 - 2.0 * f1 + f2
                 good = inner & np.isfinite(f0) & np.isfinite(f2) & (curv < 0)
