@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import sys
 import tempfile
@@ -486,6 +487,27 @@ class TestBSplineTopIso(PartJob):
         self.assertGreater(inner.sum(), 10000)
         excess = sim.height[inner] - z[inner]
         self.assertLessEqual(float(excess.max()), SCALLOP + TOLERANCE + 1e-3)
+
+
+class TestFilletBoxWaterline(PartJob):
+    """Waterline on the fillet box's faces seen from above (top and fillet): the op says in
+    its report, and the report view, what share of them is too flat for it."""
+
+    strategy = "waterline"
+
+    def test_report_says_the_share_too_flat_for_waterline(self):
+        report = self.report()
+        self.assertNotIn("error", report)
+        self.assertGreater(report["passes"], 1)
+        # closed form: the top beside the fillet (30 x 16 mm) and the fillet's first 30
+        # degrees of its quarter circle (30 x 4 pi / 6), of the top and the whole fillet
+        flat = 30 * 16 + 30 * FILLET * math.pi / 6
+        share = 100 * flat / (30 * 16 + 30 * FILLET * math.pi / 2)
+        said = [n for n in report["notes"] if "flatter than 30 degrees" in n]
+        self.assertTrue(said and said[0].startswith(f"{share:.0f} %"), (report["notes"], share))
+
+    def test_program_passes_rs274(self):
+        self.assert_rs274()
 
 
 def freecad_path():

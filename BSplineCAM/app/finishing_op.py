@@ -305,8 +305,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         if rest is not None:
             out["rest"] = rest_report(rest)
         obj.Report = json.dumps(out, sort_keys=True)
-        for region in toolpath.unreachable:
-            FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
+        warn_left(obj, toolpath)
 
     def _execute_faces(self, obj) -> None:
         """Finishing of the op's faces (:func:`job_faces`) by raster, waterline or
@@ -344,8 +343,16 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         out["faces"] = [f.name for f in faceset.faces if f.selected]
         out["check_faces"] = sum(not f.selected for f in faceset.faces)
         obj.Report = json.dumps(out, sort_keys=True)
-        for region in toolpath.unreachable:
-            FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
+        warn_left(obj, toolpath)
+
+
+def warn_left(obj, toolpath) -> None:
+    """Say in the report view what the op leaves: regions the ball cannot reach and the
+    toolpath's notes (a waterline's share of the faces too flat for it)."""
+    for region in toolpath.unreachable:
+        FreeCAD.Console.PrintWarning(f"{obj.Label}: unreachable by the ball: {region}\n")
+    for note in toolpath.stats.notes:
+        FreeCAD.Console.PrintWarning(f"{obj.Label}: {note}\n")
 
 
 def moves_to_commands(moves, horizontal_feed: float, vertical_feed: float,
@@ -458,6 +465,7 @@ def report(toolpath, commands=None, moves=None) -> dict:
         "pass_length_mm": round(stats.cutting_length_mm, 6),
         "seconds": round(stats.seconds, 4),
         "unreachable": [getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
+        "notes": list(stats.notes),
     }
     if commands is not None:
         out["arc_moves"] = sum(c.Name in ("G2", "G3") for c in commands)

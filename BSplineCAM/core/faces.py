@@ -119,10 +119,10 @@ def inside(face: Face, u: ArrayLike, v: ArrayLike) -> np.ndarray:
     return result.reshape(shape)
 
 
-def sample_points(face: Face, count: int = 15, boundary: int = 400) -> FloatArray:
-    """(N, 2) parameter points of a face: the cell centres of a ``count`` x ``count`` grid
-    over its parameter box that lie inside the trim (a 4x finer grid if fewer than 10 do),
-    and up to ``boundary`` points of its trim polylines."""
+def grid_points(face: Face, count: int = 15) -> tuple[FloatArray, float]:
+    """(N, 2) cell centres of a ``count`` x ``count`` grid over the face's parameter box that
+    lie inside its trim (a 4x finer grid if fewer than 10 do), and the parameter area of one
+    cell: sum |Su x Sv| over the points times it estimates the face's area (mm^2)."""
     u0, u1, v0, v1 = face.bounds()
     for n in (count, 4 * count):
         t = (np.arange(n) + 0.5) / n
@@ -130,7 +130,13 @@ def sample_points(face: Face, count: int = 15, boundary: int = 400) -> FloatArra
         keep = inside(face, uu, vv)
         if np.count_nonzero(keep) >= 10:
             break
-    grid = np.stack([uu[keep], vv[keep]], axis=1)
+    return np.stack([uu[keep], vv[keep]], axis=1), (u1 - u0) * (v1 - v0) / (n * n)
+
+
+def sample_points(face: Face, count: int = 15, boundary: int = 400) -> FloatArray:
+    """(N, 2) parameter points of a face: its :func:`grid_points` and up to ``boundary``
+    points of its trim polylines."""
+    grid, _cell = grid_points(face, count)
     edge = np.concatenate(face.loops)
     if len(edge) > boundary:
         edge = edge[np.linspace(0, len(edge) - 1, boundary).astype(int)]

@@ -187,6 +187,13 @@ class ToolParameters:
 
 
 # -- scallop geometry ---------------------------------------------------------------------------
+#: Share of the ball's curvature within which a concave cross-section counts as one the ball
+#: fits (a concave radius up to R / (1 - NEAR_FIT)): such a hollow bounds neither a raster's
+#: stepover (:func:`.raster.cross_section_stepover`) nor a waterline's step-down
+#: (:func:`.waterline.level_steps`).
+NEAR_FIT = 0.05
+
+
 def flat_stepover(radius: float, scallop: float) -> float:
     """Distance between passes on a plane leaving cusps of height h: 2 sqrt(2Rh - h^2) (mm)."""
     return 2.0 * math.sqrt(max(2.0 * radius * scallop - scallop * scallop, 0.0))

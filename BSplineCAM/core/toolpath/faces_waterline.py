@@ -47,7 +47,7 @@ import time
 import numpy as np
 
 from ..errors import ParameterError
-from ..faces import inside, sample_points
+from ..faces import grid_points, inside, sample_points
 from ..typing import FloatArray
 from .common import (
     Jet,
@@ -57,13 +57,20 @@ from .common import (
     Toolpath,
     ToolpathStats,
     check_finite,
-    curved_stepover,
     normal_curvature,
     simplify,
 )
 from .faces_raster import FaceQuery
 from .faceset import FaceSet
-from .waterline import _chain, _crossings, densify, push_out, step_levels
+from .waterline import (
+    _chain,
+    _crossings,
+    densify,
+    level_steps,
+    push_out,
+    shallow_notes,
+    step_levels,
+)
 
 #: Largest |(c - p) / R - n| of a surface contact (c the ball centre, p the contact, n the
 #: upward unit normal there); more is an edge contact (a trim edge, a face's border).
@@ -166,9 +173,7 @@ def _steep_samples(faceset: FaceSet, tool: ToolParameters, signs: np.ndarray,
         steep = (sin_a >= math.sin(min_slope)) & (n[:, 2] > 0)
         # steepest descent in the tangent plane: across the waterlines
         down = np.column_stack([n[:, 0] * n[:, 2], n[:, 1] * n[:, 2], n[:, 2] ** 2 - 1.0])
-        kappa = normal_curvature(jet, down)
-        contact = curved_stepover(tool.radius, tool.scallop * np.clip(n[:, 2], 0.05, 1.0), kappa)
-        dz = contact * np.clip(1.0 - tool.radius * kappa, 0.05, None) * sin_a
+        dz = level_steps(tool, n, normal_curvature(jet, down))
         z_off = jet.p[:, 2] + tool.radius * (n[:, 2] - 1.0)
         lo, hi = min(lo, float(z_off.min())), max(hi, float(z_off.max()))
         zs.append(z_off[steep])
@@ -176,6 +181,21 @@ def _steep_samples(faceset: FaceSet, tool: ToolParameters, signs: np.ndarray,
     z, dz = np.concatenate(zs), np.concatenate(dzs)
     order = np.argsort(z)
     return z[order], dz[order], lo, hi
+
+
+def _face_normals(faceset: FaceSet, signs: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    """Upward normals' z and area weights (mm^2) at grid points of the selected faces."""
+    nz, area = [], []
+    for f, sign in zip(faceset.faces, signs):
+        if not f.selected:
+            continue
+        uv, cell = grid_points(f, count=60)
+        d = f.surface.derivatives(uv[:, 0], uv[:, 1])
+        c = sign * np.cross(d.su, d.sw)
+        a = np.linalg.norm(c, axis=1)
+        nz.append(c[:, 2] / np.maximum(a, 1e-300))
+        area.append(a * cell)
+    return np.concatenate(nz), np.concatenate(area)
 
 
 def level_heights(zs: FloatArray, dzs: FloatArray, tool: ToolParameters, min_slope: float,
@@ -290,8 +310,8 @@ def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1: FloatArray,
-                     level: FloatArray, eps: float, width: float, steps: int = FALSI_STEPS
-                     ) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray]:
+                     level: FloatArray, eps: float, width: float, steps: int = FALSI_STEPS,
+                     progress=None) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray]:
     """Where the drop height crosses ``level`` (mm) on each grid edge p0-p1.
 
     ``heights(xy)`` gives the certified tip heights (mm) at points (n, 2), NaN where no face
@@ -312,7 +332,8 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
     air end, the ball never above the exact drop height.  Returns the edge parameter t in
     [0, 1] of each point, whether it ends a jump, the parameter of the bracket's end above
     the level (the material it follows), and whether the edge settled within ``steps``
-    queries (else t is its air end).
+    queries (else t is its air end).  ``progress(fraction)``, if given, hears the share of
+    the edges settled after each round of queries.
     """
     n = len(p0)
     length = np.hypot(*(p1 - p0).T)
@@ -337,6 +358,8 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
         jump |= narrow
         done |= narrow
         act = np.flatnonzero(~done)
+        if progress is not None:
+            progress(1.0 - len(act) / max(n, 1))
         if len(act) == 0 or k == steps:
             break
         a_u, a_a, b_u, b_a = tu[act], ta[act], gu[act], ga[act]
@@ -496,8 +519,7 @@ def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: fl
         for chain in _chain(segments):
             polylines.append(np.asarray(chain))
             heights.append(level)
-    notes = [f"walls below {slope_deg:g} degrees are not finished by waterline; pair with a "
-             "raster pass"]
+    notes = shallow_notes(*_face_normals(faceset, signs), slope, "the selected faces'")
     parameters = {"strategy": "waterline", "tool_diameter": 2.0 * R, "scallop": tool.scallop,
                   "tolerance": tool.tolerance, "min_slope": slope_deg,
                   "faces": [f.name for f in faceset.faces if f.selected]}
@@ -532,8 +554,10 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     p1 = np.column_stack([xs[c1[:, 0]], ys[c1[:, 1]]])
     z0, z1 = Z[c0[:, 0], c0[:, 1]], Z[c1[:, 0], c1[:, 1]]
     width = JUMP_WIDTH * tool.tolerance
+    # the crossings take most of the time: the progress bar moves with the edges settled
     t, jump, t_up, settled = polish_crossings(lambda q: query.heights(q)[0], p0, p1, z0, z1, zl,
-                                              LEVEL_EPS * tool.tolerance, width)
+                                              LEVEL_EPS * tool.tolerance, width,
+                                              progress=lambda f: monitor(0.3 + 0.2 * f))
     xy = p0 + t[:, None] * (p1 - p0)
     _tip, good = _contacts(faceset, query, signs, xy)
     if jump.any():

@@ -23,6 +23,7 @@ import numpy as np
 from ..typing import FloatArray
 from .chords import ChordSamples, lift_chords
 from .common import (
+    NEAR_FIT,
     Direction,
     Monitor,
     ToolParameters,
@@ -39,11 +40,6 @@ REFINE_ROUNDS = 6
 GENTLE = 1.0
 #: Fraction of the midpoint allowance (tol / 2) below which a screened interval is left alone.
 SCREEN = 0.25
-
-
-#: Share of the ball's curvature within which a concave cross-section counts as one the ball
-#: fits (:func:`cross_section_stepover`).
-NEAR_FIT = 0.05
 
 
 def cross_section_stepover(radius: float, scallop: float, kappa: FloatArray, n: FloatArray,

@@ -33,8 +33,18 @@ from .chords import (
     chord_excess,
     sample_chords,
 )
-from .common import Monitor, ToolParameters, curved_stepover, normal_curvature, simplify
+from .common import (
+    NEAR_FIT,
+    Monitor,
+    ToolParameters,
+    curved_stepover,
+    normal_curvature,
+    simplify,
+)
 from .dropcutter import DropCutter
+
+#: Least share of the area flatter than the waterline's slope threshold that gets a note.
+SHALLOW_NOTE = 0.005
 
 #: Marching-squares segments per case (corner bits: 1 = (i, j), 2 = (i+1, j), 4 = (i+1, j+1),
 #: 8 = (i, j+1)); edges 0 = bottom, 1 = right, 2 = top, 3 = left.  Saddles 5 and 10 are split
@@ -55,16 +65,33 @@ def level_heights(dc: DropCutter, tool: ToolParameters, min_slope: float,
     steep = sin_a >= math.sin(min_slope)
     # Steepest-descent direction in the tangent plane: across the waterlines.
     down = np.column_stack([n[:, 0] * n[:, 2], n[:, 1] * n[:, 2], n[:, 2] ** 2 - 1.0])
-    kappa = normal_curvature(jet, down)
-    # The scallop is held vertically (as the machined part is measured): h·n_z along the
-    # normal.  curved_stepover spaces the contact points; the levels space ball centres, which
-    # sit on a circle of radius rho - R·sign about the centre of curvature: factor 1 - R·kappa.
-    contact = curved_stepover(tool.radius, tool.scallop * np.clip(n[:, 2], 0.05, 1.0), kappa)
-    dz = contact * np.clip(1.0 - tool.radius * kappa, 0.05, None) * sin_a
+    dz = level_steps(tool, n, normal_curvature(jet, down))
     z_off = jet.p[:, 2] + tool.radius * (n[:, 2] - 1.0)
     order = np.argsort(z_off[steep])
     return step_levels(z_off[steep][order], dz[steep][order], tool, min_slope, z_top, z_bottom,
                        gap=dc.margin ** 0.5)
+
+
+def level_steps(tool: ToolParameters, n: FloatArray, kappa: FloatArray) -> FloatArray:
+    """Step-down (mm) between waterlines that keeps the scallop within ``tool.scallop`` at
+    surface samples with upward unit normals ``n`` (m, 3) and normal curvature ``kappa``
+    (1/mm, concave > 0) down their slope; inf where the ball fits the hollow across the
+    levels (a concave radius up to R / (1 - NEAR_FIT)) or cannot enter it.
+
+    The scallop is held vertically (as the machined part is measured): h n_z along the normal.
+    curved_stepover spaces the contact points; the levels space ball centres, which sit on a
+    circle of radius rho - R sign about the centre of curvature: factor 1 - R kappa, which
+    vanishes where the ball fits.  There every level's ball would touch the hollow only at
+    its fitting height (its centre on the hollow's axis), so no step-down holds the scallop;
+    such samples bound none, as in the raster's stepover (:data:`.common.NEAR_FIT`).  A
+    filleted foot of a boss whose radius is the ball's had set 30 levels 0.04 mm apart, each
+    cut round the boss's wall and dropped there (the contact on the wall, not the fillet).
+    """
+    R = tool.radius
+    sin_a = np.sqrt(np.clip(1.0 - n[:, 2] ** 2, 0.0, 1.0))
+    contact = curved_stepover(R, tool.scallop * np.clip(n[:, 2], 0.05, 1.0), kappa)
+    dz = contact * np.clip(1.0 - R * kappa, 0.05, None) * sin_a
+    return np.where(kappa * R >= 1.0 - NEAR_FIT, np.inf, dz)
 
 
 def step_levels(zs: FloatArray, dzs: FloatArray, tool: ToolParameters, min_slope: float,
@@ -212,9 +239,36 @@ def waterline(surface: Any, tool: ToolParameters, min_slope: float, monitor: Mon
     return passes, {
         "levels": levels, "stepover_min_mm": float(np.nanmin(steps)),
         "stepover_max_mm": float(np.nanmax(steps)), "chord_push": push_stats,
-        "notes": [f"walls below {math.degrees(min_slope):g} degrees are not finished by "
-                  "waterline; pair with a raster pass"],
+        "notes": shallow_notes(*_surface_normals(dc), min_slope, "the surface's"),
     }
+
+
+def _surface_normals(dc: DropCutter) -> tuple[FloatArray, FloatArray]:
+    """Upward normals' z and area weights (mm^2) at the drop-cutter's sample grid."""
+    uu, ww = np.meshgrid(dc.u, dc.w, indexing="ij")
+    jet = dc.jet(uu.ravel(), ww.ravel())
+    du = np.gradient(np.asarray(dc.u, float))
+    dw = np.gradient(np.asarray(dc.w, float))
+    cross = np.cross(jet.su, jet.sw)
+    return jet.normal[:, 2], np.linalg.norm(cross, axis=1) * np.outer(du, dw).ravel()
+
+
+def shallow_share(nz: FloatArray, area: FloatArray, min_slope: float) -> float:
+    """Share of the area (weights ``area`` at samples whose upward unit normal has z ``nz``)
+    flatter than ``min_slope`` (rad)."""
+    total = float(np.sum(area))
+    return float(np.sum(area[np.asarray(nz) > math.cos(min_slope)])) / total if total else 0.0
+
+
+def shallow_notes(nz: FloatArray, area: FloatArray, min_slope: float, whose: str) -> list[str]:
+    """The waterline's note on what it leaves: the :func:`shallow_share` of the area, which no
+    level finishes (none if under SHALLOW_NOTE of it)."""
+    share = shallow_share(nz, area, min_slope)
+    if share < SHALLOW_NOTE:
+        return []
+    return [f"{100.0 * share:.0f} % of {whose} area is flatter than "
+            f"{math.degrees(min_slope):g} degrees and is not finished by waterline: pair it "
+            "with a raster pass, or use the steep_shallow strategy"]
 
 
 def densify(dc: DropCutter, pts: FloatArray, starts: np.ndarray, gap: float,
@@ -415,12 +469,22 @@ def push_out(dc: DropCutter, passes: list, step: float, iterations: int = 6,
 
 def _beside_jump(s, explained: FloatArray, jumped: np.ndarray, off_level: float) -> np.ndarray:
     """Whether each vertex lies beside a jump of the height: no face under the ball, moved by
-    a jump shift (``jumped``), or off its level by more than ``off_level`` (mm, the level
+    a jump shift (``jumped``), off its level by more than ``off_level`` (mm, the level
     points' own accuracy) plus what push_out's smooth shifts explain (``explained``, mm):
     a vertex shifted downhill stands below its level by about its chord's excess, and its
-    chords are smooth ones still."""
+    chords are smooth ones still; or near the ball's rim, the height steeper there than
+    ``MAX_SLOPE`` (a face turning vertical: a fillet's end over a wall).  A contour there runs
+    along the steep slope, and every interval of its chords is too steep for
+    :func:`chord_excess`'s model (its ends level, the height between them no monotone rise),
+    which cut them all, round after round, into KSECT pieces each, down to MIN_SPLIT: a
+    waterline round a box's filleted edge, at the fillet's vertical end (slope 103), asked
+    140 000 drop-cutter queries in one round and ran for over 15 minutes.  Its chords are
+    sampled as a jump's instead."""
     dev = np.abs(s.z[s.vertex] - s.zv[s.vertex])
-    return jumped | ~(dev <= off_level + explained)
+    g = s.grad[s.vertex]
+    with np.errstate(over="ignore", invalid="ignore"):
+        rim = ~(np.hypot(g[:, 0], g[:, 1]) <= MAX_SLOPE)
+    return jumped | ~(dev <= off_level + explained) | rim
 
 
 def _hide_jump_chords(s, off: np.ndarray) -> None:
