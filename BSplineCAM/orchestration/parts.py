@@ -378,8 +378,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
             "commands": commands, "pass_length_mm": round(stats.cutting_length_mm, 6),
             "seconds": round(stats.seconds, 4), "unreachable": [
                 getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
-            "notes": list(stats.notes), "clearance_height_mm": clearance, "safe_height_mm": safe, "post": args.post,
-            "program": program.name,
+            "notes": list(stats.notes), "clearance_height_mm": clearance,
+            "safe_height_mm": safe, "post": args.post, "program": program.name,
             "parameters": {"strategy": toolpath.strategy, "angle_deg": angle,
                            "direction": getattr(args, "direction", "zigzag"),
                            "iso_direction": getattr(args, "iso_direction", "u"),
