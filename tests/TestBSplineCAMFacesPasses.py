@@ -476,3 +476,38 @@ def test_iso_curves_on_the_parts_fillet_ignore_rounding_of_the_trim():
     assert len(first) > 50
     assert [len(p) for p in other] == [len(p) for p in first]
     assert max(float(np.abs(a - b).max()) for a, b in zip(first, other)) < 1e-6
+
+
+def test_iso_on_a_part_whose_walls_come_before_its_selected_faces():
+    """A 30 x 20 x 10 mm box with a 4 mm fillet along one top edge (cadquery's OCCT): its
+    vertical sides, unselected, precede the top and the fillet in the face list and enter the
+    drop-cutter by their borders only.  Iso looked a face's trim test up by its position among
+    the faces that are not walls, and failed with an IndexError on such a part.  Each selected
+    face now gets its own passes, inside its trim and never below the drop height."""
+    cq = pytest.importorskip("cadquery")
+    from BSplineCAM.ocp import faces as ocp
+
+    box = cq.Workplane().box(30, 20, 10, centered=False)
+    box = box.edges(cq.selectors.BoxSelector((-1, -1, 9.9), (31, 0.1, 10.1))).fillet(4.0)
+    faces = ocp.faces_from_shape(box.val().wrapped, "up", tolerance=0.01)
+    fs = FaceSet(faces)
+    chosen = [k for k, f in enumerate(faces) if f.selected]
+    walls = set(fs.walls.owner.tolist())
+    assert len(chosen) == 2 and any(w < min(chosen) for w in walls)
+    for direction in ("u", "v"):
+        tp = generate_faces_iso(fs, D, 0.2, 0.01, direction=direction)
+        per_face = tp.extra["faces"]
+        assert sorted(per_face) == sorted(faces[k].name for k in chosen)
+        assert all(v["passes"] > 0 for v in per_face.values()), per_face
+        assert_above_drop(fs, tp)
+        verts = np.concatenate(tp.passes)
+        assert verts[:, 1].min() >= -R - 1e-6 and verts[:, 2].max() <= 10.0 + 0.01  # tolerance
+        # along the passes the ball rests on the selected faces (at the box's ends x = 0
+        # and 30 it ties with the walls' top edges)
+        pts = np.concatenate([p[:-1] + t * np.diff(p, axis=0) for p in tp.passes
+                              for t in np.linspace(0.05, 0.95, 10)])
+        inner = (pts[:, 0] > 0.5) & (pts[:, 0] < 29.5)
+        assert inner.sum() > 100
+        assert fs.drop_ball(pts[inner, :2], R)[4].mean() > 0.99
+    with pytest.raises(IndexError, match="wall"):
+        fs.trim_test(min(walls))

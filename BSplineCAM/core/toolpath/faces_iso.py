@@ -252,7 +252,7 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
     """Passes (list of (n, 3) tip arrays, zig-zag order), iso values and statistics of one
     selected face."""
     s = face.surface
-    in_trim = faceset.data[k].inside
+    in_trim = faceset.trim_test(k)
     R = tool.radius
     u0, u1, v0, v1 = face.bounds()
     (du0, du1), (dv0, dv1) = s.domain

@@ -787,6 +787,14 @@ class FaceSet:
         self.stats = {"pairs": 0, "levels": 0, "uncertified": 0}
         self._box_memo: dict = {}  # bounds() per selected_only: the faces never change
 
+    def trim_test(self, k: int):
+        """The inside test (u, v) -> bool array of face ``k`` (its index in ``faces``, not
+        in ``data``: unselected walls have no entry there).  A wall has none."""
+        for d in self.data:
+            if d.index == k:
+                return d.inside
+        raise IndexError(f"face {k} is a wall or out of range: no trim test")
+
     def contact_points(self, face: np.ndarray, u: FloatArray, v: FloatArray) -> FloatArray:
         """The 3-D points (m, 3) where :meth:`drop_ball`'s contacts (face, u, v) touch the
         ball (NaN where face is -1): the surface at (u, v), or on a wall the point of its
