@@ -192,3 +192,29 @@ def test_one_signed_curvature_separates_smooth_bands_from_jumps():
     assert not f(np.array([1.0]), np.array([0.0]), np.array([0.5]))[0]
     # a bump: z = -(x - 1/2)^2 on [0, 1]: slopes 1 and -1, no rise
     assert not f(np.array([0.0]), np.array([1.0]), np.array([-1.0]))[0]
+
+
+def test_chord_along_a_walls_rim_grows_by_a_bounded_number_of_samples(monkeypatch):
+    """A chord along the step's top edge, 1e-4 mm inside the ball's reach of it: the ball
+    touches the edge with its rim all along, so the height is constant along the chord but
+    its slope across is about 120 and every interval is too steep for the Hermite model.
+    Each round cut all of them into 16 pieces (a contour at a fillet's vertical end: 140 000
+    drop-cutter queries in one round); now at most ROUGH_PER_CHORD of them a round, and the
+    chord is still found level with the exact height."""
+    x = R - 1e-4
+    z = float(_drop(_profile("step"), np.array([x]))[0][0])
+    grad_x = float(_drop(_profile("step"), np.array([x]))[1][0])
+    assert 20.0 < abs(grad_x) < 200.0  # steeper than MAX_SLOPE, a smooth band's slope
+
+    def run():
+        q = Counted("step")
+        s = sample_chords(q, [np.array([[x, 0.0], [x, 10.0]])], [np.array([z, z])], 0.2)
+        check = chord_excess(q, s)
+        return q.points, check
+
+    points, check = run()
+    assert points < 51 + ROUNDS * chords.ROUGH_PER_CHORD * (chords.KSECT - 1), points
+    assert abs(check.excess[0]) <= 1e-9, check.excess
+    monkeypatch.setattr(chords, "ROUGH_PER_CHORD", 10 ** 9)
+    uncapped, _ = run()
+    assert uncapped > 100_000, uncapped

@@ -12,7 +12,9 @@ the exact drop-cutter and, where Hermite and exact values disagree by more than
 ``MODEL_ERROR``, inserted as a sample and the chord examined again.  Intervals whose slopes
 cannot be trusted (a wall steeper than ``MAX_SLOPE``, a contact on the ball's rim, a secant
 steeper than that: a jump where the ball's side meets a wall) are cut into up to ``KSECT``
-pieces per round with exact samples instead, down to ``MIN_SPLIT``.  A steep interval whose
+pieces per round with exact samples instead, down to ``MIN_SPLIT`` (at most ``ROUGH_PER_CHORD``
+of a chord's intervals a round, the highest first, so a chord that is rough all along grows
+by a bounded number of samples a round).  A steep interval whose
 end data fit a smooth monotone height (up to ``MAX_SMOOTH_SLOPE``) keeps the Hermite model
 until the model fails there once: a drafted wall is not cut into MIN_SPLIT pieces.  Every
 round asks the drop-cutter once (a call costs far more than its points).
@@ -56,6 +58,11 @@ MIN_SPLIT = 1e-5
 ROUNDS = 10
 #: At most this many pieces per rough interval and round (k-section).
 KSECT = 16
+#: At most this many rough intervals of one chord are cut per round: those with the highest
+#: exact ends (a jump's top).  A chord running along a vertical tangent (a contour at a
+#: fillet's vertical end, a pass on the ball's own rim) is rough everywhere; cutting all its
+#: intervals grew the samples 16-fold a round (140 000 drop-cutter queries in one round).
+ROUGH_PER_CHORD = 4
 
 #: query(xy) -> (tip heights (m,), gradients (m, 2)), NaN where the ball meets no surface.
 QueryFn = Callable[[FloatArray], "tuple[FloatArray, FloatArray]"]
@@ -160,6 +167,22 @@ def _one_signed_curvature(dz: FloatArray, m0: FloatArray, m1: FloatArray) -> np.
     return up | down
 
 
+def _cap_rough(split: np.ndarray, cid: np.ndarray, ends: FloatArray,
+               pos: FloatArray) -> np.ndarray:
+    """``split`` keeping, per chord (``cid``), the ROUGH_PER_CHORD intervals with the
+    highest exact ends (then the first along the chord); the others wait for a later round."""
+    idx = np.flatnonzero(split)
+    if len(idx) <= ROUGH_PER_CHORD:
+        return split
+    c = cid[idx]
+    order = idx[np.lexsort((pos[idx], -np.nan_to_num(ends[idx], nan=-np.inf), c))]
+    co = cid[order]
+    first = np.searchsorted(co, co)
+    out = np.zeros_like(split)
+    out[order[np.arange(len(order)) - first < ROUGH_PER_CHORD]] = True
+    return out
+
+
 def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> ChordCheck:
     """Largest exact CL height above each chord (see the module docstring); inserts into
     ``s`` the samples it had to evaluate."""
@@ -213,6 +236,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> Chord
         todo = ~resolved[cid]
         recut = reliable & (steep > MAX_SLOPE) & (failed_steep[k] | failed_steep[k + 1])
         split = (rough | recut) & todo & (length > MIN_SPLIT)
+        split = _cap_rough(split, cid, ends, s.pos[k])
         # Best interval of every chord still open.
         best_excess = np.full(nvert, -np.inf)
         max_into(best_excess, cid, np.fmax(gh, ends))
