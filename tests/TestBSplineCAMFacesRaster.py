@@ -162,6 +162,34 @@ def _plate_with_hole(size=40.0, centre=(20.0, 20.0), hole=15.0, base=10.0):
     return Face(s, loop, (ring,), index=1, source="Plane")
 
 
+def test_a_ball_in_a_fillet_of_its_radius_is_dropped_in_bounded_work(monkeypatch):
+    """A 6 mm ball centred over the axis circle of the 3 mm fillet round a boss's foot touches
+    the whole quarter circle of its cross-section: the maximum is tied along it, no bound
+    separates the sub-patches there, and the branch and bound kept MAX_OPEN of them open at
+    every level down to MAX_DEPTH (about 9 700 pairs a query; a boss's iso passes, which lie
+    on that circle, ran for over 15 minutes).  A query crowded for MAX_CROWDED levels is now
+    given up with its gap reported; the height is the closed form's (the fillet's axis circle,
+    13 mm) and queries off the circle stay certified."""
+    from BSplineCAM.core.toolpath import faceset as fsm
+
+    def drop(r):
+        fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+        a = np.linspace(0.1, 1.4, 16)
+        q = np.column_stack([20 + r * np.cos(a), 20 + r * np.sin(a)])
+        res = fs.centre_heights(q, 3.0)
+        return res, fs.stats["pairs"] / len(q)
+
+    on, pairs = drop(15.0)
+    np.testing.assert_allclose(on.centre, 13.0, atol=fsm.CERTIFY)
+    assert pairs < 4000, pairs
+    assert np.all(on.gap > fsm.CERTIFY)  # said, not hidden
+    off, _ = drop(15.1)
+    np.testing.assert_allclose(off.centre, 13.0, atol=fsm.CERTIFY)
+    assert np.all(off.gap == 0.0)
+    monkeypatch.setattr(fsm, "MAX_CROWDED", fsm.MAX_DEPTH + 1)
+    assert drop(15.0)[1] > 8000
+
+
 def test_a_fillet_the_ball_fits_bounds_no_stepover():
     """A plate and the 3 mm fillet round a boss's foot, machined with a 6 mm ball: the fillet's
     cross-sections along the passes are hollows the ball fits, whose contacts' centres all

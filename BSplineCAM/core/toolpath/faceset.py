@@ -86,6 +86,11 @@ CORNERS = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
 #: Most open sub-patches per query and face at one level (more: the lowest bounds are dropped
 #: and reported in the gap, so a degenerate query cannot take unbounded time).
 MAX_OPEN = 128
+#: A query crowded (more than MAX_OPEN open sub-patches of a face) at this many levels is
+#: given up: its open sub-patches' bounds go to its gap.  A ball in a fillet of its own
+#: radius (its maximum tied along the fillet's arc) or grazing a wall's edge with its rim
+#: kept 128 sub-patches open down to MAX_DEPTH: 12 000 pairs a query instead of about 50.
+MAX_CROWDED = 6
 #: Trim segments remembered per straddling sub-patch; with more, all of the face's are tested.
 MAX_SEGMENTS = 12
 #: Half-widths (fractions of the Bezier patch, largest first) of the boxes around a contact
@@ -890,9 +895,12 @@ class FaceSet:
         reg_box = np.zeros((nf, m, 4))
         reg_val = np.full((nf, m), np.inf)
         sought = np.full((nf, m), np.nan)  # fb when a region was last sought
+        crowded_levels = np.zeros(m, int)
         level = 0
         while groups:
             level += 1
+            given_up = crowded_levels >= MAX_CROWDED
+            crowded_now = np.zeros(m, bool)
             evaluated = []
             for j, d, it in groups:
                 ub, lb, lu, lv = self._bounds(d, it, q, R, best[it.query] + certify)
@@ -927,7 +935,14 @@ class FaceSet:
                     np.maximum.at(gap, qs[deep], ub[deep] - best[qs[deep]])
                     self.stats["uncertified"] += int(deep.sum())
                 open_ &= ~deep
+                stop = open_ & given_up[qs]
+                if stop.any():
+                    # crowded for MAX_CROWDED levels: its bounds no longer close in
+                    np.maximum.at(gap, qs[stop], ub[stop] - best[qs[stop]])
+                    self.stats["uncertified"] += int(stop.sum())
+                    open_ &= ~stop
                 crowded = np.bincount(qs[open_], minlength=len(q)) > MAX_OPEN
+                crowded_now |= crowded
                 if crowded.any():
                     # a query whose maximum is (nearly) tied along a curve: keep its MAX_OPEN
                     # best sub-patches; the rest's bounds are reported as its gap
@@ -944,6 +959,7 @@ class FaceSet:
                                               self._region_cuts(it, open_, rb, inreg))
                     if len(children.query):
                         groups.append((j, d, children))
+            crowded_levels += crowded_now
         self.stats["levels"] = max(self.stats["levels"], level)
         # a final polish: smooth maxima to machine precision, so that neighbouring heights are
         # consistent to far better than CERTIFY (the chord checks compare them)
