@@ -239,6 +239,16 @@ def test_iso_bad_input():
         generate_faces_iso(FaceSet(faces), D, H, TOL)
 
 
+def test_iso_refuses_more_curves_than_it_can_cut(monkeypatch):
+    """More than MAX_CURVES iso-curves across a face (a tiny scallop on a large face, or a step
+    that creeps) is refused by name, with the option to change, before any pass is cut."""
+    from BSplineCAM.core.toolpath import isoparametric
+
+    monkeypatch.setattr(isoparametric, "MAX_CURVES", 5)
+    with pytest.raises(ParameterError, match="Face1 needs more than 5 iso-curves.*scallop"):
+        generate_faces_iso(FaceSet(dome_faces()), D, H, TOL)
+
+
 # -- waterline ----------------------------------------------------------------------------------
 def test_waterline_cylinder_contours_are_straight_at_known_offsets():
     """At tip height z the ball touches a cylinder of radius rho (axis y at z = 0) where
@@ -511,3 +521,42 @@ def test_iso_on_a_part_whose_walls_come_before_its_selected_faces():
         assert fs.drop_ball(pts[inner, :2], R)[4].mean() > 0.99
     with pytest.raises(IndexError, match="wall"):
         fs.trim_test(min(walls))
+
+
+def test_iso_on_a_spherical_dimple_whose_iso_curve_shrinks_to_its_pole(monkeypatch):
+    """A 60 x 40 x 20 mm block with a spherical dimple of radius 15 mm (cadquery's OCCT, as
+    a STEP file has it): OCCT's NURBS of the sphere has one side of its domain at the pole,
+    where the iso-curve is a point.  Its normal curvature there is 0/0, which allowed a step
+    of 1e-16 between iso-curves: the spacing crept by 1e-9 of the domain forever.  A curve
+    shrunk to a point now sets no step; the dimple gets a bounded number of passes, all on
+    its faces and never below the drop height."""
+    cq = pytest.importorskip("cadquery")
+    from BSplineCAM.core.toolpath import faces_iso
+    from BSplineCAM.ocp import faces as ocp
+
+    block = cq.Workplane().box(60, 40, 20, centered=False)
+    sphere = cq.Solid.makeSphere(15, cq.Vector(30, 20, 30), angleDegrees1=-90, angleDegrees2=90)
+    part = block.cut(cq.Workplane().add(sphere))
+    faces = ocp.faces_from_shape(part.val().wrapped, "up", tolerance=0.01)
+    fs = FaceSet(faces)
+    assert any(f.selected and "Sphere" in f.source for f in faces)
+    asked = [0]
+    step = faces_iso._allowed_step
+
+    def counted(*args):
+        asked[0] += 1
+        if asked[0] > 5000:
+            raise AssertionError("iso-curves without end")
+        return step(*args)
+
+    monkeypatch.setattr(faces_iso, "_allowed_step", counted)
+    tp = generate_faces_iso(fs, D, 0.2, 0.01)
+    sphere_face = next(f.name for f in faces if "Sphere" in f.source)
+    assert tp.extra["faces"][sphere_face]["passes"] > 0
+    assert_above_drop(fs, tp)
+    verts = np.concatenate(tp.passes)
+    dimple = np.hypot(verts[:, 0] - 30, verts[:, 1] - 20) < 10.0
+    # in the dimple the ball rests on the sphere: tip at 30 - sqrt((15 - R)^2 - r^2) - R
+    r = np.hypot(verts[dimple, 0] - 30, verts[dimple, 1] - 20)
+    np.testing.assert_allclose(verts[dimple, 2], 30 - np.sqrt((15 - R) ** 2 - r * r) - R,
+                               atol=0.011)

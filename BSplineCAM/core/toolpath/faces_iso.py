@@ -50,7 +50,7 @@ from .common import (
 )
 from .faces_raster import STAY_DOWN_LINK, STEEPEST_REACHED, FaceQuery
 from .faceset import FaceSet
-from .isoparametric import _allowed_step, lifted_runs
+from .isoparametric import _allowed_step, lifted_runs, too_many_curves
 from .raster import zigzag_by_line
 
 #: Halvings of a parameter interval that crosses the trim (the crossing is then known to
@@ -108,7 +108,7 @@ def _mid_probes(a0: float, a1: float) -> FloatArray:
 
 
 def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection,
-                a0: float, a1: float, f0: float, f1: float) -> list[float]:
+                a0: float, a1: float, f0: float, f1: float, name: str = "the face") -> list[float]:
     """Fixed-parameter values of the passes from f0 to f1, each step the least allowed on
     this curve and the next one (probes inside the trim, :func:`_mid_probes`; all probes
     where none is)."""
@@ -131,6 +131,7 @@ def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection
                 break
             d = d2
         fixed.append(min(c + max(d, 1e-9 * (f1 - f0)), f1))
+        too_many_curves(len(fixed), name)
     return fixed
 
 
@@ -273,7 +274,7 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
             ins[ins] = np.hypot(n[:, 0], n[:, 1]) <= cap
         return ins
 
-    fixed = _iso_values(jets, inside, tool, iso, a0, a1, f0, f1)
+    fixed = _iso_values(jets, inside, tool, iso, a0, a1, f0, f1, face.name)
     monitor(lo + 0.3 * (hi - lo))
     # points along each curve about sqrt(8 R tol) apart in 3-D
     ta = np.linspace(a0, a1, 33)

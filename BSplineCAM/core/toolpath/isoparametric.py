@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..typing import FloatArray
 from .chords import lift_chords, sample_chords
 from .common import (
@@ -37,6 +38,11 @@ ON_OFFSET = 1e-9
 #: Fraction of the midpoint allowance (tol / 2) below which a pass interval whose cubic
 #: Hermite model predicts no more is left without an exact midpoint.
 SCREEN = 0.25
+#: A pass's tangent shorter than this fraction of the curve's longest tangent or cross
+#: derivative marks a point where the curve degenerates (a pole): it sets no step across.
+DEGENERATE = 1e-6
+#: Most iso-curves across one surface or face: more means a step that creeps (bounded time).
+MAX_CURVES = 20_000
 
 
 def _uw(along: FloatArray, fixed: FloatArray, iso: IsoDirection) -> tuple[FloatArray, FloatArray]:
@@ -87,14 +93,30 @@ def lifted_runs(query, cl: FloatArray, starts: np.ndarray, half: float,
             for pxy, pz in zip(np.split(vxy, cuts), np.split(vz, cuts))], stats
 
 
+def too_many_curves(count: int, what: str) -> None:
+    """Refuse a scallop that would need more than MAX_CURVES iso-curves across ``what``."""
+    if count > MAX_CURVES:
+        raise ParameterError(
+            f"{what} needs more than {MAX_CURVES} iso-curves across it at this scallop: use a "
+            "larger scallop, or raster for a face this large or this degenerate")
+
+
 def _allowed_step(dc: DropCutter, tool: ToolParameters, along: FloatArray, fixed: float,
                   iso: IsoDirection) -> float:
     """Largest parameter step across the pass keeping the scallop <= h along this curve."""
     u, w = _uw(along, np.full(len(along), fixed), iso)
     jet = dc.jet(u, w)
-    n = jet.normal
     tangent = jet.su if iso is IsoDirection.U else jet.sw
     cross_d = jet.sw if iso is IsoDirection.U else jet.su
+    # a curve shrunk to a point there (a pole: a sphere's, a cone's apex) bounds nothing: its
+    # normal curvature is 0/0 (it gave steps of 1e-16 and an endless loop)
+    speed = np.linalg.norm(tangent, axis=1)
+    scale = max(float(speed.max(initial=0.0)),
+                float(np.linalg.norm(cross_d, axis=1).max(initial=0.0)), 1e-300)
+    live = speed > DEGENERATE * scale
+    if not live.any():
+        return math.inf
+    n = jet.normal
     t = np.cross(n, tangent)
     t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-300)
     kappa = normal_curvature(jet, t)
@@ -102,7 +124,7 @@ def _allowed_step(dc: DropCutter, tool: ToolParameters, along: FloatArray, fixed
     # h_n / n_z above the surface, so aim for h_n = h n_z.
     s = curved_stepover(tool.radius, tool.scallop * np.clip(n[:, 2], 1e-3, 1.0), kappa)
     rate = np.abs(np.einsum("ij,ij->i", cross_d, t))
-    return float((s / np.maximum(rate, 1e-12)).min())
+    return float((s / np.maximum(rate, 1e-12))[live].min())
 
 
 def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, direction: Direction,
@@ -127,6 +149,7 @@ def isoparametric(surface: Any, tool: ToolParameters, iso: IsoDirection, directi
                 break
             d = d2
         fixed.append(min(c + d, 1.0))
+        too_many_curves(len(fixed), "the surface")
         monitor(0.4 * fixed[-1])
     lines = np.repeat(np.arange(len(fixed)), n)
     t = np.tile(along, len(fixed))
