@@ -560,3 +560,22 @@ def test_iso_on_a_spherical_dimple_whose_iso_curve_shrinks_to_its_pole(monkeypat
     r = np.hypot(verts[dimple, 0] - 30, verts[dimple, 1] - 20)
     np.testing.assert_allclose(verts[dimple, 2], 30 - np.sqrt((15 - R) ** 2 - r * r) - R,
                                atol=0.011)
+
+
+def test_iso_leaves_a_fillet_the_ball_fits_and_says_so():
+    """The 3 mm fillet round a boss's foot on a plate: a 6 mm ball fits it across, so every
+    iso-curve's cutter locations (p + R n) fall on the fillet's axis circle.  Iso cut that
+    circle once per curve, and on a real boss it lies on the wall's edge at the ball's rim,
+    where the drop height jumps by the wall's height (over 15 minutes on a STEP boss).  The
+    fillet is now left with a note naming it; a 5 mm ball, which does not fit, machines it."""
+    from TestBSplineCAMFacesRaster import _fillet_ring, _plate_with_hole
+
+    fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+    six = generate_faces_iso(fs, 6.0, 0.1, TOL)
+    ring = six.extra["faces"]["Face2"]
+    assert ring["passes"] == 0 and ring["chord_lift"]["collapsed"]
+    assert six.extra["faces"]["Face1"]["passes"] > 0
+    assert any("fits Face2 across" in n and "raster or waterline" in n for n in six.stats.notes)
+    five = generate_faces_iso(fs, 5.0, 0.1, TOL)
+    assert five.extra["faces"]["Face2"]["passes"] > 0
+    assert not any("fits" in n for n in five.stats.notes)

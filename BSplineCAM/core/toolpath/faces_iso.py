@@ -22,6 +22,8 @@ Per selected face, as :mod:`.isoparametric` does for one control net:
   bisection in the parameter to ``TRIM_BISECTIONS`` halvings, and a stretch lifted more than
   tolerance / 2 by a face that is not selected (the ball rides a check surface) is left out
   as well;
+* a face the ball fits across (a fillet of its radius: every curve's cutter locations on one
+  line, :func:`_collapsed`) is left, with a note naming it, for raster or waterline;
 * points are refined at chord midpoints until the CL curve departs at most tolerance / 2 from
   the chords, thinned by Douglas-Peucker to tolerance / 2 in 3-D, and every chord is made
   one-sided against the exact drop-cutter (:func:`.chords.lift_chords`).
@@ -64,6 +66,9 @@ PROBES = 65
 #: iso-curves (:func:`_edge_curves`; at most EDGE_SAMPLES_MAX a column).
 EDGE_SAMPLES = 16
 EDGE_SAMPLES_MAX = 4096
+#: Columns along and rows across of the grid that tells a face the ball fits across
+#: (:func:`_collapsed`).
+COLLAPSE_GRID = (17, 9)
 
 
 class _FaceJets:
@@ -105,6 +110,27 @@ def _mid_probes(a0: float, a1: float) -> FloatArray:
     on a trim edge, in or out by rounding (a document saved and reopened got other curves
     and other partial passes)."""
     return a0 + (np.arange(PROBES) + 0.5) * ((a1 - a0) / PROBES)
+
+
+def _collapsed(jets: _FaceJets, inside, R: float, tolerance: float, iso: IsoDirection,
+               a0: float, a1: float, f0: float, f1: float) -> bool:
+    """Whether the ball fits the face across its iso-curves: every curve's cutter locations
+    (p + R n) fall on one line, within ``tolerance`` (mm), on COLLAPSE_GRID columns across
+    the material (a fillet of the ball's radius).  Iso would cut that line once per curve,
+    and where the fillet is tangent to a wall the line lies on the wall's edge at the ball's
+    rim, where the drop height jumps by the wall's height at any rounding."""
+    ga, gf = np.meshgrid(np.linspace(a0, a1, COLLAPSE_GRID[0]),
+                         np.linspace(f0, f1, COLLAPSE_GRID[1]), indexing="ij")
+    u, v = _uv(ga.ravel(), gf.ravel(), iso)
+    ins = np.asarray(inside(u, v), bool).reshape(ga.shape)
+    cols = ins.sum(axis=1) >= 2
+    if not cols.any():
+        return False
+    jet = jets.jet(u, v)
+    cl = (jet.p + R * jet.normal).reshape(ga.shape + (3,))
+    lo = np.where(ins[..., None], cl, np.inf).min(axis=1)
+    hi = np.where(ins[..., None], cl, -np.inf).max(axis=1)
+    return bool(np.linalg.norm((hi - lo)[cols], axis=1).max() <= tolerance)
 
 
 def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection,
@@ -274,6 +300,8 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
             ins[ins] = np.hypot(n[:, 0], n[:, 1]) <= cap
         return ins
 
+    if _collapsed(jets, inside, R, tool.tolerance, iso, a0, a1, f0, f1):
+        return [], [], {"edge_curves": 0, "collapsed": True}
     fixed = _iso_values(jets, inside, tool, iso, a0, a1, f0, f1, face.name)
     monitor(lo + 0.3 * (hi - lo))
     # points along each curve about sqrt(8 R tol) apart in 3-D
@@ -402,6 +430,11 @@ def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
             "chord_lift": stats}
     lifted = sum(v["chord_lift"].get("lifted_points", 0) for v in per_face.values())
     notes = [f"{lifted} cutter locations lifted to avoid gouging"] if lifted else []
+    fits = [name for name, v in per_face.items() if v["chord_lift"].get("collapsed")]
+    if fits:
+        notes.append(f"the {2.0 * tool.radius:g} mm ball fits {', '.join(fits)} across: all "
+                     "its iso-curves fall on one line of cutter locations, so iso leaves it; "
+                     "finish it by raster or waterline")
     parameters = {"strategy": "isoparametric", "tool_diameter": 2.0 * tool.radius,
                   "scallop": tool.scallop, "tolerance": tool.tolerance,
                   "direction": "zigzag", "iso_direction": "u" if iso is IsoDirection.U else "v",
