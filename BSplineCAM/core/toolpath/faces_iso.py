@@ -127,10 +127,15 @@ def _collapsed(jets: _FaceJets, inside, R: float, tolerance: float, iso: IsoDire
     if not cols.any():
         return False
     jet = jets.jet(u, v)
-    cl = (jet.p + R * jet.normal).reshape(ga.shape + (3,))
-    lo = np.where(ins[..., None], cl, np.inf).min(axis=1)
-    hi = np.where(ins[..., None], cl, -np.inf).max(axis=1)
-    return bool(np.linalg.norm((hi - lo)[cols], axis=1).max() <= tolerance)
+
+    def spread(points: FloatArray) -> float:
+        pts = points.reshape(ga.shape + (3,))
+        lo = np.where(ins[..., None], pts, np.inf).min(axis=1)
+        hi = np.where(ins[..., None], pts, -np.inf).max(axis=1)
+        return float(np.linalg.norm((hi - lo)[cols], axis=1).max())
+
+    # a sliver narrower than the tolerance is not one the ball fits: its points crowd too
+    return spread(jet.p + R * jet.normal) <= tolerance < spread(jet.p)
 
 
 def _iso_values(jets: _FaceJets, inside, tool: ToolParameters, iso: IsoDirection,
