@@ -475,11 +475,11 @@ def _beside_jump(s, explained: FloatArray, jumped: np.ndarray, off_level: float)
     chords are smooth ones still; or near the ball's rim, the height steeper there than
     ``MAX_SLOPE`` (a face turning vertical: a fillet's end over a wall).  A contour there runs
     along the steep slope, and every interval of its chords is too steep for
-    :func:`chord_excess`'s model (its ends level, the height between them no monotone rise),
-    which cut them all, round after round, into KSECT pieces each, down to MIN_SPLIT: a
-    waterline round a box's filleted edge, at the fillet's vertical end (slope 103), asked
-    140 000 drop-cutter queries in one round and ran for over 15 minutes.  Its chords are
-    sampled as a jump's instead."""
+    :func:`chord_excess`'s model (its ends level, the height between them no monotone rise).
+    chord_excess now cuts only ROUGH_PER_CHORD such intervals of a chord a round (it had cut
+    them all, 140 000 queries in one round round a box's filleted edge), so a long chord there
+    would end unresolved, bounded by its samples; its chords are sampled as a jump's instead
+    (:func:`_jump_chord_excess`, spaced for ``UNSEEN_DIP``)."""
     dev = np.abs(s.z[s.vertex] - s.zv[s.vertex])
     g = s.grad[s.vertex]
     with np.errstate(over="ignore", invalid="ignore"):
