@@ -527,6 +527,51 @@ def test_surface_estimate_bounds_the_cut_over_whole_cells(tool):
         assert np.all(job.surface[inner] == 5.0)
 
 
+def test_a_feed_wider_than_the_stepover_is_peeled_within_it():
+    """A pass along the edge of a cleared half-plane (y < 0) with its centre on the edge
+    cuts R = 4 mm wide at a 2 mm stepover; :meth:`_Job.peel` cuts the same material in feeds
+    each within the stepover.  Checked by the job simulation of the G-code text: the whole
+    feed measures 4 mm, each of the peel's within 1.1 stepovers plus a cell, and after them
+    the material within the feed's reach is gone as after the feed itself."""
+    from BSplineCAM.core.gcode import read_gcode
+    from BSplineCAM.core.job_simulation import simulate_job
+
+    cell, s, z = 0.25, 2.0, 5.0
+    tool = Tool(8.0, "flat")
+    job, xs, ys = bare_job(cell, 20.0, tool, stepover=s)
+    X, Y = np.meshgrid(xs, ys)
+    # the previous pass came along y = 0 from x = -30 to -10 (head-on into the band)
+    behind = np.hypot(np.maximum(X + 10.0, 0.0), Y) <= tool.radius
+    job.uncut = (Y >= 0.0) & ~behind & (X <= 18.0)
+    job.uncut_level = job.uncut.copy()
+    job.floor = np.full(X.shape, 10.0)
+    job.surface = np.where(job.uncut, 10.0, z)
+    job.z = z
+    a, b = np.array([-10.0, 0.0]), np.array([10.0, 0.0])
+    assert job.engaged_width(a, b) == pytest.approx(4.0 + cell, abs=cell)
+    way = job.peel(a, b, z)
+    assert way is not None and len(way) > 2
+    assert np.allclose(way[0], a) and np.allclose(way[-1], b)
+
+    head = ["G21 G90 G17", "T1 M6", "G0 X-30 Y-4 Z20", "G1 Z5 F500", "G1 X30 Y-4",
+            "G0 Z20", "G0 X-30 Y0", "G1 Z5", "G1 X-10 Y0"]
+    box = (-20.0, 20.0, -20.0, 20.0, 0.0, 10.0)
+
+    def run(points):
+        text = "\n".join(head + [f"G1 X{x:.4f} Y{y:.4f}" for x, y in points] + ["M2"])
+        return simulate_job(read_gcode(text + "\n", "peel"), {1: tool},
+                            Grid.covering(*box[:4], 0.1), box)
+
+    plain, peeled = run([b]), run(way[1:])
+    assert float(plain.radial[-1]) == pytest.approx(4.0, abs=0.2)
+    widths = peeled.radial[-(len(way) - 1):]
+    assert float(widths.max()) <= 1.1 * s + 0.1, widths
+    gx, gy = plain.grid.centres()
+    GX, GY = np.meshgrid(gx, gy)
+    reach = (np.abs(GX) <= 10.0) & (np.abs(GY) <= tool.radius - 0.1)
+    assert float(np.abs(peeled.height - plain.height)[reach].max()) < 1e-9
+
+
 def test_engaged_width_of_a_feed_against_a_band():
     """The width of cut the lead-ins are checked by, against a band of uncut material 3 mm wide
     beside a cleared floor (edge at y = 0), in closed form, the whole swath of a move as the
@@ -956,17 +1001,19 @@ def _rough_boss_near_corner(s: float):
 
 def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
     """Fronts from the far sides of the block run head-on into the boss near its corner:
-    with the plain fronts only (ENGAGEMENT_LIMIT infinite, never retried) the job
-    simulation measures cuts up to R + s/2 wide there; with the levels cut again with bent
-    fronts where that happens, the widest cut outside entries is at least 1.5 mm narrower
-    and fewer moves cut wider than 1.1 s, with no rapid touching the stock."""
+    with the plain fronts only (ENGAGEMENT_LIMIT infinite, never retried, and no move
+    peeled) the job simulation measures cuts up to R + s/2 wide there; with the levels cut
+    again with bent fronts where that happens, the widest cut outside entries is at least
+    1.5 mm narrower and fewer moves cut wider than 1.1 s, with no rapid touching the
+    stock."""
     from BSplineCAM.core.toolpath import roughing
 
     s = 4.0
+    monkeypatch.setattr(roughing, "PEEL_OVER", math.inf)
     bent, radial, over = _rough_boss_near_corner(s)
     monkeypatch.setattr(roughing, "ENGAGEMENT_LIMIT", math.inf)
     plain, radial_plain, over_plain = _rough_boss_near_corner(s)
-    assert plain.stats["bent_levels"] == []
+    assert plain.stats["bent_levels"] == [] and plain.stats["peeled_moves"] == 0
     assert len(bent.stats["bent_levels"]) >= 3
     assert float(radial_plain.max()) >= 5.0 + s / 2 - 0.5  # the head-on ends (R + s/2)
     assert float(radial.max()) <= float(radial_plain.max()) - 1.5
@@ -974,18 +1021,24 @@ def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
 
 
 def test_levels_still_over_when_bent_are_cut_at_a_smaller_stepover(monkeypatch):
-    """Bent fronts alone leave cuts wider than 1.1 s beside the boss near the block's corner
-    (where they bend and close in on each other); with the levels still over cut again at
-    a share of the stepover (STEPOVER_SCALES), the job simulation finds no move outside
-    the entries wider than 1.1 s plus a cell, and the narrowed levels are reported."""
+    """Bent fronts alone (no move peeled) leave cuts wider than 1.1 s beside the boss near
+    the block's corner (where they bend and close in on each other); with the levels still
+    over cut again at a share of the stepover (STEPOVER_SCALES), the job simulation finds
+    no move outside the entries wider than 1.1 s plus a cell, and the narrowed levels are
+    reported.  So it does with the bent fronts at the full stepover and the moves still
+    over peeled (:meth:`_Job.peel`)."""
     from BSplineCAM.core.toolpath import roughing
 
+    monkeypatch.setattr(roughing, "PEEL_OVER", math.inf)
     narrowed, _, over = _rough_boss_near_corner(4.0)
     monkeypatch.setattr(roughing, "STEPOVER_SCALES", ())
     bent, _, over_bent = _rough_boss_near_corner(4.0)
-    assert bent.stats["narrowed_levels"] == []
+    monkeypatch.setattr(roughing, "PEEL_OVER", 1.0)
+    peeled, _, over_peeled = _rough_boss_near_corner(4.0)
+    assert bent.stats["narrowed_levels"] == [] and bent.stats["peeled_moves"] == 0
     assert over_bent > 0
     assert over == 0
+    assert over_peeled == 0 and peeled.stats["peeled_moves"] > 0
     levels = narrowed.stats["narrowed_levels"]
     assert levels and all(0 < share < 1 for _, share in levels)
     assert {z for z, _ in levels} <= set(narrowed.stats["bent_levels"])
