@@ -1303,6 +1303,22 @@ def test_floor_rings_of_the_case_study_bend_by_their_own_radius():
     assert float(radial.max()) <= 5.0 and over.sum() <= 15, (radial.max(), over.sum())
 
 
+def test_fair_load_moves_still_over_are_peeled():
+    """The case study at 8 + 4 mm with a 25 % stepover (10 mm flat, 2.5 mm): fronts still
+    meet walls in notches the tool's size and close in on each other there after the levels
+    are bent and narrowed; 11 moves cut wider than 1.1 stepover plus a cell (the job
+    simulation at 0.1 mm), up to 3.79 mm, before such moves were peeled (:meth:`_Job.peel`),
+    at most 2 since, up to 3.0 mm, with no rapid touching the stock."""
+    height, stock = case_study_part()
+    tool = Tool(10.0, "flat")
+    rough = generate_roughing(height, stock, tool, 8.0, 2.5, 0.3, 0.3, fine_stepdown=4.0)
+    radial, collisions = _job_radial(rough, stock, tool, 0.1)
+    assert collisions == 0
+    assert rough.stats["peeled_moves"] > 0
+    over = radial > 1.1 * 2.5 + 0.1
+    assert float(radial.max()) <= 3.0 and over.sum() <= 2, (radial.max(), over.sum())
+
+
 def test_front_radius_of_discs_and_a_square():
     """:func:`front_radius` against the exact curvature: round a disc of radius rho the
     estimate at 3.5 mm out is rho within 15 % (its 5-95 % range within -40 % and +50 %: the
