@@ -1447,9 +1447,12 @@ class _Job:
         way = [a]
         here = a
         for _ in range(PEEL_STEPS):
+            if math.dist(here, b) < 1e-9 and not task.any():
+                return np.array(way)  # a step to b itself took the last of it
             w_b, c_b = self.engaged(here[None, :], b[None, :], task,
                                     material=self.uncut_level)
-            if w_b[0] <= width and c_b[0] >= task.sum() and self.in_region(here, b, z):
+            if w_b[0] <= width and c_b[0] >= task.sum() and self.in_region(here, b, z) and \
+                    math.dist(here, b) >= 1e-9:
                 way.append(b)
                 self.mark(np.array([here, b]))
                 self.mark_level(np.array([here, b]))
