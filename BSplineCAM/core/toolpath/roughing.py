@@ -1339,15 +1339,7 @@ class _Job:
         the uncut cells."""
         if self.tool.shape is not ToolShape.FLAT:
             return
-        moves = self.writer.moves
-        first = self.level_first
-        entry = np.zeros(len(moves) + 1, bool)
-        for a, b in self.entry_spans:
-            if b > first:
-                entry[max(a, first):b] = True
-        saved = self.uncut, self.floor, self.surface
-        self.uncut = self.level_uncut.copy()
-        self.floor, self.surface = self.floor.copy(), self.level_surface.copy()
+        moves, first, entry, saved = self.replay_start()
         over = PEEL_OVER * self.s
         out = list(moves[:max(first, 1)])
         added = np.zeros(len(moves) + 1, int)  # moves added before each old index
@@ -1500,10 +1492,10 @@ class _Job:
         self.__dict__.clear()
         self.__dict__.update(state)
 
-    def widest_cut(self, z: float) -> float:
-        """Widest cut (mm, :meth:`engaged_width`) of the level's feed moves at z outside its
-        entries, replayed in order on the level's uncut grid and surface estimate as they
-        were at its start (every feed move, entries included, cuts its swath)."""
+    def replay_start(self) -> tuple:
+        """Set the uncut grid and the surface estimate back to the level's start for a replay
+        of its moves: (moves, index of the level's first, which are entries (per index), the
+        run's (uncut, floor, surface) to put back after)."""
         moves = self.writer.moves
         first = self.level_first
         entry = np.zeros(len(moves) + 1, bool)
@@ -1513,6 +1505,13 @@ class _Job:
         saved = self.uncut, self.floor, self.surface
         self.uncut = self.level_uncut.copy()
         self.floor, self.surface = self.floor.copy(), self.level_surface.copy()
+        return moves, first, entry, saved
+
+    def widest_cut(self, z: float) -> float:
+        """Widest cut (mm, :meth:`engaged_width`) of the level's feed moves at z outside its
+        entries, replayed in order on the level's uncut grid and surface estimate as they
+        were at its start (every feed move, entries included, cuts its swath)."""
+        moves, first, entry, saved = self.replay_start()
         worst = 0.0
         run: list = []  # consecutive feeds not measured, marked at once
 
