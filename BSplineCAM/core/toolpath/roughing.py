@@ -1345,7 +1345,8 @@ class _Job:
         added = np.zeros(len(moves) + 1, int)  # moves added before each old index
         extra = 0
         peeled: list = []
-        run: list = []
+        run: list = []  # consecutive feeds not measured, marked at once
+        levels: list = []  # whether each of run's feeds lies at the level (not a descent)
 
         def flush() -> None:
             if len(run) > 1:
@@ -1357,7 +1358,6 @@ class _Job:
             run.clear()
             levels.clear()
 
-        levels: list = []
         self.uncut_level = self.level_uncut.copy()
         try:
             for i in range(max(first, 1), len(moves)):
@@ -1415,15 +1415,12 @@ class _Job:
         cuts less than the level beside its start).  None where no way is found (the
         replay's grids are then as they were)."""
         R, width = self.R, PEEL_WIDTH * self.s
+        feed = np.array([a, b])
         task = np.zeros(self.uncut.shape, bool)
-        i0, i1, j0, j1 = self.window(self.idx(np.array([a, b])), self.Rc + 2)
-        g = self.grid
-        px = (g.x0 + (np.arange(j0, j1) + 0.5) * g.cell)[None, :]
-        py = (g.y0 + (np.arange(i0, i1) + 0.5) * g.cell)[:, None]
-        ab = b - a
-        t = np.clip(((px - a[0]) * ab[0] + (py - a[1]) * ab[1]) / max(float(ab @ ab), 1e-300),
-                    0.0, 1.0)
-        near = np.hypot(px - a[0] - t * ab[0], py - a[1] - t * ab[1]) <= R
+        i0, i1, j0, j1 = self.window(self.idx(feed), self.Rc + 2)
+        jj, ii = np.meshgrid(np.arange(j0, j1), np.arange(i0, i1))
+        cells = self.xy(np.column_stack([jj.ravel(), ii.ravel()]).astype(float))
+        near = (_polyline_distance(cells, feed) <= R).reshape(jj.shape)
         task[i0:i1, j0:j1] = near & self.uncut_level[i0:i1, j0:j1]
         # the lattice: points within R of the feed, not at its start
         h = max(min(PEEL_LATTICE * R, 0.25 * math.dist(a, b)), 2.0 * self.cell)
@@ -1432,8 +1429,7 @@ class _Job:
         oy = np.arange(n) * h + min(a[1], b[1]) - R
         lx, ly = np.meshgrid(ox, oy)
         lat = np.column_stack([lx.ravel(), ly.ravel()])
-        u = np.clip(((lat - a) @ ab) / max(float(ab @ ab), 1e-300), 0.0, 1.0)
-        lat = lat[np.hypot(*(lat - a - u[:, None] * ab).T) <= R]
+        lat = lat[_polyline_distance(lat, feed) <= R]
         saved = (self.uncut.copy(), self.floor.copy(), self.surface.copy(),
                  self.uncut_level.copy())
         way = [a]
