@@ -630,6 +630,33 @@ def test_engaged_width_counts_a_bullnose_fillet_as_the_simulation_does():
             assert off > 1.0 + 3 * cell  # the fillet beyond y = 3 counts
 
 
+def test_engaged_width_takes_the_corner_height_from_the_depth_of_cut():
+    """A 10 mm bull-nose of 2 mm corner radius runs along x over a cleared floor crossed by a
+    ridge 0.06 mm high along y (the toes of two fillets), with a band 0.3 mm high at
+    y = 4.7..5 beside it, under the tool's corner where that stands 0.95 mm or more (not cut).
+    The simulation takes the corner's height from the deepest drop, the ridge's 0.06 mm
+    (corner_height 0.03), so the ridge counts wherever the tool passes 0.01 mm under it: the
+    profile's 0.05 mm, |y| < 3 + sqrt(rc^2 - (rc - 0.05)^2), measured from each cell's far
+    corner.  From the highest material it passed over (the band's 0.3 mm, corner 0.15) the
+    width was 0, and a lead-in on the case study skimmed such toes 5.33 mm wide."""
+    cell = 0.1
+    rc = 2.0
+    tool = Tool(10.0, "bullnose", rc)
+    job, xs, ys = bare_job(cell, 20.0, tool, 4.0)
+    X, Y = np.meshgrid(xs, ys)
+    job.z = 0.0
+    job.uncut = np.zeros(X.shape, bool)
+    job.floor = np.zeros(X.shape)
+    job.surface = np.where(np.abs(X) <= 0.3, 0.06, 0.0)
+    job.surface[(Y >= 4.7) & (Y <= 5.0)] = 0.3
+    half = 3.0 + math.sqrt(rc * rc - (rc - 0.05) ** 2) - 0.5 * math.sqrt(2.0) * cell
+    assert job.engaged_width((-10.0, 0.0), (10.0, 0.0)) == pytest.approx(2 * half + cell,
+                                                                          abs=2 * cell)
+    # the band alone, not cut: nothing
+    job.surface = np.where((Y >= 4.7) & (Y <= 5.0), 0.3, 0.0)
+    assert job.engaged_width((-10.0, 0.0), (10.0, 0.0)) == 0.0
+
+
 def test_feeds_checked_at_once_match_a_cell_by_cell_reference():
     """engaged_widths and in_region_many (the lead-in search checks its tries in one go)
     against loops over cells and samples: the extent across each feed of the uncut cells
@@ -1317,6 +1344,22 @@ def test_fair_load_moves_still_over_are_peeled():
     assert rough.stats["peeled_moves"] > 0
     over = radial > 1.1 * 2.5 + 0.1
     assert float(radial.max()) <= 3.0 and over.sum() <= 2, (radial.max(), over.sum())
+
+
+def test_bullnose_case_study_within_the_stepover():
+    """The case study at a 2 mm step-down with a 10 mm bull-nose of 2 mm corner radius at a
+    4 mm stepover: every move outside the entries within 1.1 stepover plus a cell (the job
+    simulation at 0.1 mm).  A lead-in skimmed the toes of fillets 0.1 mm deep across 5.33 mm
+    while the roughing took the corner's height from a fillet's crest it passed over but did
+    not cut."""
+    height, stock = case_study_part()
+    tool = Tool(10.0, "bullnose", 2.0)
+    rough = generate_roughing(height, stock, tool, 2.0, 4.0, 0.3, 0.3)
+    radial, collisions = _job_radial(rough, stock, tool, 0.1)
+    assert collisions == 0
+    assert float(radial.max()) >= 3.6  # it does cut at about the stepover
+    over = radial > 1.1 * 4.0 + 0.1
+    assert not over.any(), (radial.max(), over.sum())
 
 
 def test_front_radius_of_discs_and_a_square():

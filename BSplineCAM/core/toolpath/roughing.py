@@ -1064,10 +1064,13 @@ class _Job:
             # counts it (fresh material: the uncut cells, at the level's top)
             h = above[iy, ix]  # the estimate bounds the material's top, uncut cells' too
             fresh = base[iy, ix]
-            axial = np.where(swept, h[None, :], 0.0).max(axis=1)
-            corner = corner_height(self.tool, axial)
             dist = np.where(along > L, np.hypot(along - L, across), np.abs(across))
             bottom = self.tool.profile(dist + CELL_HALF_DIAGONAL * self.cell)
+            # the move's deepest cut, as the simulation takes it: the most the tool drops
+            # any cell by, not the highest material it passes (a fillet's crest beside it
+            # under the corner would lift the corner's height over the toes it does skim)
+            axial = np.where(swept, h[None, :] - bottom, 0.0).max(axis=1)
+            corner = corner_height(self.tool, np.maximum(axial, 0.0))
             swept &= fresh[None, :] | ((h[None, :] > corner[:, None] + FILLET_MM)
                                        & (h[None, :] > bottom + FILLET_MM))
         hi = np.where(swept, across, -np.inf).max(axis=1)
