@@ -83,7 +83,7 @@ chords (up to 5.5 mm wide), 8 now (up to 4.75 mm).  Fronts round other round cle
 regions (the rest of a small closed pass after a ramp that covers only part of it) grow by
 the full stepover.
 
-Once a level is kept, its feed moves are replayed once more, and with a flat end mill each
+Once a level is kept, its feed moves are replayed once more, and with a flat or bull-nose end mill each
 one still wider than
 PEEL_OVER s is cut instead by a few feeds each within PEEL_WIDTH s that take the same
 material (:meth:`_Job.peel`): a greedy walk over a lattice round the move, each next point
@@ -172,6 +172,9 @@ ENGAGEMENT_LIMIT = 1.1
 #: (:meth:`_Job.peel`): at most PEEL_STEPS, to points on a lattice PEEL_LATTICE tool radii
 #: apart within R of the move.
 PEEL_OVER = 1.0
+#: A level move after an entry's descent whose end and midpoint lie this close (mm) to the
+#: descent's track is part of the entry (the job simulation's ENTRY_REACH_MM).
+ENTRY_TRACK_MM = 0.02
 PEEL_WIDTH = 1.0
 PEEL_STEPS = 24
 PEEL_LATTICE = 0.25
@@ -868,7 +871,9 @@ class _Job:
         """Record the cut of the tool along a path at the level: cells within R of it leave
         the uncut grid, and cells the tool covers whole (their centre within R less half a
         diagonal) drop in the surface estimate to the level plus the profile at their
-        farthest point, so that the estimate bounds the material over the whole cell.
+        farthest point, so that the estimate bounds the material over the whole cell; its
+        lower bound ``surface_lo`` drops wherever the tool reaches the cell, to the level plus
+        the profile at the cell's nearest point.
         Distances come from the path's samples rounded to cells (good to 3/4 cell), exact to
         the path's segments in the band where that rounding could decide either; a path of
         one segment (most calls) has them exact over its whole window, at less cost.  With
@@ -882,6 +887,7 @@ class _Job:
             ab = path_xy[1] - path_xy[0]
             t = np.clip((px * ab[0] + py * ab[1]) / max(float(ab @ ab), 1e-300), 0.0, 1.0)
             dist = np.hypot(px - t * ab[0], py - t * ab[1])
+            dist_lo = dist
         else:
             f = self.idx(_densify(path_xy, 0.5 * self.cell))
             i0, i1, j0, j1 = self.window(f, self.Rc + 2)
@@ -891,11 +897,12 @@ class _Job:
             m[ii, jj] = True
             d = capped_distance(m, self.Rc + 1)
             dist = np.minimum(d + 0.75, self.Rc + 1.0) * self.cell  # >= the true distance
+            dist_lo = np.maximum(d - 0.75, 0.0) * self.cell  # <= it
             band = np.flatnonzero((d > self.Rc - 3.0) & (d <= self.Rc + 1.0))
             if len(band):
                 by, bx = np.divmod(band, j1 - j0)
                 pts = self.xy(np.column_stack([bx + j0, by + i0]).astype(float))
-                dist.flat[band] = _polyline_distance(pts, path_xy)
+                dist.flat[band] = dist_lo.flat[band] = _polyline_distance(pts, path_xy)
         cut = dist <= self.R
         if only is not None:  # that grid of uncut cells only
             only[i0:i1, j0:j1] &= ~cut
@@ -909,6 +916,11 @@ class _Job:
         whole = far <= self.R
         sf = self.surface[i0:i1, j0:j1]
         sf[whole] = np.minimum(sf[whole], self.z + self.tool.profile(far[whole]))
+        # and its lower bound: the tool's lowest point over the cell, where it reaches any
+        near = dist_lo - CELL_HALF_DIAGONAL * self.cell
+        some = near <= self.R
+        lo = self.surface_lo[i0:i1, j0:j1]
+        lo[some] = np.minimum(lo[some], self.z + self.tool.profile(np.maximum(near[some], 0.0)))
 
     def safe_at(self, q: FloatArray, z: float) -> float:
         """Lowest tip height (>= z) at q (xy) where the tool meets none of the material the
@@ -1042,6 +1054,7 @@ class _Job:
             # a bull-nose's or ball's passes leave fillets under their corners, which the
             # surface estimate holds: material there counts as the simulation counts it
             above = self.surface[i0:i1, j0:j1] - self.z
+            above_lo = self.surface_lo[i0:i1, j0:j1] - self.z
             uncut = uncut | (above > FILLET_MM)
         iy, ix = np.nonzero(uncut | work)
         if not len(iy):
@@ -1068,8 +1081,10 @@ class _Job:
             bottom = self.tool.profile(dist + CELL_HALF_DIAGONAL * self.cell)
             # the move's deepest cut, as the simulation takes it: the most the tool drops
             # any cell by, not the highest material it passes (a fillet's crest beside it
-            # under the corner would lift the corner's height over the toes it does skim)
-            axial = np.where(swept, h[None, :] - bottom, 0.0).max(axis=1)
+            # under the corner would lift the corner's height over the toes it does skim),
+            # and at least (the estimate's lower bound under the tool's highest point over
+            # each cell), so that the corner is not set higher than the cut sets it
+            axial = np.where(swept, above_lo[iy, ix][None, :] - bottom, 0.0).max(axis=1)
             corner = corner_height(self.tool, np.maximum(axial, 0.0))
             swept &= fresh[None, :] | ((h[None, :] > corner[:, None] + FILLET_MM)
                                        & (h[None, :] > bottom + FILLET_MM))
@@ -1160,7 +1175,8 @@ class _Job:
         grids, undone)."""
         f = self.idx(path)
         i0, i1, j0, j1 = self.window(f, self.Rc + 3)
-        saved = [(g, g[i0:i1, j0:j1].copy()) for g in (self.uncut, self.floor, self.surface)]
+        saved = [(g, g[i0:i1, j0:j1].copy())
+                 for g in (self.uncut, self.floor, self.surface, self.surface_lo)]
         try:
             self.mark(path[:2])
             for a, b in zip(path[1:-1], path[2:]):
@@ -1336,11 +1352,11 @@ class _Job:
         """Replay the level's feed moves at z outside its entries in order, as
         :meth:`widest_cut` does, and cut each one wider than PEEL_OVER stepovers by
         :meth:`peel` instead, where that finds a way; then mark the new moves on the run's
-        state too.  The entry spans and links after a peeled move shift with it.  Only for a
-        flat end mill: a bull-nose's or ball's move also shaves the fillets and cusps beside
-        earlier passes, which the surface estimate then takes as gone, and a peel takes only
-        the uncut cells."""
-        if self.tool.shape is not ToolShape.FLAT:
+        state too.  The entry spans and links after a peeled move shift with it.  For flat
+        and bull-nose end mills (a bull-nose's width counts the fillets its corner shaves, as
+        :meth:`engaged` measures them); not for a ball, whose passes' cusps the flat
+        replay does not hold."""
+        if self.tool.shape is ToolShape.BALL:
             return
         moves, first, entry, saved = self.replay_start()
         over = PEEL_OVER * self.s
@@ -1394,7 +1410,7 @@ class _Job:
                     levels.append(abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6)
             flush()
         finally:
-            self.uncut, self.floor, self.surface = saved
+            self.uncut, self.floor, self.surface, self.surface_lo = saved
             del self.uncut_level
         if not peeled:
             return
@@ -1434,7 +1450,7 @@ class _Job:
         lat = np.column_stack([lx.ravel(), ly.ravel()])
         lat = lat[_polyline_distance(lat, feed) <= R]
         saved = (self.uncut.copy(), self.floor.copy(), self.surface.copy(),
-                 self.uncut_level.copy())
+                 self.surface_lo.copy(), self.uncut_level.copy())
         way = [a]
         here = a
         for _ in range(PEEL_STEPS):
@@ -1464,7 +1480,7 @@ class _Job:
             task &= self.uncut_level
             way.append(q)
             here = q
-        self.uncut, self.floor, self.surface, self.uncut_level = saved
+        self.uncut, self.floor, self.surface, self.surface_lo, self.uncut_level = saved
         return None
 
     def mark_level(self, path_xy: FloatArray) -> None:
@@ -1501,9 +1517,24 @@ class _Job:
         for a, b in self.entry_spans:
             if b > first:
                 entry[max(a, first):b] = True
-        saved = self.uncut, self.floor, self.surface
+                # the level moves that follow on the descent's track (the way back over a
+                # ramp, a helix's closing turn) clear the wedge it left: entry too, as the
+                # job simulation counts them (a peel of one strayed off the track)
+                track = np.array([(m.x, m.y) for m in moves[max(a - 1, 0):b]])
+                z = moves[b - 1].z
+                j = b
+                while j < len(moves) and moves[j].kind == "feed" and \
+                        abs(moves[j].z - z) < 1e-6:
+                    p, q = moves[j - 1], moves[j]
+                    probe = np.array([(q.x, q.y), (0.5 * (p.x + q.x), 0.5 * (p.y + q.y))])
+                    if float(_polyline_distance(probe, track).max()) > ENTRY_TRACK_MM:
+                        break
+                    entry[j] = True
+                    j += 1
+        saved = self.uncut, self.floor, self.surface, self.surface_lo
         self.uncut = self.level_uncut.copy()
         self.floor, self.surface = self.floor.copy(), self.level_surface.copy()
+        self.surface_lo = self.level_surface_lo.copy()
         return moves, first, entry, saved
 
     def widest_cut(self, z: float) -> float:
@@ -1537,7 +1568,7 @@ class _Job:
                     run.append(b)
             flush()
         finally:
-            self.uncut, self.floor, self.surface = saved
+            self.uncut, self.floor, self.surface, self.surface_lo = saved
         return worst
 
     def level(self, z, z_above, in_stock, air, li, nlevels, step_up=False,
@@ -1545,6 +1576,7 @@ class _Job:
         tip, cell = self.T, self.cell
         if not hasattr(self, "surface"):
             self.surface = np.where(in_stock, self.stock.z_max, -np.inf)
+            self.surface_lo = self.surface.copy()
         A = tip <= z + _EPS
         self.uncut = in_stock & (self.Hp < z_above - _EPS)
         self.z = z
@@ -1560,6 +1592,7 @@ class _Job:
         self.level_first = len(self.writer.moves)
         self.level_uncut = self.uncut.copy()
         self.level_surface = self.surface.copy()
+        self.level_surface_lo = self.surface_lo.copy()
         floor_rings = self.floor_rings(A & ~air, Q) if step_up else []
         entered = np.zeros(n + 1, bool)  # index -1 -> the last slot stays False
         entered[np.unique(labels[Q])] = True
