@@ -1358,60 +1358,30 @@ class _Job:
         replay does not hold."""
         if self.tool.shape is ToolShape.BALL:
             return
-        moves, first, entry, saved = self.replay_start()
         over = PEEL_OVER * self.s
+        moves = self.writer.moves
+        first = self.level_first
         out = list(moves[:max(first, 1)])
         added = np.zeros(len(moves) + 1, int)  # moves added before each old index
         extra = 0
         peeled: list = []
-        run: list = []  # consecutive feeds not measured, marked at once
-        levels: list = []  # whether each of run's feeds lies at the level (not a descent)
 
-        def flush() -> None:
-            if len(run) > 1:
-                path = np.array(run)
-                self.mark(path)
-                level = [k for k in range(1, len(run)) if levels[k]]
-                for k in level:  # a descent cuts less than the level
-                    self.mark_level(path[k - 1:k + 1])
-            run.clear()
-            levels.clear()
+        def visit(i: int, m: Move, ab: tuple | None) -> None:
+            nonlocal extra
+            added[i] = extra
+            way = None
+            if ab is not None and self.level_width(*ab) > over:
+                way = self.peel(np.array(ab[0]), np.array(ab[1]), z)
+            if way is None:
+                if ab is not None:
+                    self.mark_both(np.array(ab))
+                out.append(m)
+            else:
+                out.extend(Move("feed", float(x), float(y), z) for x, y in way[1:])
+                extra += len(way) - 2
+                peeled.append(way)
 
-        self.uncut_level = self.level_uncut.copy()
-        try:
-            for i in range(max(first, 1), len(moves)):
-                added[i] = extra
-                p, m = moves[i - 1], moves[i]
-                if m.kind != "feed":
-                    flush()
-                    out.append(m)
-                    continue
-                a, b = (p.x, p.y), (m.x, m.y)
-                if not entry[i] and abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6:
-                    flush()
-                    way = None
-                    if self.engaged_width(a, b) > over:
-                        way = self.peel(np.array(a), np.array(b), z)
-                    if way is None:
-                        self.mark(np.array([a, b]))
-                        self.mark_level(np.array([a, b]))
-                        out.append(m)
-                    else:
-                        out += [Move("feed", float(x), float(y), z) for x, y in way[1:]]
-                        extra += len(way) - 2
-                        peeled.append(way)
-                else:
-                    out.append(m)
-                    if not run or run[-1] != a:
-                        flush()
-                        run.append(a)
-                        levels.append(False)
-                    run.append(b)
-                    levels.append(abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6)
-            flush()
-        finally:
-            self.uncut, self.floor, self.surface, self.surface_lo = saved
-            del self.uncut_level
+        self.replay(z, visit)
         if not peeled:
             return
         added[len(moves)] = extra
@@ -1537,38 +1507,82 @@ class _Job:
         self.surface_lo = self.level_surface_lo.copy()
         return moves, first, entry, saved
 
-    def widest_cut(self, z: float) -> float:
-        """Widest cut (mm, :meth:`engaged_width`) of the level's feed moves at z outside its
-        entries, replayed in order on the level's uncut grid and surface estimate as they
-        were at its start (every feed move, entries included, cuts its swath)."""
+    def replay(self, z: float, visit: Callable) -> None:
+        """Replay the level's moves in order from its start (:meth:`replay_start`), with the
+        grid ``uncut_level`` of the material cut at the level only beside them (entries'
+        descents and ramps cut less than the level: they leave it uncut there), and call
+        ``visit(i, move, ab)`` for each move i after the level's first: ab the (a, b) xy ends
+        of a feed at z outside the entries, which ``visit`` measures (:meth:`level_width`)
+        and marks (:meth:`mark_both`), else None (the replay has marked the other feeds).
+        The run's grids are put back after."""
         moves, first, entry, saved = self.replay_start()
-        worst = 0.0
         run: list = []  # consecutive feeds not measured, marked at once
+        levels: list = []  # whether each of run's feeds lies at the level (not a descent)
 
         def flush() -> None:
             if len(run) > 1:
-                self.mark(np.array(run))
+                path = np.array(run)
+                self.mark(path)
+                for k in range(1, len(run)):
+                    if levels[k]:  # a descent cuts less than the level
+                        self.mark_level(path[k - 1:k + 1])
             run.clear()
+            levels.clear()
 
+        self.uncut_level = self.level_uncut.copy()
         try:
             for i in range(max(first, 1), len(moves)):
                 p, m = moves[i - 1], moves[i]
                 if m.kind != "feed":
                     flush()
+                    visit(i, m, None)
                     continue
                 a, b = (p.x, p.y), (m.x, m.y)
-                if not entry[i] and abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6:
+                at_level = abs(p.z - z) < 1e-6 and abs(m.z - z) < 1e-6
+                if not entry[i] and at_level:
                     flush()
-                    worst = max(worst, self.engaged_width(a, b))
-                    self.mark(np.array([a, b]))
+                    visit(i, m, (a, b))
                 else:
                     if not run or run[-1] != a:
                         flush()
                         run.append(a)
+                        levels.append(False)
                     run.append(b)
+                    levels.append(at_level)
+                    visit(i, m, None)
             flush()
         finally:
             self.uncut, self.floor, self.surface, self.surface_lo = saved
+            del self.uncut_level
+
+    def level_width(self, a, b) -> float:
+        """Width of cut (mm) of the feed a-b in a replay (:meth:`engaged`), the material that
+        of ``uncut_level``: beside an entry's ramp the wedge it left above the level counts
+        (the uncut grid takes the ramp's track as cut: a pass beside one measured 0.29 mm
+        where the job simulation found 2.95)."""
+        return float(self.engaged(np.asarray(a, dtype=float)[None, :2],
+                                  np.asarray(b, dtype=float)[None, :2],
+                                  material=self.uncut_level)[0][0])
+
+    def mark_both(self, path_xy: FloatArray) -> None:
+        """:meth:`mark` and :meth:`mark_level` of a feed at the level in a replay."""
+        self.mark(path_xy)
+        self.mark_level(path_xy)
+
+    def widest_cut(self, z: float) -> float:
+        """Widest cut (mm, :meth:`level_width`) of the level's feed moves at z outside its
+        entries, replayed in order (:meth:`replay`) on the level's grids as they were at its
+        start (every feed move, entries included, cuts its swath; the wedge an entry's
+        descent leaves above the level stays material for the width)."""
+        worst = 0.0
+
+        def visit(i: int, m: Move, ab: tuple | None) -> None:
+            nonlocal worst
+            if ab is not None:
+                worst = max(worst, self.level_width(*ab))
+                self.mark_both(np.array(ab))
+
+        self.replay(z, visit)
         return worst
 
     def level(self, z, z_above, in_stock, air, li, nlevels, step_up=False,
