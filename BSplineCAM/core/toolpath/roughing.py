@@ -83,12 +83,11 @@ chords (up to 5.5 mm wide), 8 now (up to 4.75 mm).  Fronts round other round cle
 regions (the rest of a small closed pass after a ramp that covers only part of it) grow by
 the full stepover.
 
-Once a level is kept, its feed moves are replayed once more, and with a flat or bull-nose end mill each
-one still wider than
-PEEL_OVER s is cut instead by a few feeds each within PEEL_WIDTH s that take the same
-material (:meth:`_Job.peel`): a greedy walk over a lattice round the move, each next point
-the one whose feed from the last cuts the most of that material within the width, ending at
-the move's end.  This takes the slivers that fronts, bent or narrowed, still meet at a
+Once a level is kept, its feed moves are replayed once more, and with a flat or bull-nose
+end mill each one still wider than PEEL_OVER s is cut instead by a few feeds each within
+PEEL_WIDTH s that take the same material (:meth:`_Job.peel`): a greedy walk over a lattice
+round the move, each next point the one whose feed from the last cuts the most of that
+material within the width, ending at the move's end.  This takes the slivers that fronts, bent or narrowed, still meet at a
 notch of a wall (a wall curving round the tool, which a straight move into it touches on
 both flanks at once) and where two fronts close in.  In that replay a descent (a ramp, a
 helix) takes only what it cuts at the level: beside a ramp's start the material stands
@@ -172,12 +171,13 @@ ENGAGEMENT_LIMIT = 1.1
 #: (:meth:`_Job.peel`): at most PEEL_STEPS, to points on a lattice PEEL_LATTICE tool radii
 #: apart within R of the move.
 PEEL_OVER = 1.0
-#: A level move after an entry's descent whose end and midpoint lie this close (mm) to the
-#: descent's track is part of the entry (the job simulation's ENTRY_REACH_MM).
-ENTRY_TRACK_MM = 0.02
 PEEL_WIDTH = 1.0
 PEEL_STEPS = 24
 PEEL_LATTICE = 0.25
+#: A level move after an entry's descent whose end and midpoint lie this close (mm) to the
+#: descent's track is part of the entry in a level's replay (the job simulation's
+#: ENTRY_REACH_MM).
+ENTRY_TRACK_MM = 0.02
 #: A ramp backwards into an open pass starts where the material's top lies at most
 #: BACK_RAMP_TOL_MM above the ramp's top, found in at most BACK_RAMP_ROUNDS rounds
 #: (:meth:`_Job.back_ramp`).
@@ -1081,9 +1081,9 @@ class _Job:
             bottom = self.tool.profile(dist + CELL_HALF_DIAGONAL * self.cell)
             # the move's deepest cut, as the simulation takes it: the most the tool drops
             # any cell by, not the highest material it passes (a fillet's crest beside it
-            # under the corner would lift the corner's height over the toes it does skim),
-            # and at least (the estimate's lower bound under the tool's highest point over
-            # each cell), so that the corner is not set higher than the cut sets it
+            # under the corner would lift the corner's height over the toes it does skim);
+            # from the estimate's lower bound less the tool's highest point over each cell,
+            # so that it is never deeper than the simulation's and sets the corner no higher
             axial = np.where(swept, above_lo[iy, ix][None, :] - bottom, 0.0).max(axis=1)
             corner = corner_height(self.tool, np.maximum(axial, 0.0))
             swept &= fresh[None, :] | ((h[None, :] > corner[:, None] + FILLET_MM)
