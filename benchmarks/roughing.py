@@ -279,6 +279,8 @@ def measure(surface: Surface, text: str, stock: tuple, args: argparse.Namespace,
     tools = {n: Tool(args.diameter, "flat") for n in numbers if n > 0} or {1: Tool(args.diameter,
                                                                                      "flat")}
     feeds = program.kind != MoveKind.RAPID
+    if not feeds.any():  # an op whose recompute failed posts its frame only
+        return {"failed": "its program has no feed move (see its log)"}
     number = int(program.tool[np.flatnonzero(feeds)[-1]])
     result = verify_job(surface, program, tools, stock=stock, cell=args.cell)
     left = result.job.snapshots[number] - result.design
