@@ -466,3 +466,27 @@ def test_job_on_a_part_refuses_what_parts_lack(capsys, tmp_path, extra, fragment
     assert_refused(status, err, *fragments)
     assert stdout == ""
     assert not out.exists()
+
+
+def test_job_engagement_target_allows_the_simulation_cell_and_warns_when_missed():
+    """``job`` reports the roughing's widest cut against 1.1 stepover plus the simulation's
+    cell (its width is the engaged cells' extent plus a cell: a cut at 1.1 s measures up to
+    a cell more), and warns when it is missed, naming the width, the program line and the
+    limit in mm."""
+    from BSplineCAM.orchestration.cli_job import engagement_targets, engagement_warnings
+
+    def as_report(targets):
+        return {k: {"value": v, "limit": lim, "ok": ok} for k, (v, lim, ok) in targets.items()}
+
+    within = engagement_targets({"radial_engagement_max_mm": 4.5}, 4.0, 0.1)
+    assert within["roughing_radial_engagement_max_mm"] == [4.5, 4.5, True]
+    assert engagement_warnings(as_report(within), {"max_radial_line": 9}, 4.0, 0.1) == []
+    rough = {"radial_engagement_max_mm": 4.62, "max_radial_line": 812}
+    over = as_report(engagement_targets(rough, 4.0, 0.1))
+    assert over["roughing_radial_engagement_max_mm"]["ok"] is False
+    (warning,) = engagement_warnings(over, rough, 4.0, 0.1)
+    for part in ("4.62 mm", "line 812", "stepover 4 mm", "0.1 mm cell", "(4.5 mm)"):
+        assert part in warning, warning
+    # no cut at all (a program without roughing moves): within, nothing to say
+    none = engagement_targets({"radial_engagement_max_mm": None}, 4.0, 0.1)
+    assert none["roughing_radial_engagement_max_mm"][2] is True

@@ -250,6 +250,31 @@ GOUGE_LIMIT_MM = 0.001
 ENGAGEMENT_RATIO = 1.1
 
 
+def engagement_targets(rough: dict, stepover: float, cell: float) -> dict:
+    """The roughing tool's (T1) widest cut outside entries against ENGAGEMENT_RATIO times
+    the stepover (mm), plus one cell of the simulation, whose width is the extent of the
+    engaged cells plus a cell (a pass at the stepover measures it within a cell): {name:
+    [value, limit, ok]}.  Reported, not enforced (see the README's known limits)."""
+    radial = rough["radial_engagement_max_mm"] or 0.0
+    limit = ENGAGEMENT_RATIO * stepover + cell
+    return {"roughing_radial_engagement_max_mm": [radial, round(limit, 6),
+                                                  radial <= limit + 1e-9]}
+
+
+def engagement_warnings(targets: dict, rough: dict, stepover: float, cell: float) -> list:
+    """A warning for a missed engagement target, naming the widest cut, its program line and
+    the limit (mm)."""
+    target = targets.get("roughing_radial_engagement_max_mm")
+    if target is None or target["ok"]:
+        return []
+    line = rough.get("max_radial_line")
+    where = f" at line {line}" if line is not None else ""
+    return [f"roughing: widest cut {target['value']:.2f} mm{where} is over "
+            f"{ENGAGEMENT_RATIO:g} x the stepover {stepover:g} mm plus the simulation's "
+            f"{cell:g} mm cell ({target['limit']:g} mm): the tool is loaded more there than "
+            "the stepover sets"]
+
+
 def verify_program(args, model, program_path, tools, stock, stage) -> dict:
     """The whole program simulated from the stock block and measured against the model (a
     core Surface, or a part's core faces);
@@ -276,17 +301,14 @@ def verify_program(args, model, program_path, tools, stock, stage) -> dict:
         "rapid_collisions": [len(metrics["rapid_collisions"]), 0,
                              not metrics["rapid_collisions"]],
     }
-    radial = rough["radial_engagement_max_mm"] or 0.0
-    targets = {  # reported, not enforced: see the README's known limits of the roughing
-        "roughing_radial_engagement_max_mm": [
-            radial, round(ENGAGEMENT_RATIO * stepover, 6),
-            radial <= ENGAGEMENT_RATIO * stepover],
-    }
+    targets = engagement_targets(rough, stepover, args.cell)
     metrics["checks"] = {k: {"value": v, "limit": lim, "ok": bool(ok)}
                          for k, (v, lim, ok) in checks.items()}
     metrics["targets"] = {k: {"value": v, "limit": lim, "ok": bool(ok)}
                           for k, (v, lim, ok) in targets.items()}
     metrics["ok"] = all(ok for _, _, ok in checks.values())
+    metrics["warnings"] = [*metrics.get("warnings", []),
+                           *engagement_warnings(metrics["targets"], rough, stepover, args.cell)]
     pictures.plot_deviation(result, stage / "deviation.png")
     for number in sorted(result.job.snapshots):
         pictures.plot_stock(result, number, stage / f"stock-T{number}.png")
