@@ -1431,8 +1431,7 @@ class _Job:
             if w_b[0] <= width and c_b[0] >= task.sum() and self.in_region(here, b, z) and \
                     math.dist(here, b) >= 1e-9:
                 way.append(b)
-                self.mark(np.array([here, b]))
-                self.mark_level(np.array([here, b]))
+                self.mark_both(np.array([here, b]))
                 return np.array(way)
             cand = lat[np.hypot(*(lat - here).T) > 0.5 * h]
             cand = cand[self.in_region_many(np.broadcast_to(here, cand.shape).copy(), cand, z)]
@@ -1445,8 +1444,7 @@ class _Job:
                 break
             k = int(np.flatnonzero(ok)[np.argmax(counts[ok])])
             q = cand[k]
-            self.mark(np.array([here, q]))
-            self.mark_level(np.array([here, q]))
+            self.mark_both(np.array([here, q]))
             task &= self.uncut_level
             way.append(q)
             here = q
@@ -1480,7 +1478,7 @@ class _Job:
     def replay_start(self) -> tuple:
         """Set the uncut grid and the surface estimate back to the level's start for a replay
         of its moves: (moves, index of the level's first, which are entries (per index), the
-        run's (uncut, floor, surface) to put back after)."""
+        run's (uncut, floor, surface, surface_lo) to put back after)."""
         moves = self.writer.moves
         first = self.level_first
         entry = np.zeros(len(moves) + 1, bool)
