@@ -1440,16 +1440,39 @@ class _Job:
             widths, counts = self.engaged(np.broadcast_to(here, cand.shape).copy(), cand, task,
                                           material=self.uncut_level)
             ok = (widths <= width) & (counts > 0)
-            if not ok.any():
-                break
-            k = int(np.flatnonzero(ok)[np.argmax(counts[ok])])
-            q = cand[k]
+            if ok.any():
+                q = cand[int(np.flatnonzero(ok)[np.argmax(counts[ok])])]
+            else:
+                # no step takes the task within the width: what makes the feed to b too
+                # wide is material outside it (a bull-nose's corner shaving the fillets of
+                # the passes beside): a step within the width to the point whose own feed
+                # to b is the narrowest, if narrower than the one from here by a cell
+                q = self.peel_detour(cand[widths <= width], b, z, w_b[0])
+                if q is None:
+                    break
             self.mark_both(np.array([here, q]))
             task &= self.uncut_level
             way.append(q)
             here = q
         self.uncut, self.floor, self.surface, self.surface_lo, self.uncut_level = saved
         return None
+
+    def peel_detour(self, cand: FloatArray, b: FloatArray, z: float,
+                    now: float) -> FloatArray | None:
+        """For :meth:`peel`: of the points ``cand`` (reached within the width), the one whose
+        feed to b stays in {T <= z} and is the narrowest (:meth:`engaged`, on
+        ``uncut_level``), if narrower than ``now`` (the feed to b from where the peel is) by
+        a cell; ties to the nearest to b.  None if there is none."""
+        if not len(cand):
+            return None
+        to_b = np.broadcast_to(b, cand.shape).copy()
+        fits = self.in_region_many(cand, to_b, z)
+        if not fits.any():
+            return None
+        cand, to_b = cand[fits], to_b[fits]
+        w, _ = self.engaged(cand, to_b, material=self.uncut_level)
+        k = int(np.lexsort((np.hypot(*(cand - b).T), w))[0])
+        return cand[k] if w[k] <= now - self.cell else None
 
     def mark_level(self, path_xy: FloatArray) -> None:
         """:meth:`mark` on the replay's grid of the material cut at the level only
