@@ -1550,8 +1550,9 @@ class _Job:
         heights: list = []  # the tip's height at each of run's points
 
         def flush() -> None:
-            path, zs, at = _split_descents(np.array(run), np.array(heights), levels,
-                                           DESCENT_BAND_MM)
+            # (a flat end mill's width counts the uncut grid only: no pieces for it)
+            band = math.inf if self.tool.shape is ToolShape.FLAT else DESCENT_BAND_MM
+            path, zs, at = _split_descents(np.array(run), np.array(heights), levels, band)
             k = 1
             while k < len(path):
                 # the feeds at the level at once; a descent's in pieces each within
@@ -1567,7 +1568,7 @@ class _Job:
                         self.mark_level(path[q - 1:q + 1])
                 else:
                     while j + 1 < len(path) and not at[j + 1] and \
-                            np.ptp(zs[k - 1:j + 2]) <= DESCENT_BAND_MM:
+                            np.ptp(zs[k - 1:j + 2]) <= band:
                         j += 1
                     piece, xy = zs[k - 1:j + 1], path[k - 1:j + 1]
                     # a plunge (no move across) leaves what its lowest point does
