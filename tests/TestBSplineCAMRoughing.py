@@ -855,6 +855,29 @@ def test_tip_height_matches_brute_force():
         np.testing.assert_allclose(got, ref, atol=1e-12)
 
 
+def test_replay_splits_descents_into_pieces_of_the_band():
+    """The level's replay marks a descent in pieces each descending at most the band, so that
+    the surface estimate drops to each piece's own height: a 2 mm ramp over 38 mm in one
+    feed marked at the level had set the estimate 0.28 mm under the fillets it left.  The
+    feeds at the level and a plunge (no move across) stay whole; the points are on the
+    feeds, the heights linear along them."""
+    from BSplineCAM.core.toolpath.roughing import _split_descents
+
+    path = np.array([[0.0, 0.0], [0.0, 0.0], [38.0, 0.0], [40.0, 0.0], [40.0, 0.0]])
+    zs = np.array([12.0, 11.0, 10.0, 10.0, 9.0])  # plunge, ramp, level, plunge
+    at = [False, False, False, True, False]
+    P, Z, A = _split_descents(path, zs, at, 0.05)
+    assert np.allclose(P[[0, 1]], path[[0, 1]]) and np.allclose(Z[[0, 1]], [12.0, 11.0])
+    ramp = slice(1, 22)  # 20 pieces of 0.05 mm from 11 down to 10
+    assert np.allclose(np.diff(Z[ramp]), -0.05)
+    assert np.allclose(P[ramp, 0], np.linspace(0.0, 38.0, 21)) and not any(A[2:22])
+    assert np.allclose(P[-2:], path[-2:]) and np.allclose(Z[-2:], [10.0, 9.0])
+    assert A[-2] and not A[-1] and len(P) == 24
+    # no band: nothing added
+    P, Z, A = _split_descents(path, zs, at, math.inf)
+    assert np.allclose(P, path) and np.allclose(Z, zs) and list(A) == at
+
+
 def test_capped_distance_and_contours():
     from scipy import ndimage
 
