@@ -1407,7 +1407,9 @@ class _Job:
         stepovers (:meth:`engaged`): greedily, each next point the one, on a lattice
         PEEL_LATTICE tool radii apart within R of the feed, whose feed from the last point
         cuts the most of that material within the width, until the feed to b cuts all that
-        is left of it within the width; at most PEEL_STEPS feeds.  The material is that of
+        is left of it within the width; where no step takes any of it within the width, a
+        step to the point whose feed to b is the narrowest (:meth:`peel_detour`: a bull-nose's
+        corner shaving the fillets beside); at most PEEL_STEPS feeds.  The material is that of
         the replay's ``uncut_level`` grid, where the descents of entries did not cut (a ramp
         cuts less than the level beside its start).  None where no way is found (the
         replay's grids are then as they were)."""
