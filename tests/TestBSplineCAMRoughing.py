@@ -1385,9 +1385,9 @@ def test_fair_load_moves_still_over_are_peeled():
 
 @pytest.mark.parametrize("block, corner", [("sampled", 2.0), ("job", 2.0), ("job", 3.0)])
 def test_bullnose_case_study_within_the_stepover(block, corner):
-    """The case study at a 2 mm step-down with a 10 mm bull-nose of 2 mm corner radius at a
-    4 mm stepover: every move outside the entries within 1.1 stepover plus a cell (the job
-    simulation at 0.1 mm).  A lead-in skimmed the toes of fillets 0.1 mm deep across 5.33 mm
+    """The case study at a 2 mm step-down with a 10 mm bull-nose of 2 mm (and 3 mm) corner
+    radius at a 4 mm stepover: every move outside the entries within 1.1 stepover plus a cell
+    (the job simulation at 0.1 mm).  A lead-in skimmed the toes of fillets 0.1 mm deep across 5.33 mm
     while the roughing took the corner's height from a fillet's crest it passed over but did
     not cut.  From the block the command line's job makes (the face's bounding box in
     FreeCAD grown by 2 mm, its top 1.5 µm higher) a move at the first level stayed 4.78 mm
