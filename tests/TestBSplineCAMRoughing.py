@@ -580,6 +580,56 @@ def test_a_feed_wider_than_the_stepover_is_peeled_within_it():
     assert float(np.abs(peeled.height - plain.height)[reach].max()) < 1e-9
 
 
+def test_a_feed_ending_just_outside_the_region_is_peeled():
+    """A contour's corner may stand some microns outside the region {T <= z} the tool's
+    centre may take at a level (here 0.03 mm: the pass ends at the bottom of a notch in the
+    region, whose tip reaches a sliver of the band beyond the wall, y < 0).  The feed into it
+    from the upper right cuts the sliver 2.6 mm wide at a 2 mm stepover; a peel must end
+    where the feed ends, so its own steps may stand out of the region as far as the feed
+    does.  Before, the peel of such a feed never reached its end and the feed stayed.
+    Checked by the job simulation of the G-code text, from a block that holds the band."""
+    from BSplineCAM.core.gcode import read_gcode
+    from BSplineCAM.core.job_simulation import simulate_job
+
+    cell, s, z = 0.25, 2.0, 5.0
+    tool = Tool(8.0, "flat")
+    job, xs, ys = bare_job(cell, 20.0, tool, stepover=s)
+    X, Y = np.meshgrid(xs, ys)
+    # centres may stand above a notch y = 3.5 + |x| / 4, shifted 0.03 mm up
+    job.T = z + (3.53 + 0.25 * np.abs(X) - Y)
+    job.uncut = Y < 0.0
+    job.uncut_level = job.uncut.copy()
+    job.floor = np.full(X.shape, 10.0)
+    job.surface = np.where(job.uncut, 10.0, z)
+    job.surface_lo = job.surface.copy()
+    job.z = z
+    a, b = np.array([3.0, 6.5]), np.array([0.0, 3.5])
+    assert job.level_width(a, b) > 1.1 * s + cell
+    assert not job.in_region(a, b, z)
+    way = job.peel(a, b, z)
+    assert way is not None and len(way) > 2
+    slack = job.region_slack(a, b, z)
+    assert 0.01 < slack < 0.1  # 0.03 and the notch's kink between cells
+    assert np.allclose(way[0], a) and np.allclose(way[-1], b)
+    assert max(job.region_slack(p, q, z) for p, q in zip(way, way[1:])) <= slack + 1e-9
+
+    box = (-20.0, 20.0, -20.0, 0.0, 0.0, 10.0)
+
+    def run(points):
+        text = "\n".join(["G21 G90 G17", "T1 M6", "G0 X3 Y6.5 Z20", "G1 Z5 F500"]
+                         + [f"G1 X{x:.4f} Y{y:.4f}" for x, y in points] + ["M2"])
+        return simulate_job(read_gcode(text + "\n", "notch"), {1: tool},
+                            Grid.covering(-20.0, 20.0, -20.0, 20.0, 0.1), box)
+
+    plain, peeled = run([b]), run(way[1:])
+    assert float(plain.radial[-1]) > 1.1 * s + 0.1
+    widths = peeled.radial[-(len(way) - 1):]
+    assert float(widths.max()) <= 1.1 * s + 0.1, widths
+    # the peel took all the feed took (and more of the sliver: the notch's flank lets the
+    # tool down to it beside the end too)
+    assert float((peeled.height - plain.height).max()) < 1e-9
+
+
 def test_engaged_width_of_a_feed_against_a_band():
     """The width of cut the lead-ins are checked by, against a band of uncut material 3 mm wide
     beside a cleared floor (edge at y = 0), in closed form, the whole swath of a move as the
@@ -1383,8 +1433,9 @@ def test_fair_load_moves_still_over_are_peeled():
     assert not over.any(), (radial.max(), over.sum())
 
 
-@pytest.mark.parametrize("block, corner", [("sampled", 2.0), ("job", 2.0), ("job", 3.0)])
-def test_bullnose_case_study_within_the_stepover(block, corner):
+@pytest.mark.parametrize("block, corner, s", [("sampled", 2.0, 4.0), ("job", 2.0, 4.0),
+                                              ("job", 3.0, 4.0), ("job", 2.0, 2.5)])
+def test_bullnose_case_study_within_the_stepover(block, corner, s):
     """The case study at a 2 mm step-down with a 10 mm bull-nose of 2 mm (and 3 mm) corner
     radius at a 4 mm stepover: every move outside the entries within 1.1 stepover plus a cell
     (the job simulation at 0.1 mm).  A lead-in skimmed the toes of fillets 0.1 mm deep across 5.33 mm
@@ -1395,16 +1446,19 @@ def test_bullnose_case_study_within_the_stepover(block, corner):
     feed to its end too wide was the fillets of the passes beside, which no step counted.
     With a 3 mm corner a peel's step measured 3.71 mm where the simulation found 4.75: the
     level's replay had marked a ramp as cut at the level, 0.28 mm under the fillets it
-    left beside it."""
+    left beside it.  At a 2.5 mm stepover a move into a contour's corner stayed 3.04 mm
+    wide: what was left of its material was a sliver the tool reaches from the corner only,
+    which stood 0.03 mm outside the region the peel's steps kept to, and the steps that
+    reach the points from which a feed along the wall takes it thin were too wide."""
     height, stock = case_study_part()
     if block == "job":
         stock = Stock(-2.0, 102.0, -2.0, 102.0, 10.450933463525763, 35.17659478303636)
     tool = Tool(10.0, "bullnose", corner)
-    rough = generate_roughing(height, stock, tool, 2.0, 4.0, 0.3, 0.3)
+    rough = generate_roughing(height, stock, tool, 2.0, s, 0.3, 0.3)
     radial, collisions = _job_radial(rough, stock, tool, 0.1)
     assert collisions == 0
-    assert float(radial.max()) >= 3.6  # it does cut at about the stepover
-    over = radial > 1.1 * 4.0 + 0.1
+    assert float(radial.max()) >= 0.9 * s  # it does cut at about the stepover
+    over = radial > 1.1 * s + 0.1
     assert not over.any(), (radial.max(), over.sum())
 
 

@@ -87,9 +87,13 @@ Once a level is kept, its feed moves are replayed once more, and with a flat or 
 end mill each one still wider than PEEL_OVER s is cut instead by a few feeds each within
 PEEL_WIDTH s that take the same material (:meth:`_Job.peel`): a greedy walk over a lattice
 round the move, each next point the one whose feed from the last cuts the most of that
-material within the width, ending at the move's end.  This takes the slivers that fronts, bent or narrowed, still meet at a
-notch of a wall (a wall curving round the tool, which a straight move into it touches on
-both flanks at once) and where two fronts close in.  In that replay a descent (a ramp, a
+material within the width, ending at the move's end; where it is stuck, a way to a point
+from which a feed to the end takes what is left thin (a sliver beside a contour's corner,
+which the tool reaches from the corner only: a feed along the wall takes it thin, one
+across it wide).  The steps may stand out of the region as far as the move does (a
+contour's corner some microns out).  This takes the slivers that fronts, bent or
+narrowed, still meet at a notch of a wall (a wall curving round the tool, which a straight
+move into it touches on both flanks at once) and where two fronts close in.  In that replay a descent (a ramp, a
 helix) takes only what it cuts at the level: beside a ramp's start the material stands
 almost as high as before.  At the fair load (8 + 4 mm at a 25 % stepover on the case
 study): moves over 1.1 s plus the simulation's cell 11 -> 1, widest 3.79 -> 2.95 mm.
@@ -177,6 +181,9 @@ PEEL_OVER = 1.0
 PEEL_WIDTH = 1.0
 PEEL_STEPS = 24
 PEEL_LATTICE = 0.25
+#: Where a peel is stuck, it tries ways to at most PEEL_APPROACHES points whose feed to the
+#: move's end takes what is left within the width (:meth:`_Job.peel_approach`).
+PEEL_APPROACHES = 4
 #: A level move after an entry's descent whose end and midpoint lie this close (mm) to the
 #: descent's track is part of the entry in a level's replay (the job simulation's
 #: ENTRY_REACH_MM).
@@ -1401,7 +1408,8 @@ class _Job:
             self.mark(way)
         self.peeled_moves += len(peeled)
 
-    def peel(self, a: FloatArray, b: FloatArray, z: float) -> FloatArray | None:
+    def peel(self, a: FloatArray, b: FloatArray, z: float, slack: float | None = None,
+             approach: bool = True) -> FloatArray | None:
         """A way (xy points from a to b at level z, in {T <= z}) that cuts the material the
         feed a-b would cut (its swept uncut cells) in feeds each no wider than PEEL_WIDTH
         stepovers (:meth:`engaged`): greedily, each next point the one, on a lattice
@@ -1409,12 +1417,22 @@ class _Job:
         cuts the most of that material within the width, until the feed to b cuts all that
         is left of it within the width; where no step takes any of it within the width, a
         step to the point whose feed to b is the narrowest (:meth:`peel_detour`: a bull-nose's
-        corner shaving the fillets beside); at most PEEL_STEPS feeds.  The material is that of
-        the replay's ``uncut_level`` grid, where the descents of entries did not cut (a ramp
-        cuts less than the level beside its start).  None where no way is found (the
-        replay's grids are then as they were)."""
+        corner shaving the fillets beside); and where none is narrower, a way (a peel of its
+        own, without this fallback) to a lattice point whose feed to b takes what is left
+        within the width (:meth:`peel_approach`: the material left lies where the tool
+        reaches it from b's end only, as a sliver along a wall, which a feed along the wall
+        takes thin and one across it wide); at most PEEL_STEPS feeds and approaches.  The
+        material is that of the replay's ``uncut_level`` grid, where the descents of entries
+        did not cut (a ramp cuts less than the level beside its start).  The region
+        {T <= z} holds the way up to ``slack`` (mm; None: as high as the feed a-b rises over
+        it, :meth:`region_slack`: a contour's corner may stand some microns out, and its
+        feed ends there).  None where no way is found (the replay's grids are then as they
+        were)."""
         R, width = self.R, PEEL_WIDTH * self.s
         feed = np.array([a, b])
+        if slack is None:
+            slack = self.region_slack(a, b, z)
+        zr = z + slack
         task = np.zeros(self.uncut.shape, bool)
         i0, i1, j0, j1 = self.window(self.idx(feed), self.Rc + 2)
         jj, ii = np.meshgrid(np.arange(j0, j1), np.arange(i0, i1))
@@ -1438,13 +1456,13 @@ class _Job:
                 return np.array(way)  # a step to b itself took the last of it
             w_b, c_b = self.engaged(here[None, :], b[None, :], task,
                                     material=self.uncut_level)
-            if w_b[0] <= width and c_b[0] >= task.sum() and self.in_region(here, b, z) and \
+            if w_b[0] <= width and c_b[0] >= task.sum() and self.in_region(here, b, zr) and \
                     math.dist(here, b) >= 1e-9:
                 way.append(b)
                 self.mark_both(np.array([here, b]))
                 return np.array(way)
             cand = lat[np.hypot(*(lat - here).T) > 0.5 * h]
-            cand = cand[self.in_region_many(np.broadcast_to(here, cand.shape).copy(), cand, z)]
+            cand = cand[self.in_region_many(np.broadcast_to(here, cand.shape).copy(), cand, zr)]
             if not len(cand):
                 break
             widths, counts = self.engaged(np.broadcast_to(here, cand.shape).copy(), cand, task,
@@ -1457,15 +1475,48 @@ class _Job:
                 # wide is material outside it (a bull-nose's corner shaving the fillets of
                 # the passes beside): a step within the width to the point whose own feed
                 # to b is the narrowest, if narrower than the one from here by a cell
-                q = self.peel_detour(cand[widths <= width], b, z, w_b[0])
+                q = self.peel_detour(cand[widths <= width], b, zr, w_b[0])
                 if q is None:
-                    break
+                    sub = self.peel_approach(here, b, z, slack, lat, task) if approach \
+                        else None
+                    if sub is None:
+                        break
+                    way.extend(sub[1:])
+                    here = sub[-1]
+                    task &= self.uncut_level
+                    continue
             self.mark_both(np.array([here, q]))
             task &= self.uncut_level
             way.append(q)
             here = q
         self.uncut, self.floor, self.surface, self.surface_lo, self.uncut_level = saved
         return None
+
+    def peel_approach(self, here: FloatArray, b: FloatArray, z: float, slack: float,
+                      lat: FloatArray, task: np.ndarray) -> FloatArray | None:
+        """For :meth:`peel`: a way from here to one of the lattice points ``lat`` whose feed
+        to b stays in the region (up to ``slack``) and takes all of ``task`` within the
+        width, by a peel of the feed here-q (:meth:`peel` without this fallback), the
+        nearest of PEEL_APPROACHES such points first.  The grids hold the way's cut.  None
+        if there is none."""
+        to_b = np.broadcast_to(b, lat.shape).copy()
+        w, c = self.engaged(lat, to_b, task, material=self.uncut_level)
+        good = (w <= PEEL_WIDTH * self.s) & (c >= task.sum()) & \
+            (np.hypot(*(lat - here).T) > 1e-9)
+        good[good] = self.in_region_many(lat[good], to_b[good], z + slack)
+        order = np.flatnonzero(good)
+        order = order[np.argsort(np.hypot(*(lat[order] - here).T), kind="stable")]
+        for k in order[:PEEL_APPROACHES]:
+            sub = self.peel(here, lat[k], z, slack, approach=False)
+            if sub is not None:
+                return sub
+        return None
+
+    def region_slack(self, a: FloatArray, b: FloatArray, z: float) -> float:
+        """How far (mm, >= 0) the feed a-b at level z rises over the region {T <= z}: the
+        most T (bilinear, as :meth:`in_region` samples it) stands over z along it."""
+        f = self.along(a, b)
+        return max(0.0, float((_bilinear(self.T, f[:, 0], f[:, 1]) - z).max()))
 
     def peel_detour(self, cand: FloatArray, b: FloatArray, z: float,
                     now: float) -> FloatArray | None:
