@@ -581,8 +581,8 @@ def test_a_feed_wider_than_the_stepover_is_peeled_within_it():
 
 
 def test_a_feed_ending_just_outside_the_region_is_peeled():
-    """A contour's corner may stand some microns outside the region {T <= z} the tool's
-    centre may take at a level (here 0.03 mm: the pass ends at the bottom of a notch in the
+    """A contour's corner may stand some hundredths of a mm outside the region {T <= z} the
+    tool's centre may take at a level (here 0.03 mm: the pass ends at the bottom of a notch in the
     region, whose tip reaches a sliver of the band beyond the wall, y < 0).  The feed into it
     from the upper right cuts the sliver 2.6 mm wide at a 2 mm stepover; a peel must end
     where the feed ends, so its own steps may stand out of the region as far as the feed

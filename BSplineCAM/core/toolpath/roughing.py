@@ -91,11 +91,11 @@ material within the width, ending at the move's end; where it is stuck, a way to
 from which a feed to the end takes what is left thin (a sliver beside a contour's corner,
 which the tool reaches from the corner only: a feed along the wall takes it thin, one
 across it wide).  The steps may stand out of the region as far as the move does (a
-contour's corner some microns out).  This takes the slivers that fronts, bent or
-narrowed, still meet at a notch of a wall (a wall curving round the tool, which a straight
-move into it touches on both flanks at once) and where two fronts close in.  In that replay a descent (a ramp, a
-helix) takes only what it cuts at the level: beside a ramp's start the material stands
-almost as high as before.  At the fair load (8 + 4 mm at a 25 % stepover on the case
+contour's corner some hundredths of a mm out, at most PEEL_SLACK_MM).  This takes the
+slivers that fronts, bent or narrowed, still meet at a notch of a wall (a wall curving
+round the tool, which a straight move into it touches on both flanks at once) and where
+two fronts close in.  In that replay a descent (a ramp, a helix) takes only what it cuts at the level: beside a ramp's
+start the material stands almost as high as before.  At the fair load (8 + 4 mm at a 25 % stepover on the case
 study): moves over 1.1 s plus the simulation's cell 11 -> 1, widest 3.79 -> 2.95 mm.
 """
 
@@ -184,6 +184,10 @@ PEEL_LATTICE = 0.25
 #: Where a peel is stuck, it tries ways to at most PEEL_APPROACHES points whose feed to the
 #: move's end takes what is left within the width (:meth:`_Job.peel_approach`).
 PEEL_APPROACHES = 4
+#: A peel's steps may stand out of the region as far as the move it replaces does (a
+#: contour's corner some hundredths of a mm out; 0.064 mm at most on the case study), at
+#: most PEEL_SLACK_MM.
+PEEL_SLACK_MM = 0.1
 #: A level move after an entry's descent whose end and midpoint lie this close (mm) to the
 #: descent's track is part of the entry in a level's replay (the job simulation's
 #: ENTRY_REACH_MM).
@@ -1425,13 +1429,13 @@ class _Job:
         material is that of the replay's ``uncut_level`` grid, where the descents of entries
         did not cut (a ramp cuts less than the level beside its start).  The region
         {T <= z} holds the way up to ``slack`` (mm; None: as high as the feed a-b rises over
-        it, :meth:`region_slack`: a contour's corner may stand some microns out, and its
-        feed ends there).  None where no way is found (the replay's grids are then as they
+        it, :meth:`region_slack`, at most PEEL_SLACK_MM: a contour's corner may stand some
+        hundredths of a mm out, and its feed ends there).  None where no way is found (the replay's grids are then as they
         were)."""
         R, width = self.R, PEEL_WIDTH * self.s
         feed = np.array([a, b])
         if slack is None:
-            slack = self.region_slack(a, b, z)
+            slack = min(self.region_slack(a, b, z), PEEL_SLACK_MM)
         zr = z + slack
         task = np.zeros(self.uncut.shape, bool)
         i0, i1, j0, j1 = self.window(self.idx(feed), self.Rc + 2)
