@@ -94,9 +94,10 @@ across it wide).  The steps may stand out of the region as far as the move does 
 contour's corner some hundredths of a mm out, at most PEEL_SLACK_MM).  This takes the
 slivers that fronts, bent or narrowed, still meet at a notch of a wall (a wall curving
 round the tool, which a straight move into it touches on both flanks at once) and where
-two fronts close in.  In that replay a descent (a ramp, a helix) takes only what it cuts at the level: beside a ramp's
-start the material stands almost as high as before.  At the fair load (8 + 4 mm at a 25 % stepover on the case
-study): moves over 1.1 s plus the simulation's cell 11 -> 1, widest 3.79 -> 2.95 mm.
+two fronts close in.  In that replay a descent (a ramp, a helix) takes only what it cuts
+at the level: beside a ramp's start the material stands almost as high as before.  At the
+fair load (8 + 4 mm at a 25 % stepover on the case study): moves over 1.1 s plus the
+simulation's cell 11 -> 1, widest 3.79 -> 2.95 mm.
 """
 
 from __future__ import annotations
