@@ -1422,17 +1422,17 @@ class _Job:
         cuts the most of that material within the width, until the feed to b cuts all that
         is left of it within the width; where no step takes any of it within the width, a
         step to the point whose feed to b is the narrowest (:meth:`peel_detour`: a
-        bull-nose's corner shaving the fillets beside); and where none is narrower, a way (a peel of its
-        own, without this fallback) to a lattice point whose feed to b takes what is left
-        within the width (:meth:`peel_approach`: the material left lies where the tool
-        reaches it from b's end only, as a sliver along a wall, which a feed along the wall
-        takes thin and one across it wide); at most PEEL_STEPS feeds and approaches.  The
-        material is that of the replay's ``uncut_level`` grid, where the descents of entries
-        did not cut (a ramp cuts less than the level beside its start).  The region
-        {T <= z} holds the way up to ``slack`` (mm; None: as high as the feed a-b rises over
-        it, :meth:`region_slack`, at most PEEL_SLACK_MM: a contour's corner may stand some
-        hundredths of a mm out, and its feed ends there).  None where no way is found (the
-        replay's grids are then as they were)."""
+        bull-nose's corner shaving the fillets beside); and where none is narrower, a way
+        (a peel of its own, without this fallback) to a lattice point whose feed to b takes
+        what is left within the width (:meth:`peel_approach`: the material left lies where
+        the tool reaches it from b's end only, as a sliver along a wall, which a feed along
+        the wall takes thin and one across it wide); at most PEEL_STEPS feeds and
+        approaches.  The material is that of the replay's ``uncut_level`` grid, where the
+        descents of entries did not cut (a ramp cuts less than the level beside its start).
+        The region {T <= z} holds the way up to ``slack`` (mm; None: as high as the feed
+        a-b rises over it, :meth:`region_slack`, at most PEEL_SLACK_MM: a contour's corner
+        may stand some hundredths of a mm out, and its feed ends there).  None where no way
+        is found (the replay's grids are then as they were)."""
         R, width = self.R, PEEL_WIDTH * self.s
         feed = np.array([a, b])
         if slack is None:
