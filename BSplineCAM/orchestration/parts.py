@@ -2,12 +2,23 @@
 """Parts (STEP, BREP, FreeCAD documents) as core faces for the command line.
 
 :func:`load_faces` reads a part with FreeCAD's OCCT (:mod:`BSplineCAM.app.faces`) and returns
-its faces as core :class:`~BSplineCAM.core.faces.Face` objects, the selected ones marked; it
-runs in this process when FreeCAD loads here (``bin/bsplinecam`` runs in freecadcmd) and in a
-FreeCAD worker otherwise.  :func:`check_part` is ``bsplinecam check PART``: every selected
-face's conversion, and the core's matrix evaluator against FreeCAD's OCCT and cadquery's OCCT
-at the same parameters inside the trim.  Faces cross between processes as
-:func:`~BSplineCAM.core.faces.to_dict` JSON.
+its faces as core :class:`~BSplineCAM.core.faces.Face` objects, the selected ones marked.
+:func:`check_part` is ``bsplinecam check PART``: every selected face's conversion, and the
+core's matrix evaluator against FreeCAD's OCCT and cadquery's OCCT at the same parameters
+inside the trim.  Faces cross between processes as :func:`~BSplineCAM.core.faces.to_dict` JSON.
+
+A part file is always read, and its faces converted, in a FreeCAD worker (FreeCAD's own
+Python, :func:`runtime.freecad_python`), also when FreeCAD is loaded here: a damaged file can
+make OCCT's reader crash (SIGSEGV on a B-spline whose pole list names a non-point entity) or
+run on without end (coordinates out of scale), and neither may take the command down with it.
+A worker is one code path for every caller, costs one start of that Python (1-2 s, small
+beside a toolpath), and its answer is the same JSON the other interpreters already receive;
+a probe child that only reads before an in-process read would cost the same start and read
+the file twice.  A worker killed by a signal, ending without a reply, or still running after
+:func:`part_time_limit` seconds (killed then) becomes one FaceError (exit status 2) naming the
+file: ``PART: cannot read the part: OCCT stopped with signal 11 (SIGSEGV) while reading it``.
+``toolpath`` and ``job`` read the part once more in this process to give CAM's job its model,
+only after the worker has read the same file with the same FreeCAD.
 """
 
 from __future__ import annotations
@@ -39,6 +50,10 @@ RELATIVE_TOLERANCE = 1e-9
 PART_SAMPLES = 31
 #: Worker request kinds handled here (``worker.handle`` passes them on).
 REQUESTS = ("part_faces", "part_check", "evaluate_faces")
+#: Seconds a worker may take to read a part and convert its faces (check: and evaluate them)
+#: before it is killed; BSPLINECAM_PART_TIMEOUT overrides it.
+PART_TIME_LIMIT_S = 300.0
+PART_TIME_LIMIT_ENV = "BSPLINECAM_PART_TIMEOUT"
 
 #: What ``--faces`` may hold: "up", "all" (check only), or 1-based face numbers.
 FacesArg = Union[str, list]
@@ -121,25 +136,44 @@ def load_faces(path: str | os.PathLike, faces: str | None = None,
         return [replace(face, selected=True) for face in load_faces(path, "up", tolerance,
                                                                     option)]
     path = str(path)
-    if runtime.freecad_in_process():
-        from .cli import captured_console, check_interrupted
-
-        with captured_console():
-            found = freecad_faces(path, selection, tolerance)
-        check_interrupted()
-        return found
     reply = _freecad_worker({"op": "part_faces", "path": path,
                              "faces": _selection_text(selection), "tolerance": tolerance})
     return [core_faces.face_from_dict(doc, f"{path} (FreeCAD worker)") for doc in reply["faces"]]
 
 
-def _freecad_worker(request: dict) -> dict:
-    """A FreeCAD worker's reply; its input errors come back as FaceError with its message."""
+def part_time_limit() -> float:
+    """Seconds a part's reading may take: BSPLINECAM_PART_TIMEOUT if set (a positive number),
+    else :data:`PART_TIME_LIMIT_S`."""
+    text = os.environ.get(PART_TIME_LIMIT_ENV, "").strip()
+    if not text:
+        return PART_TIME_LIMIT_S
     try:
-        return runtime.run_worker("freecad", request)
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and np.isfinite(value)):
+        raise ParameterError(f"{PART_TIME_LIMIT_ENV} must be a positive number of seconds, "
+                             f"got {text!r}")
+    return value
+
+
+def _freecad_worker(request: dict) -> dict:
+    """A FreeCAD worker's reply to a request that reads the part ``request["path"]``; its
+    input errors come back as FaceError with its message, and a worker that crashed, ended
+    without a reply or ran past :func:`part_time_limit` as a FaceError naming the file."""
+    path = request["path"]
+    try:
+        return runtime.run_worker("freecad", request, timeout=part_time_limit())
     except BSplineCAMError as exc:
         text = re.sub(r"^freecad worker: (\w*Error: )?", "", str(exc))
         raise FaceError(text) from None
+    except runtime.WorkerStopped as exc:
+        if exc.timed_out:
+            how = (f"did not finish within {exc.time_limit:g} s (the limit is "
+                   f"{PART_TIME_LIMIT_ENV}, in seconds)")
+        else:
+            how = f"stopped with {exc.ending()} while reading it"
+        raise FaceError(f"{path}: cannot read the part: OCCT {how}") from None
 
 
 def _name_file(path: str, exc: FaceError) -> FaceError:
@@ -268,16 +302,9 @@ def check_part(path: str, faces: str | None, samples: int = PART_SAMPLES,
     built in OCP) at the sample parameters, relative to the face's size; ``ok`` when every
     relative deviation is at most :data:`RELATIVE_TOLERANCE`."""
     selection = parse_faces(faces, allow_all=True, default="all")
-    if runtime.freecad_in_process():
-        from .cli import captured_console, check_interrupted
-
-        with captured_console():
-            fc = freecad_check(path, selection, tolerance, samples)
-        check_interrupted()
-    else:
-        fc = _freecad_worker({"op": "part_check", "path": path,
-                              "faces": _selection_text(selection), "tolerance": tolerance,
-                              "samples": samples})
+    fc = _freecad_worker({"op": "part_check", "path": str(path),
+                          "faces": _selection_text(selection), "tolerance": tolerance,
+                          "samples": samples})
     docs = [record["face"] for record in fc["faces"]]
     uvs = [record["uv"] for record in fc["faces"]]
     if runtime.cadquery_in_process():
@@ -458,6 +485,6 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
         FreeCAD.closeDocument(doc.Name)
 
 
-__all__ = ["PART_SAMPLES", "PART_SUFFIXES", "RELATIVE_TOLERANCE", "REQUESTS", "check_part",
-           "evaluate_faces", "freecad_check", "freecad_faces", "handle", "is_part",
-           "load_faces", "machine_faces", "parse_faces", "post_toolpath"]
+__all__ = ["PART_SAMPLES", "PART_SUFFIXES", "PART_TIME_LIMIT_S", "RELATIVE_TOLERANCE", "REQUESTS",
+           "check_part", "evaluate_faces", "freecad_check", "freecad_faces", "handle", "is_part",
+           "load_faces", "machine_faces", "parse_faces", "part_time_limit", "post_toolpath"]
