@@ -129,7 +129,7 @@ def _doc(rng):
     (lambda d: d["surface"].update(poles="x"), r"Face2: surface poles"),
     (lambda d: d["surface"].update(weights=[[1.0]]), r"Face2: surface weights have shape"),
     (lambda d: d["surface"]["weights"][0].__setitem__(0, -1.0), r"weights must be positive"),
-    (lambda d: d["surface"].update(degree_u=17), r"Face2: surface: .*degree_u"),
+    (lambda d: d["surface"].update(degree_u=26), r"Face2: surface: .*degree_u"),
     (lambda d: d.update(outer=[[0, 0], [1, 0], [1, 1]]), r"Face2: outer loop is empty"),
     (lambda d: d.update(outer=[[0, 0], [1, 0], [1, "a"], [0, 0]]), r"Face2: outer must be"),
     (lambda d: d.update(holes={}), r"holes must be a list"),

@@ -402,10 +402,13 @@ def test_weights_make_an_exact_circle():
     np.testing.assert_allclose(np.abs(normals[:, :2]), np.abs(pts[:, :2]), atol=1e-13)
 
 
-@pytest.mark.parametrize("degree", [10, 14, 16])
+@pytest.mark.parametrize("degree", [10, 14, 16, 20, 25])
 def test_high_degrees_as_step_files_hold_them(degree):
-    """OCCT writes degrees up to 25 (a sphere's fillet: 10, a loft: 14); up to 16 against
-    Cox-de Boor and, where the venv has it, OCCT, rational and with an interior knot."""
+    """OCCT writes degrees up to 25 (a sphere's fillet: 10, a loft: 14): within 1e-12 of the
+    size against Cox-de Boor, rational and with an interior knot.  OCCT's own evaluation
+    (Geom_BSplineSurface::D2, a Taylor form per span) drifts from Cox-de Boor at high degrees
+    (about 1.5e-10 mm at degree 14, 1e-5 mm at 25 on this ~90 mm surface): where the venv has
+    it, ours must be as close to OCCT as Cox-de Boor is, to 1e-12 of the size."""
     rng = np.random.default_rng(degree)
     ku = expand_knots([0.0, 0.6, 1.0], [degree + 1, 2, degree + 1])
     kv = expand_knots([0.0, 1.0], [4, 4])
@@ -413,13 +416,21 @@ def test_high_degrees_as_step_files_hold_them(degree):
     args = dict(poles=rng.normal(scale=10.0, size=(n, 4, 3)), knots_u=ku, knots_v=kv,
                 degree_u=degree, degree_v=3, weights=rng.uniform(0.5, 2.0, (n, 4)))
     s = NurbsSurface(**args)
-    u, v = sample_params(s, rng)
+    u, v = sample_params(s, rng, 30, knots=False)
     ref = reference(s, u, v)
     d = s.derivatives(u, v)
     for order, field in zip(ORDERS, FIELDS):
-        assert_close(getattr(d, field), ref[order], s.size(), label=f"degree {degree} {field}")
+        assert_close(getattr(d, field), ref[order], s.size(), rel=1e-12,
+                     label=f"degree {degree} {field}")
     if os.environ.get("BSPLINECAM_REQUIRE_ALL") or _has_ocp():
-        check_occt(occ_module(), args, degree)
+        occ = occ_module()
+        expected = occ.nurbs_d2(occ.nurbs_geom(**args), u, v)
+        for order, field, theirs in zip(ORDERS, FIELDS, expected):
+            scale = max(s.size(), float(np.abs(ref[order]).max()))
+            occt_error = float(np.abs(theirs - ref[order]).max())
+            err = float(np.abs(getattr(d, field) - theirs).max())
+            assert err <= occt_error + 1e-12 * scale, \
+                f"OCCT {field}: {err:.3g} from ours, {occt_error:.3g} from Cox-de Boor"
 
 
 def _has_ocp() -> bool:
@@ -454,8 +465,8 @@ GOOD = dict(poles=np.zeros((4, 3, 3)), knots_u=[0, 0, 0, 0, 1, 1, 1, 1],
     (dict(knots_u=[0, 0, 0, 0, 1, 1, 1]), r"len\(knots\) must be poles \+ degree \+ 1 = 4 \+ 3"),
     (dict(knots_u=[0, 0, 0, 0, np.nan, 1, 1, 1]), r"knot 4 is nan"),
     (dict(knots_u=[1.0] * 8), r"no interval"),
-    (dict(degree_u=0), r"degree_u is 0, expected an integer from 1 to 16"),
-    (dict(degree_v=17), r"degree_v is 17"),
+    (dict(degree_u=0), r"degree_u is 0, expected an integer from 1 to 25"),
+    (dict(degree_v=26), r"degree_v is 26"),
     (dict(degree_u=2.5), r"degree_u is 2.5"),
     (dict(weights=np.ones((4, 2))), r"weights must have shape \(4, 3\)"),
     (dict(weights=np.r_[np.ones(11), 0.0].reshape(4, 3)), r"weight \(3, 2\) is 0.0"),

@@ -1,25 +1,34 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """NURBS surfaces of any degree by the paper's matrix method, one matrix per knot span.
 
-The paper (appendix A, eq. A.2) writes a uniform cubic patch as ``[U][MB][P][MB]^T[W]^T``.
-Here every knot span ``[t_k, t_{k+1})`` of any degree ``p`` and any knot vector has its own
-(p+1)x(p+1) matrix ``M_k``: with the span's local parameter ``s = (u - t_k) / h_k`` in [0, 1]
-(``h_k = t_{k+1} - t_k``), the row vector ``[1 s s^2 ... s^p] @ M_k`` holds the p+1 basis
-functions ``N_{k-p..k, p}`` that are non-zero on the span.  ``M_k`` is the Taylor expansion of
-those functions at the span start::
+The paper (appendix A, eq. A.2) writes a uniform cubic patch as ``[U][MB][P][MB]^T[W]^T``: a row
+of basis polynomials times a basis matrix times the patch's poles.  Here every knot span
+``[t_k, t_{k+1})`` of any degree ``p`` and any knot vector has its own (p+1)x(p+1) matrix, and
+the row holds the span's **Bernstein** polynomials ``B_{i,p}(s)`` of the local parameter
+``s = (u - t_k) / h_k`` in [0, 1] (``h_k = t_{k+1} - t_k``)::
 
-    M_k[r, l] = N^{(r)}_{k-p+l, p}(t_k) * h_k^r / r!
+    [B_{0,p}(s) ... B_{p,p}(s)] @ E_k = [N_{k-p,p}(u) ... N_{k,p}(u)]
 
-with the derivatives from "The NURBS Book" (Piegl & Tiller, 2nd ed.) algorithm A2.3
-(DersBasisFuns, which contains A2.2, BasisFuns).  Rows run in *ascending* powers of s, so for
-the paper's uniform cubic knots ``M_k == MB[::-1]`` (the paper lists s^3 first); see
-:func:`span_matrices`.
+``E_k`` is the span's Bezier extraction matrix: ``E_k @ P_{k-p..k}`` are the Bezier control
+points of the span ("The NURBS Book", Piegl & Tiller, 2nd ed., A5.6 DecomposeCurve).  Its
+column l is the Bezier form of ``N_{k-p+l,p}`` on the span, computed by blossoming: Bezier
+point i is the blossom ``N(t_k^(p-i), t_{k+1}^i)``, evaluated by de Boor's triangle with one
+argument per level, whose weights all lie in [0, 1] (:func:`bernstein_span_matrices`).
 
-A patch is ``[S] M_i P_ij M_j^T [T]^T``; the products ``C_ij = M_i P_ij M_j^T`` are computed once
-per surface for x, y, z and (rational surfaces) the weight, i.e. in homogeneous coordinates
-``(w x, w y, w z, w)``, and evaluated by Horner's rule in s and t.  Rational values and
-derivatives follow from the homogeneous ones by the quotient rule ("The NURBS Book" eq. 4.20,
-algorithm A4.4).  Grids are evaluated in two banded stages like :func:`matrix.grid_planes`.
+Why Bernstein and not the paper's power basis ``[1 s ... s^p]`` (whose matrices are the Taylor
+coefficients of the basis functions, :func:`span_matrices`; for uniform cubic knots they are
+the paper's MB): the power basis on [0, 1] has a condition number that grows like ``3^p``, so
+a degree-14 rational blend lost about 1e-9 of its size in the power coefficients and in their
+conversion to Bezier points, and degree 25 about 1e-7.  Bernstein values come from de
+Casteljau's triangle (sums of non-negative terms: A1.3 AllBernstein), their derivatives from
+differences of lower-degree ones (``d/ds B_{i,p} = p (B_{i-1,p-1} - B_{i,p-1})``), and points
+and derivatives hold about 1e-15 of the surface's size at every degree OCCT writes (1 to 25).
+
+A patch is ``[B(s)] E_i P_ij E_j^T [B(t)]^T``; the products ``C_ij = E_i P_ij E_j^T`` (the
+patch's Bezier control points) are computed once per surface for x, y, z and (rational
+surfaces) the weight, i.e. in homogeneous coordinates ``(w x, w y, w z, w)``.  Rational values
+and derivatives follow from the homogeneous ones by the quotient rule ("The NURBS Book" eq.
+4.20, algorithm A4.4).  Grids are evaluated in two banded stages like :func:`matrix.grid_planes`.
 
 Periodic surfaces arrive in OCCT's (and FreeCAD's) form -- ``n`` distinct poles, the knots of one
 period with the first and last multiplicity equal (``len(knots) = n + mult_last``) -- and are
@@ -41,10 +50,9 @@ from .matrix import DEGENERATE_NORMAL
 from .numeric import clamp
 from .typing import ArrayLike, FloatArray, IntArray
 
-#: Degrees accepted in each direction.  OCCT writes up to 25 (a sphere's fillet: 10, a loft:
-#: 14); the per-span power basis holds 1e-9 of the surface's size against Cox-de Boor up to
-#: degree 16 (about 1.5e-10 at 14 to 16, 2e-9 at 19, 2e-7 at 24).
-MIN_DEGREE, MAX_DEGREE = 1, 16
+#: Degrees accepted in each direction: every degree OCCT allows (Geom_BSplineSurface's
+#: MaxDegree() is 25; a sphere's fillet is 10, a corner blend or a loft 14).
+MIN_DEGREE, MAX_DEGREE = 1, 25
 
 #: Bytes of patch coefficients gathered at once by scattered evaluation: the chunk of points
 #: is sized so that the gathered (m, q+1, (p+1) d) block stays in cache.
@@ -195,7 +203,8 @@ def ders_basis_funs(span: int, u: float, degree: int, n_ders: int,
 
 
 def span_matrices(knots: ArrayLike, degree: int) -> FloatArray:
-    """Power-basis matrices M_k of every span k = p .. n-1: shape (n - p, p+1, p+1).
+    """Power-basis matrices M_k of every span k = p .. n-1: shape (n - p, p+1, p+1): the
+    paper's form (the evaluator takes the better-conditioned :func:`bernstein_span_matrices`).
 
     ``[1 s ... s^p] @ M[k - p]`` are the basis functions N_{k-p .. k} on span k at local
     parameter s = (u - t_k) / (t_{k+1} - t_k).  Row r is the s^r coefficient (the paper's MB
@@ -215,60 +224,89 @@ def span_matrices(knots: ArrayLike, degree: int) -> FloatArray:
     return out
 
 
-def _power_to_bernstein(degree: int) -> FloatArray:
-    """Matrix B with b = B @ a: Bernstein (Bezier) coefficients of sum_r a_r s^r on [0, 1]
-    (b_i = sum_{r<=i} C(i, r) / C(p, r) a_r; "The NURBS Book" sec. 1.4 / 6.6)."""
-    p = degree
-    out = np.zeros((p + 1, p + 1))
+def bernstein_span_matrices(knots: ArrayLike, degree: int) -> FloatArray:
+    """Bezier extraction matrices E_k of every span k = p .. n-1: shape (n - p, p+1, p+1).
+
+    ``[B_{0,p}(s) ... B_{p,p}(s)] @ E[k - p]`` are the basis functions N_{k-p .. k} on span k
+    at local parameter s = (u - t_k) / (t_{k+1} - t_k); ``E[k - p] @ P[k-p .. k]`` are the
+    span's Bezier control points.  Row i is the blossom of the span's basis functions at
+    (t_k repeated p - i times, t_{k+1} repeated i times), by de Boor's triangle with the i-th
+    argument list: every weight ``(x - t_j) / (t_{j+p+1-r} - t_j)`` lies in [0, 1], so each
+    entry is a convex combination and keeps full precision at any degree.  Empty spans
+    (repeated knots) get zero matrices; they are never located.
+    """
+    knots = np.asarray(knots, dtype=float)
+    p = int(degree)
+    count = len(knots) - p - 1
+    out = np.zeros((count - p, p + 1, p + 1))
+    k = np.arange(p, count)
+    k = k[knots[k + 1] > knots[k]]
+    if not len(k):
+        return out
+    lo, hi = knots[k], knots[k + 1]
+    j = np.arange(p + 1)
     for i in range(p + 1):
-        for r in range(i + 1):
-            out[i, r] = comb(i, r) / comb(p, r)
+        d = np.broadcast_to(np.eye(p + 1), (len(k), p + 1, p + 1)).copy()  # (span, j, column)
+        for r in range(1, p + 1):
+            x = lo if r <= p - i else hi  # the blossom's r-th argument
+            first = k[:, None] - p + j[None, r:]  # global index of the poles j = r .. p
+            left = knots[first]
+            alpha = (x[:, None] - left) / (knots[first + p + 1 - r] - left)
+            d[:, r:] = (1.0 - alpha)[..., None] * d[:, r - 1 : -1] + alpha[..., None] * d[:, r:]
+        out[k - p, i] = d[:, p]
     return out
 
 
-def _derivative_factors(degree: int, order: int) -> FloatArray:
-    """d^order/ds^order of s^a is a!/(a-order)! s^(a-order): the factors for a = order..p."""
-    return np.array([factorial(a) / factorial(a - order) for a in range(order, degree + 1)])
+def _bernstein_table(s: FloatArray, degree: int, orders) -> dict:
+    """{k: (p+1, m)}: the Bernstein polynomials B_{0..p,p}(s) (k = 0) or their k-th derivative
+    in s, for each k in ``orders``.  Values by de Casteljau's triangle ("The NURBS Book" A1.3,
+    raised in place one degree at a time), derivatives by ``d/ds B_{i,n} = n (B_{i-1,n-1} -
+    B_{i,n-1})`` applied k times to the triangle's row of degree p - k."""
+    s = np.asarray(s, dtype=float)
+    t = 1.0 - s
+    p = degree
+    wanted = sorted({int(k) for k in orders})
+    rows = np.zeros((p + 1, len(s)))
+    rows[0] = 1.0
+    out = {}
+    for n in range(0, p + 1):
+        if n:  # raise rows[0 .. n-1] (degree n-1) to degree n
+            rows[n] = s * rows[n - 1]
+            for i in range(n - 1, 0, -1):
+                rows[i] *= t
+                rows[i] += s * rows[i - 1]
+            rows[0] *= t
+        k = p - n
+        if k in wanted:
+            table = rows.copy()
+            for level in range(n + 1, p + 1):  # differentiate, degree level - 1 -> level
+                table[level] = level * table[level - 1]
+                for i in range(level - 1, 0, -1):
+                    table[i] = level * (table[i - 1] - table[i])
+                table[0] *= -level
+            out[k] = table
+    for k in wanted:
+        if k > p:
+            out[k] = np.zeros((p + 1, len(s)))
+    return out
 
 
-def _horner(coef: FloatArray, s: FloatArray, orders, scale: FloatArray) -> dict:
+def _bernstein_rows(s: FloatArray, degree: int, order: int) -> FloatArray:
+    """The Bernstein polynomials B_{0..p,p}(s) or their ``order``-th derivative in s:
+    shape (m, p+1) (:func:`_bernstein_table`)."""
+    return _bernstein_table(s, degree, (order,))[order].T
+
+
+def _bernstein_sum(coef: FloatArray, s: FloatArray, orders, scale: FloatArray) -> dict:
     """Derivatives d^k/ds^k (k in ``orders``) times ``scale**k`` of the polynomials whose
-    ascending power coefficients run along axis 1 of ``coef`` (m, p+1, n): {k: (m, n)}.
-
-    One Horner pass carries every order at once (p_k <- p_k s + p_{k-1}, then
-    p_0 <- p_0 s + c_a; the k-th derivative is k! p_k), with no per-order coefficient copies.
-    """
-    m, p1, n = coef.shape
-    top = max(orders)
-    acc = [coef[:, p1 - 1].copy()] + [np.zeros((m, n)) for _ in range(min(top, p1 - 1))]
-    s = s[:, None]
-    for a in range(p1 - 2, -1, -1):
-        for k in range(len(acc) - 1, 0, -1):
-            acc[k] *= s
-            acc[k] += acc[k - 1]
-        acc[0] *= s
-        acc[0] += coef[:, a]
+    Bernstein coefficients run along axis 1 of ``coef`` (m, p+1, n): {k: (m, n)}."""
+    table = _bernstein_table(s, coef.shape[1] - 1, orders)
     out = {}
     for k in orders:
-        if k >= len(acc):
-            out[k] = np.zeros((m, n))
-        else:
-            out[k] = acc[k]
-            if k:
-                out[k] *= (factorial(k) * scale**k)[:, None]
-    return out
-
-
-def _power_rows(s: FloatArray, degree: int, order: int) -> FloatArray:
-    """[1 s ... s^p] or its ``order``-th derivative in s: shape (m, p+1)."""
-    out = np.zeros((len(s), degree + 1))
-    if order > degree:
-        return out
-    factors = _derivative_factors(degree, order)
-    power = np.ones_like(s)
-    for a in range(order, degree + 1):
-        out[:, a] = factors[a - order] * power
-        power = power * s
+        acc = np.einsum("am,man->mn", table[k], coef)
+        if k:
+            acc *= (scale**k)[:, None]
+        out[k] = acc
     return out
 
 
@@ -277,7 +315,7 @@ def _power_rows(s: FloatArray, degree: int, order: int) -> FloatArray:
 class _Direction:
     knots: FloatArray  # non-periodic flat knots
     degree: int
-    matrices: FloatArray  # (count - p, p+1, p+1)
+    matrices: FloatArray  # (count - p, p+1, p+1): Bezier extraction matrices
 
     @property
     def count(self) -> int:
@@ -306,7 +344,7 @@ class _Direction:
     def weights(self, t: FloatArray, order: int) -> tuple[IntArray, FloatArray]:
         """First pole index and the p+1 basis values (or d^order/du^order) per parameter."""
         span, s, inv_h = self.locate(t)
-        rows = _power_rows(s, self.degree, order) * (inv_h**order)[:, None]
+        rows = _bernstein_rows(s, self.degree, order) * (inv_h**order)[:, None]
         return span, np.einsum("ma,mal->ml", rows, self.matrices[span])
 
 
@@ -341,8 +379,8 @@ class BezierPatches:
 
 
 class NurbsSurface:
-    """A tensor-product NURBS surface of degrees 1..16 in u and v, evaluated per span by
-    the paper's matrix form ``[S] M_i P_ij M_j^T [T]^T``.
+    """A tensor-product NURBS surface of degrees 1..25 in u and v, evaluated per span by
+    the paper's matrix form in the Bernstein basis, ``[B(s)] E_i P_ij E_j^T [B(t)]^T``.
 
     ``poles`` (n, m, 3) mm, ``knots_u``/``knots_v`` full flat knot vectors (multiplicities
     expanded, :func:`expand_knots`), ``weights`` (n, m) > 0 or None.  Periodic directions take
@@ -424,8 +462,8 @@ class NurbsSurface:
             a.setflags(write=False)
         if self.weights is not None:
             self.weights.setflags(write=False)
-        self._u = _Direction(ku, degrees[0], span_matrices(ku, degrees[0]))
-        self._v = _Direction(kv, degrees[1], span_matrices(kv, degrees[1]))
+        self._u = _Direction(ku, degrees[0], bernstein_span_matrices(ku, degrees[0]))
+        self._v = _Direction(kv, degrees[1], bernstein_span_matrices(kv, degrees[1]))
 
     # -- construction ------------------------------------------------------------------------
     @classmethod
@@ -454,7 +492,8 @@ class NurbsSurface:
         return self._u.domain, self._v.domain
 
     def span_matrices(self) -> tuple[FloatArray, FloatArray]:
-        """The per-span matrices M_i along u and M_j along v (see :func:`span_matrices`)."""
+        """The per-span matrices E_i along u and E_j along v that the evaluator uses
+        (:func:`bernstein_span_matrices`)."""
         return self._u.matrices, self._v.matrices
 
     def size(self) -> float:
@@ -472,9 +511,10 @@ class NurbsSurface:
 
     @cached_property
     def patch_coefficients(self) -> FloatArray:
-        """C_ij = M_i P_ij M_j^T for every span pair: shape (spans_u, spans_v, p+1, q+1, d).
+        """C_ij = E_i P_ij E_j^T for every span pair: shape (spans_u, spans_v, p+1, q+1, d).
 
-        ``C[i, j, a, b]`` is the s^a t^b coefficient of patch (i, j) in homogeneous coordinates.
+        ``C[i, j, a, b]`` is the Bezier control point of Bernstein indices (a, b) of patch
+        (i, j) in homogeneous coordinates (the coefficient of B_{a,p}(s) B_{b,q}(t)).
         """
         p, q = self.degree_u, self.degree_v
         blocks = np.lib.stride_tricks.sliding_window_view(
@@ -518,7 +558,7 @@ class NurbsSurface:
     def _homogeneous_scattered(self, u: FloatArray, w: FloatArray,
                                orders: list[tuple[int, int]]) -> dict:
         """Homogeneous partial derivatives at scattered points (flat u, w), per order: each
-        point gathers its patch's C_ij, Horner in t along v, then Horner in s along u."""
+        point gathers its patch's C_ij, sums the Bernstein rows in t along v, then in s."""
         table = self._scatter_table
         d = self.homogeneous.shape[-1]
         spans_v = len(self._v.matrices)
@@ -530,10 +570,10 @@ class NurbsSurface:
             iu, su, hu = self._u.locate(u[sl])
             iv, sv, hv = self._v.locate(w[sl])
             coef = table[iu * spans_v + iv]  # (m, q+1, (p+1) d): each point's own patch
-            planes = _horner(coef, sv, t_orders, hv)  # {b: (m, (p+1) d)}
+            planes = _bernstein_sum(coef, sv, t_orders, hv)  # {b: (m, (p+1) d)}
             for b in t_orders:
                 s_orders = sorted({a for a, bb in orders if bb == b})
-                values = _horner(planes[b].reshape(len(iu), -1, d), su, s_orders, hu)
+                values = _bernstein_sum(planes[b].reshape(len(iu), -1, d), su, s_orders, hu)
                 for a in s_orders:
                     outs[(a, b)][sl] = values[a]
         return outs
@@ -564,7 +604,7 @@ class NurbsSurface:
 
     # -- grids -------------------------------------------------------------------------------
     def _stage1(self, u: FloatArray, order: int) -> FloatArray:
-        """[S] M_i applied along u (p+1 pole rows per sample): (n_v, d * len(u)), laid out
+        """[B(s)] E_i applied along u (p+1 pole rows per sample): (n_v, d * len(u)), laid out
         coordinate-major within a row (planes of len(u) values)."""
         net = self.homogeneous
         n_v, d = net.shape[1], net.shape[2]
@@ -592,7 +632,7 @@ class NurbsSurface:
                           orders: list[tuple[int, int]]) -> dict:
         """Homogeneous partial derivatives on the grid u x w as planes (len(w), d, len(u)).
 
-        Stage 1 applies [S] M_i along u (p+1 pole rows per sample), stage 2 ([T] M_j)^T along v
+        Stage 1 applies [B(s)] E_i along u (p+1 pole rows per sample), stage 2 ([B(t)] E_j)^T along v
         span by span: the samples of v-span j need only pole columns j .. j+q, so each span is
         one small BLAS product writing a contiguous block of output rows (as
         :func:`matrix.grid_planes` does for the cubic case).
@@ -731,14 +771,10 @@ class NurbsSurface:
 
     # -- Bezier form and bounds --------------------------------------------------------------
     def bezier_patches(self) -> BezierPatches:
-        """Bezier control points of every non-empty span pair, from the power-basis patch
-        coefficients: B_u C_ij B_v^T with the power-to-Bernstein matrices (the result equals
-        "The NURBS Book" A5.7's knot-insertion decomposition)."""
+        """Bezier control points of every non-empty span pair: the patch coefficients
+        E_i P_ij E_j^T ("The NURBS Book" A5.7's decomposition, by blossoming)."""
         iu, iv = self._u.nonempty, self._v.nonempty
-        coef = self.patch_coefficients[np.ix_(iu, iv)]
-        bu = _power_to_bernstein(self.degree_u)
-        bv = _power_to_bernstein(self.degree_v)
-        hom = np.einsum("ia,xyabc,jb->xyijc", bu, coef, bv, optimize=True)
+        hom = self.patch_coefficients[np.ix_(iu, iv)]
         if self.rational:
             weights = hom[..., 3]
             points = hom[..., :3] / weights[..., None]
