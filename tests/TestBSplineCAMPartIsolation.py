@@ -3,9 +3,9 @@
 
 Damaged copies of examples/part.step are made here at test time: truncations, garbage bytes,
 an empty file, changed numbers in B_SPLINE and CARTESIAN_POINT entities and broken entity
-references.  A B-spline whose pole list names a DIRECTION makes FreeCAD 0.20's OCCT reader
-segfault, and so does a block of garbage bytes in the middle; rescaled coordinates keep it
-busy for minutes.  Two test hooks of the worker stand in for a broken reader on any FreeCAD:
+references.  A block of garbage bytes in the middle makes OCCT's reader segfault in FreeCAD
+0.20, 1.0 and 1.1, a B-spline whose pole list names a DIRECTION in FreeCAD 0.20; rescaled
+coordinates keep it busy for minutes.  Two test hooks of the worker stand in for a broken reader on any FreeCAD:
 BSPLINECAM_TEST_CRASH_READ=1 (SIGSEGV) and BSPLINECAM_TEST_HANG_READ=1 (sleeps).  Every
 command that reads a part (check, toolpath, verify, job) must then exit with status 2 and
 one stderr line naming the file, no traceback, nothing in --out, within a bounded time.
@@ -117,8 +117,8 @@ DAMAGES = {
     "truncated-77%": (_truncate(0.77), True),
     "truncated-99.9%": (_truncate(0.999), True),
     "garbage": (lambda data: bytes(range(256)) * 50, True),
-    "garbage-block-42%": (_garbage_block(0.42), True),  # SIGSEGV in FreeCAD 0.20's OCCT
-    "garbage-block-60%": (_garbage_block(0.60), True),  # SIGSEGV in FreeCAD 0.20's OCCT
+    "garbage-block-42%": (_garbage_block(0.42), True),  # SIGSEGV in FreeCAD 0.20, 1.0, 1.1
+    "garbage-block-60%": (_garbage_block(0.60), True),  # SIGSEGV in FreeCAD 0.20, 1.0, 1.1
     "surface-degree-30": (lambda t: _sub_once(r"(B_SPLINE_SURFACE_WITH_KNOTS\('',)\d+",
                                               r"\g<1>30", t), False),
     "curve-multiplicity-70": (lambda t: _sub_once(
@@ -138,7 +138,8 @@ DAMAGES = {
 }
 #: Damages that keep OCCT busy for minutes: run under a short time limit.
 HANGING = {"digits-rescaled": (_digits_rescaled, False)}
-#: Damages that crash FreeCAD 0.20's OCCT reader; toolpath (and check) run over these.
+#: Damages that crash FreeCAD 0.20's OCCT reader (the first also 1.0's and 1.1's); toolpath
+#: (and check) run over these.
 CRASHING = ("garbage-block-42%", "surface-pole-is-direction", "curve-pole-is-direction",
             "rational-pole-is-direction")
 
@@ -284,8 +285,8 @@ def test_isolated(runs, ident, bound):
 
 @needs_freecad
 def test_crashing_damages_crash_the_reader(runs):
-    """At least one damaged copy really kills FreeCAD's OCCT reader with SIGSEGV (FreeCAD 0.20
-    and newer): the isolation is needed, not only the hooks."""
+    """At least one damaged copy really kills FreeCAD's OCCT reader with SIGSEGV (the garbage
+    block does in FreeCAD 0.20, 1.0 and 1.1): the isolation is needed, not only the hooks."""
     lines = [runs[f"check-{name}"].stderr for name in CRASHING]
     assert any(SIGSEGV_LINE in line for line in lines), lines
 
