@@ -11,10 +11,12 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 
 import numpy as np
 import pytest
 
+from BSplineCAM.core import face_import
 from BSplineCAM.core import faces as cf
 from BSplineCAM.core.faces import Face, FaceError
 from BSplineCAM.core.nurbs import NurbsSurface
@@ -449,3 +451,79 @@ def test_ocp_bad_input(ocp, tmp_path):
         ocp.faces_from_shape(box, [20])
     with pytest.raises(FaceError, match=r"Face\d is not reachable from above"):
         ocp.faces_from_shape(box, [1])
+
+
+# -- "up" up to the model's tolerance (core.faces.reach) -----------------------------------------
+def _blend_foot(tilt: float, radius: float = 3.0, rows: int = 40):
+    """Normals' z and heights of a quarter-round blend of ``radius`` (mm) standing on a wall:
+    its profile turns from the horizontal at the top to ``tilt`` rad below it at the foot."""
+    angle = np.linspace(np.pi / 2, -tilt, rows)  # the normal's angle above the horizontal
+    return np.sin(angle), radius * np.sin(angle)
+
+
+def test_reach_accepts_a_blend_whose_foot_tilts_within_the_model_tolerance():
+    """A blend's foot 1.1e-5 rad below the horizontal on a 3 mm radius: the part that faces down
+    is ~3e-5 mm tall, its overhang ~1e-10 mm (estimated with half a spacing beyond each end),
+    far inside a model tolerance of 1e-5 mm."""
+    nz, z = _blend_foot(1.1e-5)
+    assert cf.reach(nz, z, 1e-5, spacing=0.5) == (True, "")
+
+
+def test_reach_refuses_a_drafted_undercut_with_its_overhang():
+    """A plane drafted 1 degree the wrong way, 20 mm tall: it overhangs by 20 tan(1 deg) = 0.35
+    mm, named in the message."""
+    z = np.linspace(0.0, 20.0, 15)
+    nz = np.full_like(z, -np.sin(np.radians(1.0)))
+    up, why = cf.reach(nz, z, 1e-5, spacing=20.0 / 14)
+    assert not up
+    overhang = float(re.search(r"overhangs by about ([0-9.e+-]+) mm", why).group(1))
+    # the samples span 20 mm, plus half a spacing beyond each end
+    assert overhang == pytest.approx(np.tan(np.radians(1.0)) * (20.0 + 20.0 / 14), rel=1e-3)
+    assert "model's tolerance 1e-05 mm" in why
+
+
+@pytest.mark.parametrize("tolerance, up", [(1e-6, False), (1e-4, True)])
+def test_reach_follows_the_model_tolerance(tolerance, up):
+    """The same slight undercut (normal z = -2e-6 over 5 mm: an overhang of about 1e-5 mm) is an
+    undercut for a model held to 1 um and vertical for one held to 0.1 mm."""
+    z = np.linspace(0.0, 5.0, 11)
+    nz = np.concatenate([np.full(11, -2e-6), [0.5]])
+    assert cf.reach(nz, np.concatenate([z, [5.0]]), tolerance, spacing=0.5)[0] is up
+
+
+def test_reach_bottoms_walls_and_no_normal():
+    assert cf.reach([-1.0, -1.0], [0.0, 0.0], 1.0, 1.0) == (
+        False, "its outward normal points down (normal z = -1)")
+    assert cf.reach([0.0, 1e-12, -1e-12], [0.0, 1.0, 2.0], 1e-5, 1.0)[1].startswith(
+        "it is vertical")
+    assert cf.reach([], [], 1e-5, 1.0) == (False, "its normal is defined nowhere")
+    # the floor: a model tolerance of 0 counts as OCCT's Precision::Confusion (1e-7 mm)
+    assert cf.reach([-1e-8, 1.0], [0.0, 1.0], 0.0, 1.0)[0] is True
+
+
+# -- faces accepted by the machining's chordal tolerance (core.face_import) ----------------------
+@pytest.mark.parametrize("measured, chordal, refused", [
+    (1.02e-8, 0.002, False),   # the 10 nm of a degree-14 blend: accepted, and kept
+    (1.9e-5, 0.002, False),    # just inside 1 % of 2 um
+    (2.1e-5, 0.002, True),     # just outside
+    (2.1e-5, 0.01, False),     # a coarser tolerance allows more
+    (1.0, None, False),        # check: measured, never refused
+])
+def test_faces_are_accepted_by_the_chordal_tolerance(measured, chordal, refused):
+    x, y = np.meshgrid([0.0, 40.0], [0.0, 30.0], indexing="ij")
+    data = dict(poles=np.stack([x, y, 0.1 * x], axis=-1), weights=None, knots_u=[0, 0, 1, 1],
+                knots_v=[0, 0, 1, 1], degree_u=1, degree_v=1)
+    outer = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
+    kwargs = dict(index=3, name="Face3", kind="BSplineSurface", selected=True, tolerance=1e-3,
+                  chordal_tolerance=chordal)
+    if refused:
+        with pytest.raises(FaceError, match=(
+                rf"Face3 \(BSplineSurface\): its NURBS is {measured:.3g} mm from OCCT's original"
+                rf" surface .*more than {0.01 * chordal:.3g} mm, 1% of the chordal tolerance "
+                rf"{chordal:g} mm")):
+            face_import.checked_face(dict(data), outer, [], False, lambda face: measured, 50.0,
+                                     **kwargs)
+    else:
+        face = face_import.checked_face(dict(data), outer, [], False, lambda face: measured,
+                                        50.0, **kwargs)
+        assert face.deviation == measured

@@ -174,8 +174,9 @@ def _plane_face() -> Face:
     return Face(surface, outer, index=1, source="Plane")
 
 
-@pytest.mark.parametrize("error, ok", [(0.0, True), (2e-8, True), (1e-7, False)])
-def test_check_verdict(monkeypatch, error, ok):
+@pytest.mark.parametrize("error, ok, machinable", [
+    (0.0, True, True), (2e-8, True, True), (1e-7, False, True), (3e-5, False, False)])
+def test_check_verdict(monkeypatch, error, ok, machinable):
     """Closed form: the plane z = 0.1 x + 2 over 40 x 30 mm; the fake FreeCAD answers it exactly
     plus ``error`` mm in z, the fake cadquery exactly; the size is the box diagonal."""
     face = _plane_face()
@@ -193,12 +194,36 @@ def test_check_verdict(monkeypatch, error, ok):
         "points": [exact.tolist()], "version": "y"})
     report = parts.check_part("fake.step", None, 5)
     assert report["ok"] is ok
+    assert report["over_strict_limit"] == ([] if ok else ["Face1"])
+    assert report["acceptance_limit_mm"] == pytest.approx(2e-5)  # 1 % of 0.002 mm
     (record,) = report["faces"]
+    assert record["machinable"] is machinable
+    assert record["cox_de_boor_max_mm"] < 1e-12
     assert record["freecad_max_mm"] == pytest.approx(error, abs=1e-12)
     assert record["cadquery_max_mm"] < 1e-12
     assert record["relative_max"] == pytest.approx(error / size, abs=1e-15)
     assert (record["source"], record["degree_u"], record["poles"], record["rational"],
             record["holes"]) == ("Plane", 1, [2, 2], False, 0)
+
+
+def test_check_reports_a_face_that_cannot_be_built(monkeypatch):
+    """A face whose conversion fails is reported with its error beside the others' figures; the
+    verdict names it."""
+    face = _plane_face()
+    uv = sample_points(face, 5)
+    exact = np.column_stack([40 * uv[:, 0], 30 * uv[:, 1], 4 * uv[:, 0] + 2.0])
+    fc = {"freecad": "x", "face_count": 2, "faces": [
+        {"face": to_dict(face), "size_mm": 50.0, "uv": uv.tolist(),
+         "freecad_points": exact.tolist()},
+        {"index": 2, "error": "Face2 (Torus): OCCT's NURBS conversion failed (x)"}]}
+    monkeypatch.setattr(runtime, "cadquery_in_process", lambda: False)
+    monkeypatch.setattr(parts, "_freecad_worker", lambda request: fc)
+    monkeypatch.setattr(runtime, "run_worker", lambda backend, request: {
+        "points": [exact.tolist()], "version": "y"})
+    report = parts.check_part("fake.step", None, 5)
+    assert [r["ok"] for r in report["faces"]] == [True, False]
+    assert report["faces"][1]["error"].startswith("Face2 (Torus)")
+    assert report["over_strict_limit"] == ["Face2"] and report["ok"] is False
 
 
 # -- the real command line -----------------------------------------------------------------------

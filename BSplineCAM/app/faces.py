@@ -9,9 +9,15 @@ vectors are made clamped by OCCT's exact knot insertion (``Geom_BSplineSurface::
 which keeps the parameterisation; the trim's parameter curves (pcurves) are discretised by
 :func:`BSplineCAM.core.faces.densify_edge` within a 3-D chord tolerance.
 
-"up" (:func:`reaches_from_above`): a face a 3-axis tool reaches from above has an outward
-normal with z ≥ -1e-9 at every sampled point of its trimmed domain (a grid inside the trim and
-the trim's own points) and z > 1e-9 at one of them at least; vertical walls are not "up".
+A face is accepted when its NURBS, as the core evaluates it, lies within 1 % of the
+machining's chordal tolerance from OCCT's original surface (``core.face_import``).
+
+"up" (:func:`reaches_from_above`): OCCT's outward normals at the sampled points of the trimmed
+domain (a grid inside the trim and the trim's own points) go to the core's rule
+(:func:`BSplineCAM.core.faces.reach`): a face whose normal points down only as far as the
+model's own tolerance at the face (the largest tolerance of the face, its edges and vertices)
+can tell -- the foot of a blend tangent to a wall -- is reached from above; an undercut face
+and a vertical wall are not.
 """
 
 from __future__ import annotations
@@ -25,16 +31,14 @@ import numpy as np
 
 from ..core import faces as core_faces
 from ..core.errors import BSplineCAMError
-from ..core.face_import import RELATIVE_DEVIATION, checked_face, segment_box
-from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
+from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE, checked_face, segment_box
+from ..core.faces import DEFAULT_TOLERANCE, REACH_SAMPLES, UP_TOLERANCE, Face, FaceError
 from ..core.typing import FloatArray
 from .compat import ensure_freecad
 
 FreeCAD = ensure_freecad()
 import Part  # noqa: E402  (needs FreeCAD on sys.path first)
 
-#: A normal's z below -UP_TOLERANCE points down; above +UP_TOLERANCE, up.
-UP_TOLERANCE = 1e-9
 #: Part file types :func:`read_part` reads.
 PART_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".fcstd")
 
@@ -229,12 +233,15 @@ def _occt_v(face: Face, v):
 
 
 def extract_face(source: Part.Face, index: int, tolerance: float = DEFAULT_TOLERANCE,
-                 selected: bool = True) -> Face:
-    """The core :class:`Face` of one Part.Face (``index`` 1-based in its shape)."""
-    return _extract(source, index, tolerance, selected)[0]
+                 selected: bool = True,
+                 chordal_tolerance: float | None = DEFAULT_CHORDAL_TOLERANCE) -> Face:
+    """The core :class:`Face` of one Part.Face (``index`` 1-based in its shape), accepted for
+    machining to ``chordal_tolerance`` (mm; None: measured, never refused)."""
+    return _extract(source, index, tolerance, selected, chordal_tolerance)[0]
 
 
-def _extract(source: Part.Face, index: int, tolerance: float, selected: bool):
+def _extract(source: Part.Face, index: int, tolerance: float, selected: bool,
+             chordal_tolerance: float | None = DEFAULT_CHORDAL_TOLERANCE):
     """(Face, OCCT's B-spline face it was taken from)."""
     name = f"Face{index}"
     kind = type(source.Surface).__name__
@@ -256,7 +263,8 @@ def _extract(source: Part.Face, index: int, tolerance: float, selected: bool):
     face = checked_face(data, outer, holes, work.Orientation == "Reversed",
                         lambda face: measure(face, source, work),
                         max(source.BoundBox.DiagonalLength, 1e-300), index=index, name=name,
-                        kind=kind, selected=selected, tolerance=tolerance)
+                        kind=kind, selected=selected, tolerance=tolerance,
+                        chordal_tolerance=chordal_tolerance)
     return face, work
 
 
@@ -285,56 +293,63 @@ def measure(face: Face, source: Part.Face, work: Part.Face) -> float:
 # --------------------------------------------------------------------------- "up"
 
 
+def model_tolerance(face: Part.Face) -> float:
+    """The model's own tolerance at a face (mm): the largest of the face's, its edges' and its
+    vertices' OCCT tolerances."""
+    return max([float(face.Tolerance)] + [float(e.Tolerance) for e in face.Edges]
+               + [float(v.Tolerance) for v in face.Vertexes])
+
+
 def reaches_from_above(face: Face, work: Part.Face) -> tuple[bool, str]:
     """Whether a 3-axis tool reaches the face from above, and why not (module docstring).
 
     ``work`` is the OCCT B-spline face the core face was taken from (OCCT's normals, which
-    follow the face's orientation).
+    follow the face's orientation, and the model's tolerance there).
     """
-    uv = core_faces.sample_points(face)
+    uv = core_faces.sample_points(face, REACH_SAMPLES)
     vo = _occt_v(face, uv[:, 1])
-    nz = []
-    for a, b in zip(uv[:, 0], vo):
+    nz, keep = [], []
+    for k, (a, b) in enumerate(zip(uv[:, 0], vo)):
         try:
             n = work.normalAt(float(a), float(b))
         except Exception:  # a pole or another point without a normal
             continue
         if n.Length > 0.5:
             nz.append(n.z / n.Length)
-    if not nz:
-        return False, "its normal is defined nowhere"
-    nz = np.array(nz)
-    low = float(nz.min())
-    if low < -UP_TOLERANCE:
-        return False, f"its outward normal points down somewhere (normal z = {low:.3g})"
-    if float(nz.max()) <= UP_TOLERANCE:
-        return False, "it is vertical (outward normal z = 0 everywhere)"
-    return True, ""
+            keep.append(k)
+    points = np.asarray(face.surface.evaluate(uv[keep, 0], uv[keep, 1]), dtype=float)
+    spacing = float(np.linalg.norm(np.ptp(points, axis=0))) / REACH_SAMPLES if keep else 0.0
+    return core_faces.reach(nz, points[:, 2] if keep else [], model_tolerance(work), spacing)
 
 
 # --------------------------------------------------------------------------- a shape
 
 
 def faces_from_shape(shape: Part.Shape, selection: core_faces.Selection = "up",
-                     tolerance: float = DEFAULT_TOLERANCE, where: str = "shape") -> list[Face]:
+                     tolerance: float = DEFAULT_TOLERANCE, where: str = "shape",
+                     chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE) -> list[Face]:
     """Every face of ``shape`` as a core :class:`Face` (mm), in the shape's face order.
 
     ``selection``: "up" (every face a 3-axis tool reaches from above) or 1-based face numbers;
     the other faces come back with ``selected=False`` (check surfaces).  ``tolerance`` is the
-    trim polylines' 3-D chord tolerance in mm.  Errors (FaceError) name the face.
+    trim polylines' 3-D chord tolerance in mm, ``chordal_tolerance`` the machining's (mm),
+    which sets how far a face's NURBS may be from OCCT's (``core.face_import``).  Errors
+    (FaceError) name the face.
     """
     sources = _checked_faces(shape, tolerance, where)
     chosen = core_faces.parse_selection(selection, len(sources), where)
-    faces, reach = _faces_with_reach(sources, tolerance)
+    faces, reach = _faces_with_reach(sources, tolerance, chordal_tolerance)
     return core_faces.apply_selection(faces, reach, chosen, where)
 
 
 def faces_and_reach(shape: Part.Shape, tolerance: float = DEFAULT_TOLERANCE,
-                    where: str = "shape") -> tuple[list[Face], list[tuple[bool, str]]]:
+                    where: str = "shape", chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE,
+                    ) -> tuple[list[Face], list[tuple[bool, str]]]:
     """Every face of ``shape`` (unselected, mm) and whether a 3-axis tool reaches it from
     above (:func:`reaches_from_above`): what :func:`faces_from_shape` selects from, for
     callers that combine the faces of several shapes (the finishing op's ``Base``)."""
-    return _faces_with_reach(_checked_faces(shape, tolerance, where), tolerance)
+    return _faces_with_reach(_checked_faces(shape, tolerance, where), tolerance,
+                             chordal_tolerance)
 
 
 def _checked_faces(shape: Part.Shape, tolerance: float, where: str) -> list[Part.Face]:
@@ -349,14 +364,15 @@ def _checked_faces(shape: Part.Shape, tolerance: float, where: str) -> list[Part
     return shape.Faces
 
 
-def _faces_with_reach(sources: list[Part.Face],
-                      tolerance: float) -> tuple[list[Face], list[tuple[bool, str]]]:
+def _faces_with_reach(sources: list[Part.Face], tolerance: float,
+                      chordal_tolerance: float) -> tuple[list[Face], list[tuple[bool, str]]]:
     """Every source face as an unselected core Face, and whether it is reached from above."""
-    pairs = [_extract(f, i, tolerance, False) for i, f in enumerate(sources, 1)]
+    pairs = [_extract(f, i, tolerance, False, chordal_tolerance)
+             for i, f in enumerate(sources, 1)]
     return [face for face, _ in pairs], [reaches_from_above(face, work) for face, work in pairs]
 
 
 __all__ = [
-    "PART_SUFFIXES", "RELATIVE_DEVIATION", "UP_TOLERANCE", "check_shape", "extract_face",
-    "faces_and_reach", "faces_from_shape", "measure", "reaches_from_above", "read_part",
+    "PART_SUFFIXES", "UP_TOLERANCE", "check_shape", "extract_face", "faces_and_reach",
+    "faces_from_shape", "measure", "model_tolerance", "reaches_from_above", "read_part",
 ]

@@ -592,7 +592,9 @@ def job_faces(obj, job) -> list:
     out = []
     for target in targets:
         where = f"{obj.Label}: {target.Label}"
-        faces, reach = faces_and_reach(target.Shape, where=where)
+        tolerance = getattr(getattr(obj, "Tolerance", None), "Value", None)
+        faces, reach = faces_and_reach(target.Shape, where=where,
+                                       chordal_tolerance=tolerance if tolerance else 0.002)
         numbers = chosen.get(id(target))
         if numbers is not None:
             faces = core_faces.apply_selection(faces, reach, numbers, where)

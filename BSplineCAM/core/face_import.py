@@ -10,8 +10,11 @@ make a core Face the same way:
   (:func:`segment_box`); then :func:`.faces.period_shift` puts the knots back on the trim's
   parameters;
 * a face whose orientation is reversed is flipped in v, so that its normal points outwards,
-  and the result must lie within :data:`RELATIVE_DEVIATION` of its size from OCCT's original
-  surface (:func:`checked_face`).
+  and the result, evaluated by the core, must lie within :data:`ACCEPT_SHARE` (1 %) of the
+  machining's chordal tolerance from OCCT's evaluation of the original surface
+  (:func:`checked_face`): a thousandth of a micrometre more or less does not change a cut, a
+  hundredth of the tolerance is what the toolpath may spend on it.  The distance is kept in
+  the face (``Face.deviation``) and reported by ``check`` and in the notes.
 """
 
 from __future__ import annotations
@@ -27,8 +30,12 @@ from .faces import Face, FaceError
 from .numeric import clamp
 from .typing import FloatArray
 
-#: Largest distance of a face's NURBS from OCCT's original surface, over the face's size.
-RELATIVE_DEVIATION = 1e-9
+#: Largest distance of a face's NURBS (as the core evaluates it) from OCCT's original
+#: surface, as a share of the chordal tolerance the face is machined to.
+ACCEPT_SHARE = 0.01
+#: The chordal tolerance (mm) faces are accepted for when the caller names none: the
+#: toolpath's default (``--tolerance``).
+DEFAULT_CHORDAL_TOLERANCE = 0.002
 #: Trim loops may reach outside their surface's parameter domain by up to this share of its
 #: span in each direction (the parameter curves' own tolerance: a seam's curve on a sphere or
 #: torus lies 1e-7 to 1e-4 of the span beyond it); such points are moved onto the domain's
@@ -82,14 +89,27 @@ def into_domain(loops: Sequence[FloatArray], domain: Sequence[Sequence[float]],
     return out
 
 
+def acceptance_limit(chordal_tolerance: float) -> float:
+    """Largest accepted distance (mm) of a face's NURBS from OCCT's original surface when it
+    is machined to ``chordal_tolerance`` (mm): :data:`ACCEPT_SHARE` of it."""
+    if not (isinstance(chordal_tolerance, (int, float)) and np.isfinite(chordal_tolerance)
+            and chordal_tolerance > 0):
+        raise FaceError(f"chordal tolerance must be a positive length in mm, got "
+                        f"{chordal_tolerance!r}")
+    return ACCEPT_SHARE * float(chordal_tolerance)
+
+
 def checked_face(data: dict, outer: FloatArray, holes: list[FloatArray], flipped: bool,
                  deviation: Callable[[Face], float], size: float, *, index: int, name: str,
-                 kind: str, selected: bool, tolerance: float) -> Face:
+                 kind: str, selected: bool, tolerance: float,
+                 chordal_tolerance: float | None = DEFAULT_CHORDAL_TOLERANCE) -> Face:
     """The core Face of the NURBS arrays ``data`` (core.faces.make_surface's keywords) and
     the trim loops ``outer``, ``holes`` (parameters), flipped in v when OCCT's face is
     ``flipped`` (reversed), with its ``deviation(face)`` (mm) from OCCT's surfaces; FaceError
     naming the face ``name`` (of surface type ``kind``) when the arrays make no surface or the
-    deviation exceeds RELATIVE_DEVIATION of the face's ``size`` (mm)."""
+    deviation exceeds :func:`acceptance_limit` of ``chordal_tolerance`` (mm).  With
+    ``chordal_tolerance`` None the deviation is only measured and kept (``check`` reports
+    every face).  ``size`` (mm, the face's diagonal) scales the message's relative figure."""
     if flipped:
         vsum = data["knots_v"][0] + data["knots_v"][-1]
         data["poles"], data["weights"], data["knots_v"] = core_faces.flip_v(
@@ -104,8 +124,12 @@ def checked_face(data: dict, outer: FloatArray, holes: list[FloatArray], flipped
     face = Face(surface, outer, tuple(holes), index=index, name=name, selected=selected,
                 flipped_v=flipped, source=kind, tolerance=tolerance)
     measured = deviation(face)
-    if not measured <= RELATIVE_DEVIATION * size:
-        raise FaceError(f"{name} ({kind}): its NURBS is {measured:.3g} mm from OCCT's "
-                        f"original surface, more than {RELATIVE_DEVIATION:g} of its size "
-                        f"{size:.6g} mm")
+    if chordal_tolerance is not None:
+        limit = acceptance_limit(chordal_tolerance)
+        if not measured <= limit:
+            raise FaceError(
+                f"{name} ({kind}): its NURBS is {measured:.3g} mm from OCCT's original surface "
+                f"({measured / max(size, 1e-300):.2g} of its size {size:.6g} mm), more than "
+                f"{limit:.3g} mm, {ACCEPT_SHARE:.0%} of the chordal tolerance "
+                f"{chordal_tolerance:g} mm")
     return dataclasses.replace(face, deviation=measured)

@@ -38,6 +38,13 @@ VERSION = 1
 #: Default chord tolerance of the trim polylines in mm.
 DEFAULT_TOLERANCE = 1e-3
 
+#: A normal's z below -UP_TOLERANCE points down; above +UP_TOLERANCE, up (see :func:`reach`).
+UP_TOLERANCE = 1e-9
+#: The smallest model tolerance (mm) :func:`reach` assumes: OCCT's Precision::Confusion().
+MODEL_TOLERANCE_FLOOR = 1e-7
+#: Sample rows per side of a face in :func:`reach`'s height estimate (``sample_points``).
+REACH_SAMPLES = 15
+
 
 class FaceError(BSplineCAMError):
     """A face that cannot be machined as given: bad trim, bad data, failed conversion."""
@@ -379,6 +386,50 @@ def parse_selection(selection: Selection, count: int, where: str = "shape"):
     return out
 
 
+def reach(nz: ArrayLike, z: ArrayLike, model_tolerance: float,
+          spacing: float) -> tuple[bool, str]:
+    """Whether a 3-axis tool reaches a face from above, and why not, from its outward unit
+    normals' z ``nz`` and heights ``z`` (mm) at sample points about ``spacing`` (mm) apart.
+
+    The rule: where the normal points down (z < -UP_TOLERANCE) the face leans over the
+    material below it.  Going down through that part, the face moves sideways by
+    ``tan(tilt)`` per unit of height, the tilt being the normal's angle below the horizontal;
+    its overhang is the integral of that over the part's height, estimated from the samples
+    sorted by height (each step of height at the larger tilt of its two ends, plus half a
+    sample spacing beyond the highest and the lowest).  When the overhang is within
+    ``model_tolerance`` (mm: the model's own tolerance at the face, at least
+    MODEL_TOLERANCE_FLOOR), the face is vertical there up to what the model can tell -- the
+    foot of a blend tangent to a wall -- and is reachable; otherwise it is undercut.  A face
+    whose normal is nowhere up (z <= UP_TOLERANCE everywhere) is a wall, not reached from
+    above.
+    """
+    nz = np.asarray(nz, dtype=float).ravel()
+    z = np.asarray(z, dtype=float).ravel()
+    if not len(nz):
+        return False, "its normal is defined nowhere"
+    tolerance = max(float(model_tolerance), MODEL_TOLERANCE_FLOOR)
+    down = nz < -UP_TOLERANCE
+    if np.any(down):
+        low = float(nz[down].min())
+        if low <= -0.5:  # 30 degrees or more below the horizontal: no question of tolerance
+            return False, f"its outward normal points down (normal z = {low:.3g})"
+        order = np.argsort(z[down], kind="stable")
+        heights = z[down][order]
+        tilt = nz[down][order]
+        slope = -tilt / np.sqrt(1.0 - tilt * tilt)
+        steps = np.maximum(slope[1:], slope[:-1]) * np.diff(heights)
+        overhang = float(steps.sum()) + 0.5 * float(spacing) * (float(slope[0])
+                                                                 + float(slope[-1]))
+        if not overhang <= tolerance:
+            return False, (f"its outward normal points down (normal z = {low:.3g}) and it "
+                           f"overhangs by about {overhang:.3g} mm over "
+                           f"{float(np.ptp(heights)) + float(spacing):.3g} mm of height, more "
+                           f"than the model's tolerance {tolerance:.3g} mm")
+    if float(nz.max()) <= UP_TOLERANCE:
+        return False, "it is vertical (outward normal z = 0 everywhere)"
+    return True, ""
+
+
 def apply_selection(faces: Sequence[Face], reach: Sequence[tuple[bool, str]], chosen,
                     where: str = "shape") -> list[Face]:
     """The faces with ``selected`` set: "up" picks every face a 3-axis tool reaches from above
@@ -542,7 +593,8 @@ def flip_v(poles: FloatArray, weights: FloatArray | None, knots_v: FloatArray):
 
 
 __all__ = [
-    "DEFAULT_TOLERANCE", "FORMAT", "VERSION", "Face", "FaceError", "Selection",
+    "DEFAULT_TOLERANCE", "FORMAT", "MODEL_TOLERANCE_FLOOR", "UP_TOLERANCE", "VERSION", "Face",
+    "FaceError", "Selection", "reach",
     "apply_selection", "densify_edge", "parse_selection",
     "face_from_dict", "flip_v", "inside", "join_edges", "make_surface", "period_shift",
     "sample_points",

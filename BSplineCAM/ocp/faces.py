@@ -38,7 +38,6 @@ from ..core.face_import import checked_face, segment_box
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 
 #: Same thresholds as the FreeCAD side.
-UP_TOLERANCE = 1e-9
 
 
 def read_part(path: str | os.PathLike) -> TopoDS_Shape:
@@ -269,26 +268,40 @@ def measure(face: Face, source, work) -> float:
     return deviation
 
 
+def model_tolerance(face) -> float:
+    """The model's own tolerance at a face (mm): the largest of the face's, its edges' and its
+    vertices' OCCT tolerances (as :func:`BSplineCAM.app.faces.model_tolerance`)."""
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_VERTEX
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    out = float(BRep_Tool.Tolerance_s(face))
+    for kind, cast in ((TopAbs_EDGE, TopoDS.Edge_s), (TopAbs_VERTEX, TopoDS.Vertex_s)):
+        explorer = TopExp_Explorer(face, kind)
+        while explorer.More():
+            out = max(out, float(BRep_Tool.Tolerance_s(cast(explorer.Current()))))
+            explorer.Next()
+    return out
+
+
 def reaches_from_above(face: Face, work) -> tuple[bool, str]:
     """As :func:`BSplineCAM.app.faces.reaches_from_above`, with BRepGProp_Face's normals."""
-    uv = core_faces.sample_points(face)
+    uv = core_faces.sample_points(face, core_faces.REACH_SAMPLES)
     vo = _occt_v(face, uv[:, 1])
     props = BRepGProp_Face(work)
-    nz = []
-    for a, b in zip(uv[:, 0], vo):
+    nz, keep = [], []
+    for k, (a, b) in enumerate(zip(uv[:, 0], vo)):
         p, n = gp_Pnt(), gp_Vec()
         props.Normal(float(a), float(b), p, n)
         length = n.Magnitude()
         if length > 1e-12:
             nz.append(n.Z() / length)
-    if not nz:
-        return False, "its normal is defined nowhere"
-    nz = np.array(nz)
-    if nz.min() < -UP_TOLERANCE:
-        return False, f"its outward normal points down somewhere (normal z = {nz.min():.3g})"
-    if nz.max() <= UP_TOLERANCE:
-        return False, "it is vertical (outward normal z = 0 everywhere)"
-    return True, ""
+            keep.append(k)
+    if not keep:
+        return core_faces.reach([], [], model_tolerance(work), 0.0)
+    points = np.asarray(face.surface.evaluate(uv[keep, 0], uv[keep, 1]), dtype=float)
+    spacing = float(np.linalg.norm(np.ptp(points, axis=0))) / core_faces.REACH_SAMPLES
+    return core_faces.reach(nz, points[:, 2], model_tolerance(work), spacing)
 
 
 def faces_from_shape(shape, selection="up", tolerance: float = DEFAULT_TOLERANCE,

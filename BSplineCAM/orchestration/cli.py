@@ -298,6 +298,10 @@ def cmd_check_part(args: argparse.Namespace) -> int:
         with staged_output(Path(args.out)) as stage:
             (stage / "check.json").write_text(json_text(report))
     emit(report)
+    if not report["ok"]:
+        print(f"bsplinecam check: {args.net}: over the strict limit "
+              f"({report['relative_tolerance']:g} of the face's size, or not built): "
+              f"{', '.join(report['over_strict_limit'])}", file=sys.stderr)
     return 0 if report["ok"] else EXIT_CHECK_FAILED
 
 

@@ -173,7 +173,8 @@ def cmd_job(args: argparse.Namespace) -> int:
         angle = check_angle(args.angle, names[3])
         strategy = Strategy(args.strategy)
         selection = parts.parse_faces(args.faces)
-        model = parts.load_faces(args.net, parts._selection_text(selection))
+        model = parts.load_faces(args.net, parts._selection_text(selection),
+                                 chordal_tolerance=tool.tolerance)
         name = _safe_name(Path(args.net).stem)
         target, faces = args.net, None if selection == "up" else selection
     else:

@@ -141,5 +141,6 @@ def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameter
     from ..core.toolpath.common import check_angle
 
     angle = check_angle(args.angle, TOOL_OPTIONS[3])
-    faces = parts.load_faces(args.net, parts._selection_text(selection))
+    faces = parts.load_faces(args.net, parts._selection_text(selection),
+                             chordal_tolerance=tool.tolerance)
     return parts.machine_faces(args, faces, tool, angle, cutting_params)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Union
 
@@ -33,6 +34,7 @@ import numpy as np
 
 from ..core import faces as core_faces
 from ..core.errors import BSplineCAMError, ParameterError
+from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 from . import runtime
 
@@ -120,24 +122,26 @@ def _selection_text(selection: FacesArg) -> str:
 
 def load_faces(path: str | os.PathLike, faces: str | None = None,
                tolerance: float = DEFAULT_TOLERANCE, option: str = "--faces",
-               allow_all: bool = False) -> list[Face]:
+               allow_all: bool = False,
+               chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE) -> list[Face]:
     """Every face of the part at ``path`` as a core Face (mm), the ``faces`` selection
     ("up" by default, or face numbers) marked ``selected``, the others check surfaces.
 
     FreeCAD reads the part: here when it loads in this process, else in a FreeCAD worker.
     ``tolerance`` is the trim polylines' chord tolerance (mm).  Errors (FaceError) name the
     file and the face.  With ``allow_all``, "all" marks every face selected (verification
-    measures every face seen from above).
+    measures every face seen from above).  A face whose NURBS is farther from OCCT's than
+    1 % of ``chordal_tolerance`` (mm, the machining's) is refused
+    (:mod:`BSplineCAM.core.face_import`).
     """
     selection = parse_faces(faces, option, allow_all=allow_all)
     if selection == "all":
-        from dataclasses import replace
-
-        return [replace(face, selected=True) for face in load_faces(path, "up", tolerance,
-                                                                    option)]
+        return [replace(face, selected=True) for face in load_faces(
+            path, "up", tolerance, option, chordal_tolerance=chordal_tolerance)]
     path = str(path)
     reply = _freecad_worker({"op": "part_faces", "path": path,
-                             "faces": _selection_text(selection), "tolerance": tolerance})
+                             "faces": _selection_text(selection), "tolerance": tolerance,
+                             "chordal_tolerance": chordal_tolerance})
     return [core_faces.face_from_dict(doc, f"{path} (FreeCAD worker)") for doc in reply["faces"]]
 
 
@@ -182,13 +186,15 @@ def _name_file(path: str, exc: FaceError) -> FaceError:
     return exc if text.startswith(path) else FaceError(f"{path}: {text}")
 
 
-def freecad_faces(path: str, selection: FacesArg, tolerance: float) -> list[Face]:
+def freecad_faces(path: str, selection: FacesArg, tolerance: float,
+                  chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE) -> list[Face]:
     """In FreeCAD: read the part and extract its faces (``app.faces``)."""
     from ..app import faces as app_faces
 
     try:
         shape = app_faces.read_part(path)
-        return app_faces.faces_from_shape(shape, selection, tolerance, where=path)
+        return app_faces.faces_from_shape(shape, selection, tolerance, where=path,
+                                          chordal_tolerance=chordal_tolerance)
     except FaceError as exc:
         raise _name_file(path, exc) from None
 
@@ -227,21 +233,38 @@ def _freecad_check(path: str, selection: FacesArg, tolerance: float, samples: in
     sources = shape.Faces
     chosen = "all" if selection == "all" else core_faces.parse_selection(
         selection, len(sources), path)
-    faces, works = [], []
+    faces, works, errors = [], [], {}
     for index, source in enumerate(sources, start=1):
-        face = app_faces.extract_face(source, index, tolerance, selected=False)
+        try:  # measured, never refused: check reports every face's figures
+            face = app_faces.extract_face(source, index, tolerance, selected=False,
+                                          chordal_tolerance=None)
+            work = _work_face(source)
+        except FaceError as exc:
+            errors[index] = str(exc)
+            face, work = None, None
         faces.append(face)
-        works.append(_work_face(source))
+        works.append(work)
     if chosen == "all":
-        from dataclasses import replace
-
-        faces = [replace(face, selected=True) for face in faces]
+        chosen = list(range(1, len(sources) + 1))
+    elif chosen == "up":
+        reach = [app_faces.reaches_from_above(face, work) if face is not None else (False, "")
+                 for face, work in zip(faces, works)]
+        chosen = [i for i, (up, _) in enumerate(reach, 1) if up]
+        if not chosen and not errors:
+            raise FaceError(f"{path}: no face is reachable from above by a 3-axis tool")
     else:
-        reach = [app_faces.reaches_from_above(face, work) for face, work in zip(faces, works)]
-        faces = core_faces.apply_selection(faces, reach, chosen, path)
+        for number in chosen:
+            if faces[number - 1] is None:
+                continue
+            up, why = app_faces.reaches_from_above(faces[number - 1], works[number - 1])
+            if not up:
+                raise FaceError(f"{path}: Face{number} is not reachable from above by a "
+                                f"3-axis tool: {why}")
     records = []
-    for face, work, source in zip(faces, works, sources):
-        if not face.selected:
+    for index, (face, work, source) in enumerate(zip(faces, works, sources), start=1):
+        if face is None and (index in chosen or selection == "up"):
+            records.append({"index": index, "error": errors[index]})
+        if face is None or index not in chosen:
             continue
         uv = core_faces.sample_points(face, samples)
         v_occt = uv[:, 1]
@@ -249,8 +272,9 @@ def _freecad_check(path: str, selection: FacesArg, tolerance: float, samples: in
             knots = np.asarray(face.surface.knots_v, dtype=float)
             v_occt = knots[0] + knots[-1] - v_occt
         points = [tuple(work.valueAt(float(a), float(b))) for a, b in zip(uv[:, 0], v_occt)]
-        records.append({"face": core_faces.to_dict(face),
+        records.append({"face": core_faces.to_dict(replace(face, selected=True)),
                         "size_mm": float(source.BoundBox.DiagonalLength),
+                        "model_tolerance_mm": app_faces.model_tolerance(work),
                         "uv": uv.tolist(), "freecad_points": points})
     return {"freecad": ".".join(map(str, compat.freecad_version())),
             "face_count": len(sources), "faces": records}
@@ -282,7 +306,9 @@ def handle(request: dict) -> dict:
     op = request["op"]
     if op == "part_faces" and request["backend"] == "freecad":
         selection = parse_faces(request["faces"])
-        found = freecad_faces(request["path"], selection, float(request["tolerance"]))
+        found = freecad_faces(request["path"], selection, float(request["tolerance"]),
+                              float(request.get("chordal_tolerance",
+                                                DEFAULT_CHORDAL_TOLERANCE)))
         return {"faces": [core_faces.to_dict(face) for face in found]}
     if op == "part_check" and request["backend"] == "freecad":
         selection = parse_faces(request["faces"], allow_all=True)
@@ -293,33 +319,63 @@ def handle(request: dict) -> dict:
     raise ValueError(f"operation {op!r} is not available for backend {request['backend']!r}")
 
 
+def cox_de_boor_points(face: Face, uv: np.ndarray) -> np.ndarray:
+    """The face's NURBS at ``uv`` by Cox-de Boor's recursion (``core.basis``, independent of
+    the matrix evaluator), rational by the weighted sum: (k, 3) mm."""
+    from ..core.basis import cox_de_boor
+
+    surface = face.surface
+    nu = cox_de_boor(surface.knots_u, surface.degree_u, uv[:, 0])
+    nv = cox_de_boor(surface.knots_v, surface.degree_v, uv[:, 1])
+    w = surface.weights if surface.weights is not None else np.ones(surface.shape)
+    num = np.einsum("mi,ijc,mj->mc", nu, surface.poles * w[..., None], nv)
+    den = np.einsum("mi,ij,mj->m", nu, w, nv)
+    return num / den[:, None]
+
+
 def check_part(path: str, faces: str | None, samples: int = PART_SAMPLES,
-               tolerance: float = DEFAULT_TOLERANCE) -> dict:
+               tolerance: float = DEFAULT_TOLERANCE,
+               chordal_tolerance: float = DEFAULT_CHORDAL_TOLERANCE) -> dict:
     """``bsplinecam check PART``: per selected face ("all" by default) its source surface,
-    degrees, poles, rationality, holes, conversion deviation (mm, measured by ``app.faces``
-    against OCCT's original), and the largest distance of the core's matrix evaluator from
-    FreeCAD's OCCT (``valueAt`` of the B-spline face) and from cadquery's OCCT (the same NURBS
-    built in OCP) at the sample parameters, relative to the face's size; ``ok`` when every
-    relative deviation is at most :data:`RELATIVE_TOLERANCE`."""
+    degrees, poles, rationality, holes, the model's tolerance there, the conversion deviation
+    (mm, measured by ``app.faces`` against OCCT's original), and the largest distance of the
+    core's matrix evaluator from FreeCAD's OCCT (``valueAt`` of the B-spline face), from
+    cadquery's OCCT (the same NURBS built in OCP) and from Cox-de Boor's recursion at the
+    sample parameters, also relative to the face's size.
+
+    Every face is reported, a face that cannot be built with its error.  A face is
+    ``machinable`` when the conversion and FreeCAD's evaluation are within
+    :func:`~BSplineCAM.core.face_import.acceptance_limit` of ``chordal_tolerance`` (the rule
+    that refuses faces for toolpaths); ``ok`` is the strict limit: every distance at most
+    :data:`RELATIVE_TOLERANCE` of the face's size.  ``over_strict_limit`` names the faces that
+    are not ``ok``."""
     selection = parse_faces(faces, allow_all=True, default="all")
+    limit = acceptance_limit(chordal_tolerance)
     fc = _freecad_worker({"op": "part_check", "path": str(path),
                           "faces": _selection_text(selection), "tolerance": tolerance,
                           "samples": samples})
-    docs = [record["face"] for record in fc["faces"]]
-    uvs = [record["uv"] for record in fc["faces"]]
+    built = [record for record in fc["faces"] if "error" not in record]
+    docs = [record["face"] for record in built]
+    uvs = [record["uv"] for record in built]
     if runtime.cadquery_in_process():
         cq = evaluate_faces(docs, uvs)
     else:
         cq = runtime.run_worker("cadquery", {"op": "evaluate_faces", "faces": docs, "uv": uvs})
+    cq_points = iter(cq["points"])
     reports = []
-    for record, cq_points in zip(fc["faces"], cq["points"]):
+    for record in fc["faces"]:
+        if "error" in record:
+            reports.append({"index": record["index"], "name": f"Face{record['index']}",
+                            "error": record["error"], "machinable": False, "ok": False})
+            continue
         face = core_faces.face_from_dict(record["face"], path)
         uv = np.asarray(record["uv"], dtype=float)
         ours = np.asarray(face.surface.evaluate(uv[:, 0], uv[:, 1]), dtype=float)
         size = max(float(record["size_mm"]), 1e-300)
         d_fc = float(np.linalg.norm(ours - np.asarray(record["freecad_points"]), axis=1).max())
-        d_cq = float(np.linalg.norm(ours - np.asarray(cq_points), axis=1).max())
-        relative = max(d_fc, d_cq, face.deviation) / size
+        d_cq = float(np.linalg.norm(ours - np.asarray(next(cq_points)), axis=1).max())
+        d_cdb = float(np.linalg.norm(ours - cox_de_boor_points(face, uv), axis=1).max())
+        relative = max(d_fc, d_cq, d_cdb, face.deviation) / size
         surface = face.surface
         reports.append({
             "index": face.index, "name": face.name, "source": face.source,
@@ -327,16 +383,21 @@ def check_part(path: str, faces: str | None, samples: int = PART_SAMPLES,
             "poles": list(surface.shape), "rational": bool(surface.rational),
             "holes": len(face.holes), "flipped_v": face.flipped_v,
             "size_mm": size, "points": len(uv),
+            "model_tolerance_mm": record.get("model_tolerance_mm"),
             "conversion_deviation_mm": face.deviation,
-            "freecad_max_mm": d_fc, "cadquery_max_mm": d_cq,
-            "relative_max": relative, "ok": bool(relative <= RELATIVE_TOLERANCE)})
-    worst = max((r["relative_max"] for r in reports), default=0.0)
+            "freecad_max_mm": d_fc, "cadquery_max_mm": d_cq, "cox_de_boor_max_mm": d_cdb,
+            "relative_max": relative,
+            "machinable": bool(max(face.deviation, d_fc) <= limit),
+            "ok": bool(relative <= RELATIVE_TOLERANCE)})
+    worst = max((r["relative_max"] for r in reports if "error" not in r), default=0.0)
+    over = [r["name"] for r in reports if not r["ok"]]
     return {"part": str(path), "faces_selection": _selection_text(selection),
             "face_count": fc["face_count"], "samples": samples,
             "trim_tolerance_mm": tolerance, "relative_tolerance": RELATIVE_TOLERANCE,
+            "chordal_tolerance_mm": chordal_tolerance, "acceptance_limit_mm": limit,
             "freecad": fc["freecad"], "cadquery_ocp": cq["version"],
             "faces": reports, "max_relative_deviation": worst,
-            "ok": all(r["ok"] for r in reports)}
+            "over_strict_limit": over, "ok": not over}
 
 
 # --------------------------------------------------------------------------- toolpath
