@@ -5,16 +5,16 @@ Damaged copies of examples/part.step are made here at test time: truncations, ga
 an empty file, changed numbers in B_SPLINE and CARTESIAN_POINT entities and broken entity
 references.  A block of garbage bytes in the middle makes OCCT's reader segfault in FreeCAD
 0.20, 1.0 and 1.1, a B-spline whose pole list names a DIRECTION in FreeCAD 0.20; rescaled
-coordinates keep it busy for minutes.  Two test hooks of the worker stand in for a broken reader on any FreeCAD:
-BSPLINECAM_TEST_CRASH_READ=1 (SIGSEGV) and BSPLINECAM_TEST_HANG_READ=1 (sleeps).  Every
-command that reads a part (check, toolpath, verify, job) must then exit with status 2 and
-one stderr line naming the file, no traceback, nothing in --out, within a bounded time.
-tests/parts/damaged/* (when present) go through check and toolpath: each is refused under the
-same rule or, when FreeCAD recovers the file, read with a JSON result.
+coordinates keep it busy for minutes.  Two test hooks of the worker stand in for a broken
+reader on any FreeCAD: BSPLINECAM_TEST_CRASH_READ=1 (SIGSEGV) and BSPLINECAM_TEST_HANG_READ=1
+(sleeps).  Every command that reads a part (check, toolpath, verify, job) must then exit with
+status 2 and one stderr line naming the file, no traceback, nothing in --out, within a bounded
+time.  tests/parts/damaged/* (when present) go through check and toolpath: each is refused
+under the same rule or, when FreeCAD recovers the file, read with a JSON result.
 
 The real ``bin/bsplinecam`` (freecadcmd) is skipped when absent unless BSPLINECAM_REQUIRE_ALL=1.
-The command runs go two at a time, in a module fixture, so that the module takes well under a
-minute on two cores.
+The command runs go two at a time, in a module fixture: the module takes about 1.5 minutes on
+two cores.
 """
 
 from __future__ import annotations
@@ -291,7 +291,7 @@ def test_crashing_damages_crash_the_reader(runs):
     assert any(SIGSEGV_LINE in line for line in lines), lines
 
 
-# -- the worker's child is killed on a time-out and on Ctrl-C -----------------------------------------
+# -- the worker's child is killed on a time-out and on Ctrl-C ------------------------------
 def _alive(pid: int) -> bool:
     """True while ``pid`` runs (a zombie or a missing process counts as ended)."""
     try:
