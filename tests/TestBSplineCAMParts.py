@@ -285,6 +285,53 @@ def test_fillets_meeting_at_corners(tmp_path):
     assert [[f["index"], f["holes"]] for f in report["faces"]] == theirs
 
 
+BLENDED_BLOCK = """
+import sys, cadquery as cq
+top = [(60, 22), (45, 26), (30, 21), (15, 24), (0, 20)]
+profile = cq.Workplane("XZ").moveTo(0, 0).lineTo(60, 0).lineTo(60, 22).spline(
+    top[1:], includeCurrent=True).close()
+block = profile.extrude(-40).edges("|Z").fillet(4)
+spline_top = [f for f in block.faces().vals() if f.geomType() not in ("PLANE", "CYLINDER")]
+solid = block.val().fillet(3, [e for f in spline_top for e in f.Edges()])
+cq.exporters.export(cq.Workplane().add(solid), sys.argv[1])
+"""
+
+
+@needs_freecad
+@needs_cadquery
+def test_corner_blends_of_a_filleted_block_are_machined_from_above(tmp_path):
+    """A block with a spline top, its vertical edges rounded (4 mm) and then the top's edges (3
+    mm): OCCT's corner blends are rational B-splines of degree 2 x 9 to 13, tangent to the
+    rounded walls, whose normal points down by up to ~1e-5 at their foot (the model's tolerance
+    there is ~1e-5 mm).  They count as "up", the raster finishes them without gouging
+    (<= 1 um over the whole model) and the scallop stays within h + tolerance inside the
+    borders; the degree-14 rolling-ball fillet evaluates within 1e-12 of its size against
+    Cox-de Boor."""
+    step = tmp_path / "blended.step"
+    cadquery(BLENDED_BLOCK, str(step))
+    proc = run_bin("check", str(step))
+    assert proc.returncode == 0, proc.stderr
+    faces = json.loads(proc.stdout)["faces"]
+    blends = [f["index"] for f in faces if f["source"] == "BSplineSurface" and f["size_mm"] < 10]
+    assert len(blends) == 4
+    (high,) = [f for f in faces if max(f["degree_u"], f["degree_v"]) == 14]
+    assert high["rational"] and high["cox_de_boor_max_mm"] <= 1e-12 * high["size_mm"]
+    assert all(f["machinable"] for f in faces)
+    out = tmp_path / "out"
+    proc = run_bin("toolpath", str(step), "--faces", "up", "--tool-diameter", "6",
+                   "--scallop", "0.05", "--tolerance", "0.01", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    assert set(blends) <= set(report["faces"])
+    proc = run_bin("verify", str(step), str(out / "blended.ngc"), "--faces", "up",
+                   "--tool-diameter", "6", "--out", str(tmp_path / "verify"))
+    assert proc.returncode == 0, proc.stderr
+    verified = json.loads((tmp_path / "verify" / "verify.json").read_text())
+    assert verified["gouge_max_mm"] <= 0.001
+    assert verified["scallop_max_mm"] <= 0.05 + 0.01
+    assert all(verified["face_cells"][f"Face{i}"] > 0 for i in blends)
+
+
 @needs_freecad
 @needs_cadquery
 def test_check_example_matches_cadquery(example_check):
