@@ -20,13 +20,17 @@ coefficients of the basis functions, :func:`span_matrices`; for uniform cubic kn
 the paper's MB): the power basis on [0, 1] has a condition number that grows like ``3^p``, so
 a degree-14 rational blend lost about 1e-9 of its size in the power coefficients and in their
 conversion to Bezier points, and degree 25 about 1e-7.  Bernstein values come from de
-Casteljau's triangle (sums of non-negative terms: A1.3 AllBernstein), their derivatives from
-differences of lower-degree ones (``d/ds B_{i,p} = p (B_{i-1,p-1} - B_{i,p-1})``), and points
-and derivatives hold about 1e-15 of the surface's size at every degree OCCT writes (1 to 25).
+Casteljau's triangle (sums of non-negative terms: A1.3 AllBernstein).  A derivative is the
+B-spline of the derivative poles ("The NURBS Book" eq. 3.16 / A3.3:
+``p (P_{i+1} - P_i) / (t_{i+p+1} - t_{i+1})``, knots without the end ones, degree p - 1),
+extracted and evaluated the same way: its differences are taken over the basis functions'
+support, not over one span, so a short span between long ones loses no digits.  Points and
+derivatives hold about 1e-15 of what the net can produce at every degree OCCT writes (1 to 25).
 
 A patch is ``[B(s)] E_i P_ij E_j^T [B(t)]^T``; the products ``C_ij = E_i P_ij E_j^T`` (the
-patch's Bezier control points) are computed once per surface for x, y, z and (rational
-surfaces) the weight, i.e. in homogeneous coordinates ``(w x, w y, w z, w)``.  Rational values
+patch's Bezier control points) are computed once per surface, and once per derivative order
+asked for, for x, y, z and (rational surfaces) the weight, i.e. in homogeneous coordinates
+``(w x, w y, w z, w)``.  Rational values
 and derivatives follow from the homogeneous ones by the quotient rule ("The NURBS Book" eq.
 4.20, algorithm A4.4).  Grids are evaluated in two banded stages like :func:`matrix.grid_planes`.
 
@@ -257,65 +261,66 @@ def bernstein_span_matrices(knots: ArrayLike, degree: int) -> FloatArray:
     return out
 
 
-def _bernstein_table(s: FloatArray, degree: int, orders) -> dict:
-    """{k: (p+1, m)}: the Bernstein polynomials B_{0..p,p}(s) (k = 0) or their k-th derivative
-    in s, for each k in ``orders``.  Values by de Casteljau's triangle ("The NURBS Book" A1.3,
-    raised in place one degree at a time), derivatives by ``d/ds B_{i,n} = n (B_{i-1,n-1} -
-    B_{i,n-1})`` applied k times to the triangle's row of degree p - k."""
+def derivative_poles(poles: FloatArray, knots: FloatArray, degree: int,
+                     axis: int = 0) -> FloatArray:
+    """Poles of the first derivative of a B-spline along ``axis`` of ``poles``: degree p - 1 on
+    ``knots[1:-1]``, ``Q_i = p (P_{i+1} - P_i) / (t_{i+p+1} - t_{i+1})`` ("The NURBS Book"
+    eq. 3.16, A3.3); a zero-length support (a knot of multiplicity p + 1) gives 0."""
+    p = int(degree)
+    n = poles.shape[axis]
+    support = knots[p + 1 : p + n] - knots[1:n]
+    factor = np.where(support > 0, p / np.where(support > 0, support, 1.0), 0.0)
+    shape = [1] * poles.ndim
+    shape[axis] = n - 1
+    return np.diff(poles, axis=axis) * factor.reshape(shape)
+
+
+def bernstein_rows(s: FloatArray, degree: int) -> FloatArray:
+    """The Bernstein polynomials B_{0..p,p}(s): shape (p+1, m), by de Casteljau's triangle
+    ("The NURBS Book" A1.3, raised in place one degree at a time: sums of non-negative
+    terms)."""
     s = np.asarray(s, dtype=float)
     t = 1.0 - s
-    p = degree
-    wanted = sorted({int(k) for k in orders})
-    rows = np.zeros((p + 1, len(s)))
+    rows = np.zeros((degree + 1, len(s)))
     rows[0] = 1.0
-    out = {}
-    for n in range(0, p + 1):
-        if n:  # raise rows[0 .. n-1] (degree n-1) to degree n
-            rows[n] = s * rows[n - 1]
-            for i in range(n - 1, 0, -1):
-                rows[i] *= t
-                rows[i] += s * rows[i - 1]
-            rows[0] *= t
-        k = p - n
-        if k in wanted:
-            table = rows.copy()
-            for level in range(n + 1, p + 1):  # differentiate, degree level - 1 -> level
-                table[level] = level * table[level - 1]
-                for i in range(level - 1, 0, -1):
-                    table[i] = level * (table[i - 1] - table[i])
-                table[0] *= -level
-            out[k] = table
-    for k in wanted:
-        if k > p:
-            out[k] = np.zeros((p + 1, len(s)))
-    return out
-
-
-def _bernstein_rows(s: FloatArray, degree: int, order: int) -> FloatArray:
-    """The Bernstein polynomials B_{0..p,p}(s) or their ``order``-th derivative in s:
-    shape (m, p+1) (:func:`_bernstein_table`)."""
-    return _bernstein_table(s, degree, (order,))[order].T
-
-
-def _bernstein_sum(coef: FloatArray, s: FloatArray, orders, scale: FloatArray) -> dict:
-    """Derivatives d^k/ds^k (k in ``orders``) times ``scale**k`` of the polynomials whose
-    Bernstein coefficients run along axis 1 of ``coef`` (m, p+1, n): {k: (m, n)}."""
-    table = _bernstein_table(s, coef.shape[1] - 1, orders)
-    out = {}
-    for k in orders:
-        acc = np.einsum("am,man->mn", table[k], coef)
-        if k:
-            acc *= (scale**k)[:, None]
-        out[k] = acc
-    return out
+    for n in range(1, degree + 1):  # rows[0 .. n-1] (degree n-1) to degree n
+        rows[n] = s * rows[n - 1]
+        for i in range(n - 1, 0, -1):
+            rows[i] *= t
+            rows[i] += s * rows[i - 1]
+        rows[0] *= t
+    return rows
 
 
 # -- the direction: knots, spans and location -------------------------------------------------
-@dataclass(frozen=True)
 class _Direction:
-    knots: FloatArray  # non-periodic flat knots
-    degree: int
-    matrices: FloatArray  # (count - p, p+1, p+1): Bezier extraction matrices
+    """One parameter direction: its non-periodic flat knots, degree, spans and the extraction
+    matrices of its derivatives (``matrices_for(order)``: the B-spline of degree p - order on
+    ``knots[order:-order]``, whose spans are the same intervals with the same indices)."""
+
+    def __init__(self, knots: FloatArray, degree: int):
+        self.knots = knots
+        self.degree = degree
+        self._matrices: dict[int, FloatArray] = {}
+
+    def matrices_for(self, order: int) -> FloatArray:
+        """(count - p, p-order+1, p-order+1) extraction matrices of the order-th derivative."""
+        if order not in self._matrices:
+            knots = self.knots[order : len(self.knots) - order]
+            self._matrices[order] = bernstein_span_matrices(knots, self.degree - order)
+        return self._matrices[order]
+
+    @property
+    def matrices(self) -> FloatArray:
+        """(count - p, p+1, p+1): Bezier extraction matrices of the spans."""
+        return self.matrices_for(0)
+
+    def differentiate(self, net: FloatArray, order: int, axis: int) -> FloatArray:
+        """The poles of ``net`` differentiated ``order`` times along ``axis`` (this direction)."""
+        for k in range(order):
+            net = derivative_poles(net, self.knots[k : len(self.knots) - k], self.degree - k,
+                                   axis)
+        return net
 
     @property
     def count(self) -> int:
@@ -331,21 +336,23 @@ class _Direction:
         k = np.arange(self.degree, self.count)
         return np.flatnonzero(self.knots[k + 1] > self.knots[k])
 
-    def locate(self, t: FloatArray) -> tuple[IntArray, FloatArray, FloatArray]:
-        """Span index (k - p, also the first pole), local parameter s and 1/h per parameter."""
+    def locate(self, t: FloatArray) -> tuple[IntArray, FloatArray]:
+        """Span index (k - p, also the first pole of every derivative's net) and local
+        parameter s per parameter."""
         p = self.degree
         k = np.searchsorted(self.knots, t, side="right") - 1
         span = clamp(k - p, self.nonempty[0], self.nonempty[-1])
         # a parameter inside an empty span (only possible by clipping) moves to a real one
         lo = self.knots[span + p]
         h = self.knots[span + p + 1] - lo
-        return span, clamp((t - lo) / h, 0.0, 1.0), 1.0 / h
+        return span, clamp((t - lo) / h, 0.0, 1.0)
 
     def weights(self, t: FloatArray, order: int) -> tuple[IntArray, FloatArray]:
-        """First pole index and the p+1 basis values (or d^order/du^order) per parameter."""
-        span, s, inv_h = self.locate(t)
-        rows = _bernstein_rows(s, self.degree, order) * (inv_h**order)[:, None]
-        return span, np.einsum("ma,mal->ml", rows, self.matrices[span])
+        """First pole index and the p-order+1 basis values of the order-th derivative's
+        B-spline per parameter (they weigh the poles of ``differentiate(net, order)``)."""
+        span, s = self.locate(t)
+        rows = bernstein_rows(s, self.degree - order).T
+        return span, np.einsum("ma,mal->ml", rows, self.matrices_for(order)[span])
 
 
 @dataclass(frozen=True)
@@ -462,8 +469,10 @@ class NurbsSurface:
             a.setflags(write=False)
         if self.weights is not None:
             self.weights.setflags(write=False)
-        self._u = _Direction(ku, degrees[0], bernstein_span_matrices(ku, degrees[0]))
-        self._v = _Direction(kv, degrees[1], bernstein_span_matrices(kv, degrees[1]))
+        self._u = _Direction(ku, degrees[0])
+        self._v = _Direction(kv, degrees[1])
+        self._nets: dict[tuple[int, int], FloatArray] = {}
+        self._tables: dict[tuple[int, int], FloatArray] = {}
 
     # -- construction ------------------------------------------------------------------------
     @classmethod
@@ -509,6 +518,26 @@ class NurbsSurface:
         w = self.weights[..., None]
         return np.concatenate([self.poles * w, w], axis=-1)
 
+    def _net(self, a: int, b: int) -> FloatArray:
+        """The homogeneous poles differentiated a times along u and b times along v."""
+        if (a, b) not in self._nets:
+            net = self._v.differentiate(self._u.differentiate(self.homogeneous, a, 0), b, 1)
+            net.setflags(write=False)
+            self._nets[(a, b)] = net
+        return self._nets[(a, b)]
+
+    def _coefficients(self, a: int, b: int) -> FloatArray:
+        """E_i Q_ij E_j^T of the (a, b) derivative's B-spline for every span pair:
+        (spans_u, spans_v, p-a+1, q-b+1, d)."""
+        p, q = self.degree_u - a, self.degree_v - b
+        blocks = np.lib.stride_tricks.sliding_window_view(
+            self._net(a, b), (p + 1, q + 1), axis=(0, 1))  # (su, sv, d, k, l)
+        coef = np.einsum("iak,ijckl,jbl->ijabc", self._u.matrices_for(a), blocks,
+                         self._v.matrices_for(b), optimize=True)
+        coef = np.ascontiguousarray(coef)
+        coef.setflags(write=False)
+        return coef
+
     @cached_property
     def patch_coefficients(self) -> FloatArray:
         """C_ij = E_i P_ij E_j^T for every span pair: shape (spans_u, spans_v, p+1, q+1, d).
@@ -516,14 +545,7 @@ class NurbsSurface:
         ``C[i, j, a, b]`` is the Bezier control point of Bernstein indices (a, b) of patch
         (i, j) in homogeneous coordinates (the coefficient of B_{a,p}(s) B_{b,q}(t)).
         """
-        p, q = self.degree_u, self.degree_v
-        blocks = np.lib.stride_tricks.sliding_window_view(
-            self.homogeneous, (p + 1, q + 1), axis=(0, 1))  # (su, sv, d, k, l)
-        coef = np.einsum("iak,ijckl,jbl->ijabc", self._u.matrices, blocks, self._v.matrices,
-                         optimize=True)
-        coef = np.ascontiguousarray(coef)
-        coef.setflags(write=False)
-        return coef
+        return self._coefficients(0, 0)
 
     # -- parameters --------------------------------------------------------------------------
     def _check(self, u: ArrayLike, w: ArrayLike) -> tuple[FloatArray, FloatArray]:
@@ -545,37 +567,44 @@ class NurbsSurface:
         return out[0], out[1]
 
     # -- scattered evaluation ----------------------------------------------------------------
-    @cached_property
-    def _scatter_table(self) -> FloatArray:
-        """Patch coefficients laid out for gathering: (spans_u * spans_v, q+1, (p+1) * d),
-        row (i * spans_v + j), then the t power b, then (s power a, coordinate c)."""
-        coef = self.patch_coefficients
-        su, sv, p1, q1, d = coef.shape
-        table = np.ascontiguousarray(coef.transpose(0, 1, 3, 2, 4)).reshape(su * sv, q1, p1 * d)
-        table.setflags(write=False)
-        return table
+    def _scatter_table(self, a: int, b: int) -> FloatArray:
+        """The (a, b) derivative's patch coefficients laid out for gathering:
+        (spans_u * spans_v, q-b+1, (p-a+1) * d), row (i * spans_v + j), then the t index, then
+        (s index, coordinate)."""
+        if (a, b) not in self._tables:
+            coef = self.patch_coefficients if (a, b) == (0, 0) else self._coefficients(a, b)
+            su, sv, p1, q1, d = coef.shape
+            table = np.ascontiguousarray(coef.transpose(0, 1, 3, 2, 4)).reshape(
+                su * sv, q1, p1 * d)
+            table.setflags(write=False)
+            self._tables[(a, b)] = table
+        return self._tables[(a, b)]
 
     def _homogeneous_scattered(self, u: FloatArray, w: FloatArray,
                                orders: list[tuple[int, int]]) -> dict:
         """Homogeneous partial derivatives at scattered points (flat u, w), per order: each
-        point gathers its patch's C_ij, sums the Bernstein rows in t along v, then in s."""
-        table = self._scatter_table
+        point gathers its patch's coefficients of that derivative and sums them against the
+        Bernstein rows in t, then in s."""
         d = self.homogeneous.shape[-1]
+        p, q = self.degree_u, self.degree_v
         spans_v = len(self._v.matrices)
-        chunk = max(256, SCATTER_BYTES // (8 * table[0].size))
-        outs = {o: np.empty((len(u), d)) for o in orders}
-        t_orders = sorted({b for _, b in orders})
+        outs = {o: np.zeros((len(u), d)) for o in orders}
+        live = [(a, b) for a, b in orders if a <= p and b <= q]
+        if not live:
+            return outs
+        chunk = max(256, SCATTER_BYTES // (8 * (p + 1) * (q + 1) * d))
         for start in range(0, len(u), chunk):
             sl = slice(start, start + chunk)
-            iu, su, hu = self._u.locate(u[sl])
-            iv, sv, hv = self._v.locate(w[sl])
-            coef = table[iu * spans_v + iv]  # (m, q+1, (p+1) d): each point's own patch
-            planes = _bernstein_sum(coef, sv, t_orders, hv)  # {b: (m, (p+1) d)}
-            for b in t_orders:
-                s_orders = sorted({a for a, bb in orders if bb == b})
-                values = _bernstein_sum(planes[b].reshape(len(iu), -1, d), su, s_orders, hu)
-                for a in s_orders:
-                    outs[(a, b)][sl] = values[a]
+            iu, su = self._u.locate(u[sl])
+            iv, sv = self._v.locate(w[sl])
+            row = iu * spans_v + iv
+            rows_s = {k: bernstein_rows(su, k) for k in {p - a for a, _ in live}}
+            rows_t = {k: bernstein_rows(sv, k) for k in {q - b for _, b in live}}
+            for a, b in live:
+                coef = self._scatter_table(a, b)[row]  # (m, q-b+1, (p-a+1) d)
+                planes = np.einsum("bm,mbn->mn", rows_t[q - b], coef)
+                planes = planes.reshape(len(row), p - a + 1, d)
+                outs[(a, b)][sl] = np.einsum("am,mac->mc", rows_s[p - a], planes)
         return outs
 
     def _evaluate_orders(self, u: ArrayLike, w: ArrayLike,
@@ -603,21 +632,22 @@ class NurbsSurface:
         return Derivatives(*self._evaluate_orders(u, w, SECOND_ORDER))
 
     # -- grids -------------------------------------------------------------------------------
-    def _stage1(self, u: FloatArray, order: int) -> FloatArray:
-        """[B(s)] E_i applied along u (p+1 pole rows per sample): (n_v, d * len(u)), laid out
-        coordinate-major within a row (planes of len(u) values)."""
-        net = self.homogeneous
+    def _stage1(self, u: FloatArray, a: int, b: int) -> FloatArray:
+        """[B(s)] E_i applied along u to the (a, b) derivative's poles (p-a+1 pole rows per
+        sample): (n_v - b, d * len(u)), laid out coordinate-major within a row (planes of
+        len(u) values)."""
+        net = self._net(a, b)
         n_v, d = net.shape[1], net.shape[2]
-        iu, bu = self._u.weights(u, order)
+        iu, bu = self._u.weights(u, a)
         acc = bu[:, 0, None, None] * net[iu]
-        for k in range(1, self.degree_u + 1):
+        for k in range(1, self.degree_u - a + 1):
             acc += bu[:, k, None, None] * net[iu + k]
         return np.ascontiguousarray(acc.transpose(1, 2, 0)).reshape(n_v, d * len(u))
 
     def _stage2_blocks(self, w: FloatArray, rows: int | None = None):
         """Sorted order of w, and per block of w-rows within one v-span: (lo, hi, span)."""
         order = np.argsort(w, kind="stable")
-        iv, _ = self._v.weights(w[order], 0)
+        iv, _ = self._v.locate(w[order])
         blocks = []
         start = 0
         while start < len(w):
@@ -632,22 +662,27 @@ class NurbsSurface:
                           orders: list[tuple[int, int]]) -> dict:
         """Homogeneous partial derivatives on the grid u x w as planes (len(w), d, len(u)).
 
-        Stage 1 applies [B(s)] E_i along u (p+1 pole rows per sample), stage 2 ([B(t)] E_j)^T along v
-        span by span: the samples of v-span j need only pole columns j .. j+q, so each span is
-        one small BLAS product writing a contiguous block of output rows (as
-        :func:`matrix.grid_planes` does for the cubic case).
+        Stage 1 applies [B(s)] E_i along u to the derivative's poles (p-a+1 pole rows per
+        sample), stage 2 ([B(t)] E_j)^T along v span by span: the samples of v-span j need
+        only pole columns j .. j+q-b, so each span is one small BLAS product writing a
+        contiguous block of output rows (as :func:`matrix.grid_planes` does for the cubic
+        case).
         """
         d = self.homogeneous.shape[-1]
-        q, nu = self.degree_v, len(u)
-        stage1 = {a: self._stage1(u, a) for a in sorted({a for a, _ in orders})}
+        p, q, nu = self.degree_u, self.degree_v, len(u)
+        live = [(a, b) for a, b in orders if a <= p and b <= q]
+        stage1 = {(a, b): self._stage1(u, a, b) for a, b in live}
         order, blocks = self._stage2_blocks(w)
         ws = w[order]
-        basis_v = {b: self._v.weights(ws, b)[1] for b in sorted({b for _, b in orders})}
+        basis_v = {b: self._v.weights(ws, b)[1] for b in sorted({b for _, b in live})}
         outs = {}
         for a, b in orders:
+            if (a, b) not in stage1:
+                outs[(a, b)] = np.zeros((len(w), d, nu))
+                continue
             out = np.empty((len(w), d * nu))
             for lo, hi, j in blocks:
-                np.matmul(basis_v[b][lo:hi], stage1[a][j : j + q + 1], out=out[lo:hi])
+                np.matmul(basis_v[b][lo:hi], stage1[(a, b)][j : j + q - b + 1], out=out[lo:hi])
             if not np.array_equal(order, np.arange(len(w))):
                 out[order] = out.copy()
             outs[(a, b)] = out.reshape(len(w), d, nu)  # planes: coordinate on axis 1
@@ -726,7 +761,7 @@ class NurbsSurface:
         products, crossed and normalised while in cache."""
         d = self.homogeneous.shape[-1]
         q, nu = self.degree_v, len(u)
-        s0, s1 = self._stage1(u, 0), self._stage1(u, 1)
+        s00, s10, s01 = self._stage1(u, 0, 0), self._stage1(u, 1, 0), self._stage1(u, 0, 1)
         order, blocks = self._stage2_blocks(w, NORMAL_BLOCK_ROWS)
         ws = w[order]
         w0 = self._v.weights(ws, 0)[1]
@@ -735,10 +770,10 @@ class NurbsSurface:
         length = np.empty((len(w), nu))
         scratch = np.empty((NORMAL_BLOCK_ROWS, nu))
         for lo, hi, j in blocks:
-            su = (w0[lo:hi] @ s1[j : j + q + 1]).reshape(-1, d, nu)
-            sw = (w1[lo:hi] @ s0[j : j + q + 1]).reshape(-1, d, nu)
+            su = (w0[lo:hi] @ s10[j : j + q + 1]).reshape(-1, d, nu)
+            sw = (w1[lo:hi] @ s01[j : j + q]).reshape(-1, d, nu)
             if self.rational:
-                a = (w0[lo:hi] @ s0[j : j + q + 1]).reshape(-1, d, nu)
+                a = (w0[lo:hi] @ s00[j : j + q + 1]).reshape(-1, d, nu)
                 su = a[:, 3:] * su[:, :3] - su[:, 3:] * a[:, :3]
                 sw = a[:, 3:] * sw[:, :3] - sw[:, 3:] * a[:, :3]
             block = out[lo:hi]
