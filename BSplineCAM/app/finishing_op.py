@@ -534,6 +534,17 @@ def _faces_key(obj, job) -> tuple:
     return (base, tuple(_shape_key(t) for t in [*models, *others] if hasattr(t, "Shape")))
 
 
+def _chordal_tolerance(obj) -> float:
+    """The op's chordal tolerance (mm) that faces are accepted for (``core.face_import``): its
+    ``Tolerance`` property, or the default when it has none."""
+    from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE
+
+    value = getattr(getattr(obj, "Tolerance", None), "Value", None)
+    if isinstance(value, (int, float)) and value > 0:
+        return float(value)
+    return DEFAULT_CHORDAL_TOLERANCE
+
+
 def _requested_faces(obj, job) -> list[tuple[object, list[int]]]:
     """(target object, 1-based face numbers) per object of ``Base``; a Base object that is the
     original behind a job model becomes that model (the clone, in job coordinates).  Errors
@@ -592,9 +603,8 @@ def job_faces(obj, job) -> list:
     out = []
     for target in targets:
         where = f"{obj.Label}: {target.Label}"
-        tolerance = getattr(getattr(obj, "Tolerance", None), "Value", None)
         faces, reach = faces_and_reach(target.Shape, where=where,
-                                       chordal_tolerance=tolerance if tolerance else 0.002)
+                                       chordal_tolerance=_chordal_tolerance(obj))
         numbers = chosen.get(id(target))
         if numbers is not None:
             faces = core_faces.apply_selection(faces, reach, numbers, where)
