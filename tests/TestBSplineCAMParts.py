@@ -628,3 +628,17 @@ def test_toolpath_part_strategy(tmp_path, strategy):
     r = tool / 2
     inner = on & (x > r) & (x < 30 - r) & (y > r) & (y < 20 - r)
     assert float(np.max(sim.height[inner] - z[inner])) <= scallop + tolerance + 1e-3
+
+
+def test_conversion_distances_are_reported():
+    """Every face's distance from OCCT is in the report; one above 1e-9 of its size (50 mm here)
+    also gets a note naming it, the distance and the rule it passed."""
+    from dataclasses import replace
+
+    close, far = replace(_plane_face(), deviation=1e-11), replace(
+        _plane_face(), index=2, name="Face2", deviation=1.02e-7)
+    distances, notes = parts.conversion_report([close, far], 0.002)
+    assert distances == {"Face1": 1e-11, "Face2": 1.02e-7}
+    (note,) = notes
+    assert note.startswith("Face2 (Plane): its NURBS is 1.02e-07 mm from OCCT's original")
+    assert "within the 2e-05 mm accepted (1% of the chordal tolerance 0.002 mm)" in note

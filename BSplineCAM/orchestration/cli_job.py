@@ -203,6 +203,9 @@ def cmd_job(args: argparse.Namespace) -> int:
         tools = {1: rough_tool, 2: finish_tool}
         report["programs"] = {post: path.name for post, path in
                               [(posts[0], program), *others.items()]}
+        if parts.is_part(args.net):
+            report["conversion_deviation_mm"], report["conversion_notes"] = \
+                parts.conversion_report(model, args.tolerance)
         if not args.no_rs274 and rs274.available():
             checks = {}
             for post, path in [(posts[0], program), *others.items()]:

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..core import faces as core_faces
 from ..core.errors import BSplineCAMError, ParameterError
-from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
+from ..core.face_import import ACCEPT_SHARE, DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 from . import runtime
 
@@ -197,6 +197,23 @@ def freecad_faces(path: str, selection: FacesArg, tolerance: float,
                                           chordal_tolerance=chordal_tolerance)
     except FaceError as exc:
         raise _name_file(path, exc) from None
+
+
+def conversion_report(faces: Sequence[Face], chordal_tolerance: float) -> tuple[dict, list]:
+    """Each face's distance (mm) from OCCT's original surface, by name, and a note for every
+    face farther than RELATIVE_TOLERANCE of its size (accepted, since it is within
+    1 % of ``chordal_tolerance``, but worth knowing)."""
+    limit = acceptance_limit(chordal_tolerance)
+    distances, notes = {}, []
+    for face in faces:
+        distances[face.name] = face.deviation
+        size = face.surface.size()
+        if face.deviation > RELATIVE_TOLERANCE * size:
+            notes.append(f"{face.name} ({face.source}): its NURBS is {face.deviation:.3g} mm "
+                         f"from OCCT's original surface ({face.deviation / size:.2g} of its "
+                         f"size), within the {limit:.3g} mm accepted ({ACCEPT_SHARE:.0%} of the "
+                         f"chordal tolerance {chordal_tolerance:g} mm)")
+    return distances, notes
 
 
 # --------------------------------------------------------------------------- check
@@ -466,7 +483,9 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
             "commands": commands, "pass_length_mm": round(stats.cutting_length_mm, 6),
             "seconds": round(stats.seconds, 4), "unreachable": [
                 getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
-            "notes": list(stats.notes), "clearance_height_mm": clearance,
+            "notes": list(stats.notes) + conversion_report(faces, tool.tolerance)[1],
+            "conversion_deviation_mm": conversion_report(faces, tool.tolerance)[0],
+            "clearance_height_mm": clearance,
             "safe_height_mm": safe, "post": args.post, "program": program.name,
             "parameters": {"strategy": toolpath.strategy, "angle_deg": angle,
                            "direction": getattr(args, "direction", "zigzag"),
