@@ -3,7 +3,9 @@
 markdown table of docs/parts-corpus.md: faces, degrees, the time of each command, gouge, scallop,
 coverage and LinuxCNC's rs274 verdict, so the figures there are measured, not typed.
 
-    python3 tools/corpus_table.py [--jobs N] [--json FILE] [--only NAME ...] [--shared DIR]
+    python3 tools/corpus_table.py [--jobs N] [--timeout S] [--json FILE] [--only NAME ...]
+                                  [--shared DIR]
+    python3 tools/corpus_table.py --merge FILE.json ...   # the table of earlier runs
 
 Per part: ``check PART``; ``toolpath PART --faces up --tool-diameter D --scallop H --tolerance T
 --strategy raster`` and ``--strategy steep_shallow`` (H and T from the manifest); ``verify PART
@@ -45,7 +47,9 @@ def shared_dir(option: str | None = None) -> Path:
 
 
 def part_path(entry: dict, shared: Path) -> Path:
-    return (shared if entry["origin"] == "shared" else PARTS) / entry["file"]
+    """The part's file, relative to the repository when it is inside (commands run there)."""
+    path = (shared if entry["origin"] == "shared" else PARTS) / entry["file"]
+    return path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
 
 
 def run(args: list[str], timeout: float = 900.0) -> dict:
@@ -56,16 +60,19 @@ def run(args: list[str], timeout: float = 900.0) -> dict:
         proc = subprocess.run([str(BIN), *args], capture_output=True, text=True, timeout=timeout,
                               cwd=ROOT, stdin=subprocess.DEVNULL, check=False)
     except subprocess.TimeoutExpired:
-        return {"rc": None, "seconds": timeout, "json": None, "error": f"timeout after {timeout} s"}
+        print(f"{timeout:7.1f} s  timeout  {' '.join(args[:2])} {args[-1]}", file=sys.stderr,
+              flush=True)
+        return {"rc": None, "seconds": timeout, "json": None,
+                "error": f"no end within {timeout:g} s"}
     seconds = time.monotonic() - start
-    print(f"{seconds:7.1f} s  exit {proc.returncode}  {' '.join(args[:2])} {args[-1]}",
-          file=sys.stderr, flush=True)
+    lines = [ln.strip() for ln in proc.stderr.splitlines() if ln.strip()]
+    error = "" if proc.returncode == 0 else (lines[-1] if lines else f"exit {proc.returncode}")
+    print(f"{seconds:7.1f} s  exit {proc.returncode}  {' '.join(args[:2])} {args[-1]}  "
+          f"{error}", file=sys.stderr, flush=True)
     try:
         data = json.loads(proc.stdout) if proc.stdout.strip() else None
     except json.JSONDecodeError:
         data = None
-    lines = [ln.strip() for ln in proc.stderr.splitlines() if ln.strip()]
-    error = "" if proc.returncode == 0 else (lines[-1] if lines else f"exit {proc.returncode}")
     return {"rc": proc.returncode, "seconds": round(seconds, 2), "json": data, "error": error}
 
 
@@ -75,7 +82,7 @@ def measure(entry: dict, shared: Path, tool: float, work: Path) -> dict:
 
     path = part_path(entry, shared)
     result: dict = {"file": entry["file"], "cad": entry["cad"], "origin": entry["origin"]}
-    if not path.is_file():
+    if not (ROOT / path).is_file():
         result["missing"] = str(path)
         return result
     check = run(["check", str(path)])
@@ -127,7 +134,9 @@ def cell(row: dict | None, key: str, spec: str = ".3g") -> str:
 def status(row: dict | None) -> str:
     if not row:
         return "—"
-    return f"{row['seconds']:.1f}" if row["rc"] == 0 else f"fails ({row['seconds']:.1f})"
+    if row["rc"] is None:
+        return f"> {row['seconds']:.0f} (stopped)"
+    return f"{row['seconds']:.1f}" if row["rc"] == 0 else f"refused ({row['seconds']:.1f})"
 
 
 def table(results: list[dict]) -> str:
@@ -148,17 +157,23 @@ def table(results: list[dict]) -> str:
         verify_s = " / ".join(f"{v['seconds']:.1f}" for v in ver) or "—"
         rs = [x.get("rs274") for x in (ras, st) if x and x.get("rs274")]
         rs_text = " / ".join("ok" if x["ok"] else "error" for x in rs) or "—"
+        check_exit = "" if c["rc"] == 0 else f" (exit {c['rc']})"
         lines.append(
             f"| {r['file']} | {r['cad']} | {faces} | {degrees} | "
             f"{'yes' if c['rational'] else 'no'} | "
-            f"{c['seconds']:.1f}{'' if c['rc'] == 0 else ' fails'} | {status(ras)} | "
+            f"{c['seconds']:.1f}{check_exit} | {status(ras)} | "
             f"{status(st)} | {verify_s} | {cell(ras, 'gouge_max_mm')} / "
             f"{cell(st, 'gouge_max_mm')} | {cell(ras, 'scallop_max_mm')} / "
             f"{cell(st, 'scallop_max_mm')} | {cell(ras, 'coverage', '.3f')} / "
             f"{cell(st, 'coverage', '.3f')} | {rs_text} |")
         for name, row in (("check", c), ("raster", ras), ("steep_shallow", st)):
             if row and row.get("rc") != 0:
-                errors.append(f"- {r['file']}, {name} (exit {row['rc']}): `{row['error']}`")
+                how = "stopped" if row["rc"] is None else f"exit {row['rc']}"
+                errors.append(f"- {r['file']}, {name} ({how}): `{row['error']}`")
+            ver = (row or {}).get("verify")
+            if ver and ver.get("rc") != 0:
+                errors.append(f"- {r['file']}, verify of {name} (exit {ver['rc']}): "
+                              f"`{ver['error']}`")
     if errors:
         lines += ["", "Errors, verbatim (the last line of stderr):", "", *errors]
     return "\n".join(lines)
@@ -182,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", help="also write the raw measurements to this file")
     parser.add_argument("--only", nargs="*", help="file names of the parts to run")
     parser.add_argument("--shared", help="folder of the parts whose origin is 'shared'")
+    parser.add_argument("--merge", nargs="+", metavar="JSON",
+                        help="print the table of earlier --json files instead of running")
     parser.add_argument("--timeout", type=float, default=900.0,
                         help="seconds one command may take (default 900)")
     args = parser.parse_args(argv)
@@ -190,13 +207,23 @@ def main(argv: list[str] | None = None) -> int:
     entries = [e for e in manifest["parts"] if not args.only or e["file"] in args.only]
     shared = shared_dir(args.shared)
     tool = float(manifest["tool_diameter_mm"])
-    with tempfile.TemporaryDirectory(prefix="corpus-") as tmp, \
-            ThreadPoolExecutor(max(1, args.jobs)) as pool:
-        results = list(pool.map(lambda e: measure(e, shared, tool, Path(tmp)), entries))
+    if args.merge:
+        done = {}
+        for name in args.merge:
+            blob = json.loads(Path(name).read_text())
+            done.update({r["file"]: r for r in blob["results"]})
+            today, host, jobs = blob["date"], blob["machine"], blob["jobs"]
+        results = [done[e["file"]] for e in entries if e["file"] in done]
+    else:
+        with tempfile.TemporaryDirectory(prefix="corpus-") as tmp, \
+                ThreadPoolExecutor(max(1, args.jobs)) as pool:
+            results = list(pool.map(lambda e: measure(e, shared, tool, Path(tmp)), entries))
+        today = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        host, jobs = machine(), args.jobs
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=1))
-    today = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    print(f"Measured {today} on {machine()}, {args.jobs} part(s) at a time; ball end "
+        Path(args.json).write_text(json.dumps(
+            {"date": today, "machine": host, "jobs": jobs, "results": results}, indent=1))
+    print(f"Measured {today} on {host}, {jobs} part(s) at a time; ball end "
           f"{tool:g} mm, `--faces up`; scallop h and tolerance per part as in "
           f"tests/parts/corpus.json. Figures are raster / steep_shallow.\n")
     print(table(results))
