@@ -262,7 +262,8 @@ def readme(rows: list[tuple[str, str, str, str]], freecad: str) -> str:
 Made by `python3 tools/make_damaged_parts.py` (deterministic: a fixed seed and fixed zip dates)
 from three corpus files of tests/parts/ ({STEP_SOURCE.name}, {BREP_SOURCE.name},
 {FCSTD_SOURCE.name}; their sources and licences are in ../README.md).  The readers' tests run
-every file here (`tests/parts/damaged/*`): each must end in a clean refusal, never a crash.
+every file here (`tests/parts/damaged/*`): each must end in a clean refusal (or a
+clean read where FreeCAD recovers the file), never a crash.
 
 "What FreeCAD does" is `Part.read(FILE)` (STEP, BREP) or `FreeCAD.openDocument(FILE)` (FCStd)
 in a fresh `freecadcmd` ({freecad}), one process per file; "bsplinecam check" is
