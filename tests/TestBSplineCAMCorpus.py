@@ -110,16 +110,28 @@ def toolpath(runs: dict, name: str, strategy: str) -> tuple[subprocess.Completed
 
 @pytest.mark.parametrize("name", NAMES)
 def test_check(name):
+    """check reports every face; the faces the readers cannot build (the manifest's
+    "unbuilt": face -> the start of its error) are reported with their error and named in the
+    verdict (exit 1), every other face within the strict limit."""
     entry = ENTRIES[name]
     proc = run_bin("check", str(part_path(entry)))
     if "check" in entry["expect"]:
         assert_refused(proc, entry["expect"]["check"])
         return
-    assert proc.returncode == 0, last_line(proc)
+    unbuilt = entry["expect"].get("unbuilt", {})
+    assert proc.returncode == (1 if unbuilt else 0), last_line(proc)
     report = json.loads(proc.stdout)
     assert report["face_count"] == len(report["faces"]) > 0
-    bad = [(f["index"], f.get("source")) for f in report["faces"] if not f["ok"]]
+    assert report["over_strict_limit"] == list(unbuilt)
+    for face in report["faces"]:
+        if face["name"] in unbuilt:
+            assert face["error"].startswith(unbuilt[face["name"]]), face["error"]
+    bad = [(f["index"], f.get("source")) for f in report["faces"]
+           if not f["ok"] and f["name"] not in unbuilt]
     assert not bad, f"faces whose NURBS does not match OCCT's: {bad}"
+    if unbuilt:
+        assert "over the strict limit" in last_line(proc) and \
+            ", ".join(unbuilt) in last_line(proc), last_line(proc)
 
 
 @pytest.mark.parametrize("name, strategy", RUNS)
@@ -137,12 +149,16 @@ def test_toolpath(runs, name, strategy):
 
 
 @pytest.mark.parametrize("name, strategy", RUNS)
-def test_verify_and_rs274(runs, name, strategy):
+def test_verify_and_rs274(request, runs, name, strategy):
     """The program, read back from its text: no gouge, the scallop asked for (where the ball
-    reaches), coverage reported, and LinuxCNC's interpreter accepting every block."""
+    reaches), coverage reported, and LinuxCNC's interpreter accepting every block.  A known
+    fault of the product on a part (the manifest's "known": strategy -> what is measured) is
+    a strict expected failure: it fails the suite once it is mended, until the entry goes."""
     from BSplineCAM.orchestration import rs274
 
     entry = ENTRIES[name]
+    if strategy in entry.get("known", {}):
+        request.applymarker(pytest.mark.xfail(strict=True, reason=entry["known"][strategy]))
     if "toolpath" in entry["expect"]:
         pytest.skip(f"toolpath refuses {name}: {entry['expect']['toolpath']}")
     proc, out = toolpath(runs, name, strategy)
