@@ -476,6 +476,7 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         check_interrupted()
         text = program.read_text()
         stats = toolpath.stats
+        distances, conversion_notes = conversion_report(faces, tool.tolerance)
         report = {
             "part": str(args.net), "faces": [f.index for f in faces if f.selected],
             "check_faces": [f.index for f in faces if not f.selected],
@@ -483,8 +484,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
             "commands": commands, "pass_length_mm": round(stats.cutting_length_mm, 6),
             "seconds": round(stats.seconds, 4), "unreachable": [
                 getattr(r, "as_dict", lambda r=r: str(r))() for r in toolpath.unreachable],
-            "notes": list(stats.notes) + conversion_report(faces, tool.tolerance)[1],
-            "conversion_deviation_mm": conversion_report(faces, tool.tolerance)[0],
+            "notes": list(stats.notes) + conversion_notes,
+            "conversion_deviation_mm": distances,
             "clearance_height_mm": clearance,
             "safe_height_mm": safe, "post": args.post, "program": program.name,
             "parameters": {"strategy": toolpath.strategy, "angle_deg": angle,
