@@ -55,7 +55,8 @@ def write_nets(folder: Path) -> dict[str, Path]:
         z = eval(expr, {"np": np, "u": u, "w": w})  # constant expressions above
         points = np.stack([x, y, z], axis=-1).tolist()
         path = folder / f"{name}.json"
-        path.write_text(json.dumps({"name": name, "knots": "clamped", "points": points}))
+        path.write_text(json.dumps({"name": name, "units": "mm", "knots": "clamped",
+                                    "control_points": points}))
         paths[name] = path
     return paths
 
