@@ -36,7 +36,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from BSplineCAM.orchestration import parts, runtime  # noqa: E402
+from BSplineCAM.app import runtime  # noqa: E402
+from BSplineCAM.orchestration import parts  # noqa: E402
 
 EXAMPLE = ROOT / "examples" / "part.step"
 BIN = ROOT / "bin" / "bsplinecam"

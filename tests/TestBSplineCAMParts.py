@@ -25,7 +25,8 @@ from conftest import CASE_STUDY, ROOT, run_main
 
 from BSplineCAM.core.faces import Face, FaceError, sample_points, to_dict
 from BSplineCAM.core.nurbs import NurbsSurface
-from BSplineCAM.orchestration import cli_toolpath, parts, runtime
+from BSplineCAM.app import runtime
+from BSplineCAM.orchestration import cli_toolpath, parts
 
 EXAMPLE = ROOT / "examples" / "part.step"
 BIN = ROOT / "bin" / "bsplinecam"

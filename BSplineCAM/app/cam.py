@@ -14,7 +14,10 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..core import Surface
 from . import compat
+from .part import surface_extent
+from .surface_feature import is_surface
 
 FreeCAD = compat.ensure_freecad()
 
@@ -138,8 +141,6 @@ def set_post_processor(job, post: str) -> None:
 
 # --- the stock and the heights from the exact surface ---------------------------------------
 def _is_surface(obj) -> bool:
-    from .surface_feature import is_surface
-
     return is_surface(obj)
 
 
@@ -162,8 +163,6 @@ def surface_in_job(source, clone=None):
     the job's model clone's placement applied to the control points (exact for affine maps)."""
     import numpy as np
 
-    from ..core import Surface
-
     surface = source.Proxy.surface(source)
     matrix = source.getGlobalPlacement().toMatrix()
     if clone is not None:
@@ -181,8 +180,6 @@ def model_extent(models):
     (``optimalBoundingBox``: evaluated on the geometry); None when there is nothing.  Never
     OCCT's quick box of a B-spline face (``Shape.BoundBox`` encloses the poles: 12 mm above
     examples/part.step's top)."""
-    from .part import surface_extent
-
     box = None
     exact = model_surfaces(models)
     covered = {id(clone or source) for source, clone in exact}

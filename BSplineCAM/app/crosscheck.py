@@ -15,6 +15,7 @@ import numpy as np
 from ..core import Surface
 from ..core.basis import cox_de_boor_surface
 from . import runtime
+from .compat import freecad_version
 
 EXACT_TOLERANCE = 1e-9
 DEFAULT_SAMPLES = 101
@@ -35,8 +36,7 @@ def _net_request(surface: Surface) -> dict:
 def occt_points(surface: Surface, backend: str, u: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, str]:
     """OCCT's evaluation by ``backend``, in this process when possible, else in a worker."""
     if backend == "freecad" and runtime.freecad_in_process():
-        from ..app import part
-        from ..app.compat import freecad_version
+        from . import part
 
         return part.evaluate(surface, u, w), ".".join(map(str, freecad_version()))
     if backend == "cadquery" and runtime.cadquery_in_process():
@@ -53,7 +53,7 @@ def paper_route_deviation(surface: Surface, points: int = PAPER_ROUTE_POINTS) ->
     """Deviation of the paper's route, rebuilt in FreeCAD from a points x points .dat grid."""
     grid = surface.grid(points, points)
     if runtime.freecad_in_process():
-        from ..app import part
+        from . import part
 
         result = part.deviation_between(part.paper_route(grid), surface)
     else:

@@ -13,7 +13,9 @@ import os
 from pathlib import Path
 
 from ..core import BSplineCAMError, Surface, netio
+from . import part
 from .compat import ensure_freecad
+from .surface_feature import make_surface, surface_of, surfaces_in
 
 FreeCAD = ensure_freecad()
 
@@ -70,8 +72,6 @@ def insert(filename: str, docname: str | None = None) -> object | None:
 
 def export(objects, filename: str) -> bool:
     """Export the first surface among ``objects``: its net (.json/.csv) or points (.dat)."""
-    from .surface_feature import surface_of, surfaces_in
-
     targets = surfaces_in(_flatten(objects))
     if not targets:
         report_error("BSplineCAM export", "select a B-spline surface object to export")
@@ -110,9 +110,6 @@ def import_paper_route(filename: str | os.PathLike, design=None, doc=None):
     before the document changes.
     """
     import json
-
-    from . import part
-    from .surface_feature import surface_of
 
     grid = netio.read_dat(filename)
     if doc is None:
@@ -155,8 +152,6 @@ def import_paper_route(filename: str | os.PathLike, design=None, doc=None):
 
 
 def _insert_surface(surface: Surface, doc):
-    from .surface_feature import make_surface
-
     obj = make_surface(surface, doc=doc)
     doc.recompute()
     return obj

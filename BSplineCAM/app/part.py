@@ -214,32 +214,7 @@ def deviation_between(face: Part.Face, surface: Surface, samples: int = 41, reve
     }
 
 
-def save_document(surface: Surface, path: str | os.PathLike, solid: bool = True) -> None:
-    """A FreeCAD document holding the surface as a parametric object, saved atomically."""
-    from .surface_feature import make_surface
-
-    path = Path(path)
-    doc = FreeCAD.newDocument(_unique_doc_name(path.stem))
-    try:
-        make_surface(surface, doc=doc, solid=solid)
-        doc.recompute()
-        tmp = path.with_name(f".{path.stem}.part.FCStd")
-        doc.saveAs(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        FreeCAD.closeDocument(doc.Name)
-
-
-def _unique_doc_name(stem: str) -> str:
-    base = "".join(ch if ch.isalnum() else "_" for ch in stem) or "BSplineCAM"
-    name, n = base, 1
-    while name in FreeCAD.listDocuments():
-        n += 1
-        name = f"{base}{n}"
-    return name
-
-
 __all__ = [
     "atomic_write", "deviation_between", "evaluate", "export_shape", "paper_route",
-    "Extent", "save_document", "surface_extent", "to_face", "to_part_surface", "to_solid",
+    "Extent", "surface_extent", "to_face", "to_part_surface", "to_solid",
 ]

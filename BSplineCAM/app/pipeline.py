@@ -14,7 +14,9 @@ from dataclasses import dataclass
 
 from ..core import Surface
 from ..core.toolpath.roughing import RAMP_ANGLE_DEG
-from . import cam, compat
+from . import cam, compat, finishing_op, roughing_op
+from .faces import read_part
+from .surface_feature import make_surface
 
 FreeCAD = compat.ensure_freecad()
 
@@ -61,13 +63,10 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     PostProcessor, and the finishing op; with ``roughing``, first a roughing op with its own
     tool controller (T1, the ball becomes T2) from a stock block grown by its margin.
     Returns (model, job, op) with op the finishing op; ``job.Operations.Group`` holds both."""
-    from .finishing_op import Create
-    from .surface_feature import make_surface
-
     model = make_surface(surface, doc=doc, solid=True)
     doc.recompute()
     job = cam.make_job(model, params.tool_diameter, cutting, post=post)
-    op = Create("SurfaceFinish", parentJob=job)
+    op = finishing_op.Create("SurfaceFinish", parentJob=job)
     if roughing is not None:
         add_roughing(job, roughing, cutting)
     op.Surface = model
@@ -86,11 +85,9 @@ def add_roughing(job, roughing: RoughingParameters, cutting: cam.Cutting):
     """The roughing op (first in the job) with its tool controller T1; the job's other
     controllers move up one number (the ball-end becomes T2) and the stock block grows by
     ``roughing.stock_margin`` on every side but the bottom.  Returns the op (not computed)."""
-    from .roughing_op import Create
-
     # the op first: CAM's ops pick their controller when made, and a job's first op with
     # several controllers to choose from fails headless (FreeCAD 0.20-1.1 PathUtils)
-    op = Create("SurfaceRough", parentJob=job)
+    op = roughing_op.Create("SurfaceRough", parentJob=job)
     # inactive until it is set up, and the job's other ops with it: making the new
     # controller's tool bit recomputes the document (FreeCAD 0.20's ToolBit copies its
     # shape, headless too), which would otherwise rough the whole stock with the finishing
@@ -198,10 +195,8 @@ def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = c
     job's model clone), or None for the default: every face a 3-axis tool reaches from above.
     Returns (job, op); the document is not recomputed.
     """
-    from .finishing_op import Create
-
     job = cam.make_job(model, params.tool_diameter, cutting, post=post)
-    op = Create("SurfaceFinish", parentJob=job)
+    op = finishing_op.Create("SurfaceFinish", parentJob=job)
     if faces is not None:
         names = [f if isinstance(f, str) else f"Face{int(f)}" for f in faces]
         op.Base = [(job.Model.Group[0], names)]
@@ -255,8 +250,6 @@ def _part_builder(part_path, params: FinishingParameters, cutting: cam.Cutting, 
     """``build(doc) -> (job, finishing op)`` for a part file, read once here so that an
     unreadable file fails before any document is made."""
     from pathlib import Path
-
-    from .faces import read_part
 
     shape = read_part(str(part_path))
 

@@ -4,6 +4,9 @@
 FreeCAD 0.20 on Debian runs Debian's python3 with numpy 1.24; cadquery lives in the project's
 virtual environment with numpy 2.x.  Work that needs the other one goes to a worker process
 (:mod:`BSplineCAM.orchestration.worker`) through JSON files.
+It lives in app, below the command line, because the surface object's cross-check
+(:mod:`BSplineCAM.app.crosscheck`) reaches cadquery's OCCT through it too; the worker module
+is started by name, never imported here.
 
 A worker runs in a session of its own under a time limit; when the limit passes or the caller
 is interrupted (Ctrl-C, SIGTERM, any exception) its whole process group is killed before
@@ -23,6 +26,9 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from ..core.errors import BSplineCAMError
+from .compat import ensure_freecad
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 WORKER_TIMEOUT_S = 1800
@@ -92,8 +98,6 @@ def freecad_in_process() -> bool:
     if "OCP" in sys.modules or os.path.realpath(sys.executable) != os.path.realpath(freecad_python()):
         return False
     try:
-        from ..app.compat import ensure_freecad
-
         ensure_freecad()
     except ImportError:
         return False
@@ -138,8 +142,6 @@ def run_worker(backend: str, request: dict, timeout: float | None = None) -> dic
         reply = json.loads(rep.read_text())
     if "error" in reply:
         if reply.get("input_error"):  # bad input found by the other Python: exit status 2
-            from ..core.errors import BSplineCAMError
-
             raise BSplineCAMError(f"{backend} worker: {reply['error']}")
         raise RuntimeError(f"{backend} worker: {reply['error']}")
     return reply

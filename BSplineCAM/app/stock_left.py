@@ -12,6 +12,10 @@ controller's tool (:func:`BSplineCAM.core.job_simulation.simulate_job`), the sam
 
 from __future__ import annotations
 
+from ..core.gcode import read_gcode
+from ..core.job_simulation import simulate_job
+from ..core.simulate import Grid, Tool
+from ..core.stock import CylinderStock, Stock
 from . import compat
 
 FreeCAD = compat.ensure_freecad()
@@ -26,16 +30,12 @@ def cutting_ops(ops) -> list:
 
 def core_tool(tc):
     """The core Tool of a tool controller's bit (flat, bull-nose or ball)."""
-    from ..core.simulate import Tool
-
     shape, diameter, corner = compat.core_tool_shape(tc.Tool)
     return Tool(diameter, shape, corner if shape == "bullnose" else 0.0)
 
 
 def program_of(ops, source: str):
     """(core Program, {tool number: Tool}) of ``ops`` in order, each after its tool change."""
-    from ..core.gcode import read_gcode
-
     tools = {}
     parts = []
     for other in ops:
@@ -57,8 +57,6 @@ def job_stock(job):
     carries the Placement, radius from its Radius property), else as the
     :class:`~BSplineCAM.core.stock.Stock` block of its shape's box (mm, job coordinates).
     ValueError naming the job when it has no stock."""
-    from ..core.stock import CylinderStock, Stock
-
     stock = getattr(job, "Stock", None)
     if stock is None or stock.Shape.isNull():
         raise ValueError(f"{job.Label}: the job has no stock")
@@ -75,9 +73,6 @@ def job_stock(job):
 def stock_after_ops(job, op, ops, cell: float, progress=None):
     """The job's stock (:func:`job_stock`, a block or a cylinder) cut by ``ops`` (in the job's
     order) on cells of ``cell`` mm, as a core JobSimulation; None when none of them cuts."""
-    from ..core.job_simulation import simulate_job
-    from ..core.simulate import Grid
-
     order = {o.Name: k for k, o in enumerate(job.Operations.Group)}
     ops = sorted(cutting_ops(ops), key=lambda o: order.get(o.Name, -1))
     if not ops:

@@ -11,13 +11,16 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 
 import numpy as np
 
 from ..core import Surface
 from ..core.basis import KnotLayout
 from ..core.errors import NetError
+from . import part
 from .compat import ensure_freecad
+from .crosscheck import crosscheck
 from .proxy import StatelessProxy, add_missing_properties
 
 FreeCAD = ensure_freecad()
@@ -79,8 +82,6 @@ class SurfaceFeature(StatelessProxy):
 
     def execute(self, obj) -> None:
         """Read properties, evaluate by core, assign the exact shape (placement kept)."""
-        from . import part
-
         surface = surface_of(obj)
         if obj.MakeSolid:
             shape = part.to_solid(surface, margin=float(obj.BaseOffset))
@@ -179,11 +180,9 @@ def surfaces_in(objects: Iterable) -> list:
 def run_crosscheck(obj, **options) -> dict:
     """Cross-check a surface object against OCCT; store the report in ``obj.CrossCheck``.
 
-    The report (max deviations in mm, see :func:`BSplineCAM.orchestration.crosscheck.crosscheck`) is also
+    The report (max deviations in mm, see :func:`BSplineCAM.app.crosscheck.crosscheck`) is also
     printed to the report view, a warning when the exact route misses its tolerance.
     """
-    from ..orchestration.crosscheck import crosscheck
-
     report = crosscheck(surface_of(obj), **options)
     obj.CrossCheck = json.dumps(report, sort_keys=True)
     FreeCAD.Console.PrintMessage(format_crosscheck(obj.Label, report))
@@ -217,3 +216,26 @@ def format_crosscheck(label: str, report: dict) -> str:
 def _object_name(label: str) -> str:
     clean = "".join(ch if ch.isalnum() else "_" for ch in label)
     return clean if clean and not clean[0].isdigit() else "BSplineSurface"
+
+
+def save_document(surface: Surface, path: str | os.PathLike, solid: bool = True) -> None:
+    """A FreeCAD document holding the surface as a parametric object, saved atomically."""
+    path = Path(path)
+    doc = FreeCAD.newDocument(_unique_doc_name(path.stem))
+    try:
+        make_surface(surface, doc=doc, solid=solid)
+        doc.recompute()
+        tmp = path.with_name(f".{path.stem}.part.FCStd")
+        doc.saveAs(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        FreeCAD.closeDocument(doc.Name)
+
+
+def _unique_doc_name(stem: str) -> str:
+    base = "".join(ch if ch.isalnum() else "_" for ch in stem) or "BSplineCAM"
+    name, n = base, 1
+    while name in FreeCAD.listDocuments():
+        n += 1
+        name = f"{base}{n}"
+    return name

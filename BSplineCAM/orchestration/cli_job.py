@@ -22,16 +22,21 @@ from pathlib import Path
 
 from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
+from ..core.gcode import read_gcode_file
 from ..core.toolpath import check_request
-from ..core.toolpath.common import Strategy, check_range
+from ..core.toolpath.common import Strategy, ToolParameters, check_angle, check_range
 from ..core.toolpath.roughing import (
     MAX_RAMP_ANGLE_DEG,
     RAMP_ANGLE_DEG,
     check_fine_stepdown,
     check_ramp_angle,
 )
-from . import rs274
-from .cli_verify import add_machine_options, check_machine_limits
+from ..core.tooltable import MAX_LINE_CHARS, parse_tool_spec
+from ..core.verify import verify_job
+from . import parts, rs274
+from . import report as pictures
+from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
+from .cli_verify import add_machine_options, check_machine_limits, machine_time_metrics
 from .pipeline_run import (
     DEFAULT_RAPID,
     check_posts,
@@ -111,8 +116,6 @@ def register(sub) -> None:
 def parse_tool(text: str, option: str):
     """A core Tool from SHAPE:DIAMETER[:CORNER] (the --tools syntax of verify, one tool);
     errors name the option and its value."""
-    from ..core.tooltable import MAX_LINE_CHARS, parse_tool_spec
-
     if not isinstance(text, str) or len(text) > MAX_LINE_CHARS:
         raise ParameterError(f"{option}: expected <shape>:<diameter mm>[:<corner radius mm>]")
     return parse_tool_spec(text, f"{option} {text}")
@@ -142,8 +145,6 @@ def roughing_parameters(args: argparse.Namespace):
 
 
 def cmd_job(args: argparse.Namespace) -> int:
-    from .cli import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
-
     started = time.perf_counter()
     args.rapid_rate = args.rapid  # one rapid rate for the time estimates
     cutting_params = cutting_parameters(args)
@@ -160,14 +161,10 @@ def cmd_job(args: argparse.Namespace) -> int:
         raise ParameterError(f"--post {args.post}: give post-processor names once each, "
                              "separated by commas")
     check_output(args.out)
-    from . import parts
-
     names = ("--finish", "--scallop", "--tolerance", "--angle")
     if parts.is_part(args.net):
         if args.knots is not None:
             raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
-        from ..core.toolpath.common import ToolParameters, check_angle
-
         tool = ToolParameters.validate(finish_tool.diameter, args.scallop, args.tolerance,
                                        names[:3])
         angle = check_angle(args.angle, names[3])
@@ -285,11 +282,6 @@ def verify_program(args, model, program_path, tools, stock, stage) -> dict:
     writes the stock pictures and the deviation map into ``stage``; returns verify.json with
     ``checks`` (gouge, scallop, rapid collisions: each limit, its value and whether it holds;
     ``ok`` when all hold), and ``targets`` (the roughing's engagement, reported)."""
-    from ..core.gcode import read_gcode_file
-    from ..core.verify import verify_job
-    from . import report as pictures
-    from .cli_verify import machine_time_metrics
-
     program = read_gcode_file(str(program_path))
     result = verify_job(model, program, tools, stock=tuple(stock), cell=args.cell,
                         rapid_rate=args.rapid)

@@ -9,6 +9,7 @@ receives nothing unless all steps succeed.
 from __future__ import annotations
 
 import argparse
+import importlib.util
 from pathlib import Path
 
 from ..core import BSplineCAMError, Surface
@@ -20,8 +21,10 @@ from ..core.toolpath.common import (
     IsoDirection,
     Strategy,
     ToolParameters,
+    check_angle,
 )
-from . import rs274
+from . import parts, rs274
+from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
 from .pipeline_run import (
     DEFAULT_RAPID,
     check_posts,
@@ -29,7 +32,6 @@ from .pipeline_run import (
     freecad_cutting,
     run_pipeline,
 )
-from .pipeline_run import machining_time as machining_time  # parts.py takes it from here
 
 #: Option names, in the order the core's validators take them.
 TOOL_OPTIONS = ("--tool-diameter", "--scallop", "--tolerance", "--angle")
@@ -61,14 +63,10 @@ def register(sub) -> None:
 
 
 def cmd_toolpath(args: argparse.Namespace) -> int:
-    from .cli import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
-
     # Everything the FreeCAD op would refuse is refused here first, with the core's own checks,
     # so that no refusal happens inside a recompute (whose traceback FreeCAD prints).
     cutting_params = cutting_parameters(args)
     check_output(args.out)
-    from . import parts
-
     if parts.is_part(args.net):
         return cmd_toolpath_part(args, cutting_params)
     parts.refuse_faces_on_net(args.faces, args.net)
@@ -113,8 +111,6 @@ FACES_RASTER = "BSplineCAM.core.toolpath.faces_raster"
 
 def faces_raster_available() -> bool:
     """True when the multi-face toolpath module can be imported."""
-    import importlib.util
-
     try:
         return importlib.util.find_spec(FACES_RASTER) is not None
     except ImportError:
@@ -124,8 +120,6 @@ def faces_raster_available() -> bool:
 def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameters) -> int:
     """``toolpath PART --faces up|3,8,20``: the faces' raster, waterline or isoparametric
     passes over the multi-face drop-cutter."""
-    from . import parts
-
     if args.knots is not None:
         raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
     selection = parts.parse_faces(args.faces)
@@ -138,8 +132,6 @@ def cmd_toolpath_part(args: argparse.Namespace, cutting_params: CuttingParameter
                              "zigzag only")
     tool = ToolParameters.validate(args.tool_diameter, args.scallop, args.tolerance,
                                    TOOL_OPTIONS[:3])
-    from ..core.toolpath.common import check_angle
-
     angle = check_angle(args.angle, TOOL_OPTIONS[3])
     faces = parts.load_faces(args.net, parts._selection_text(selection),
                              chordal_tolerance=tool.tolerance)

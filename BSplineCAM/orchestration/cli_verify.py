@@ -21,8 +21,17 @@ from pathlib import Path
 
 from ..core import Surface
 from ..core.errors import ParameterError
+from ..core.faces_height import FacesHeight
 from ..core.footprint import footprint_bounds
 from ..core.gcode import read_gcode_file
+from ..core.machining_time import (
+    DEFAULT_ACCELERATION,
+    DEFAULT_JUNCTION_DEVIATION,
+    MachineLimits,
+    machining_time,
+    parse_axis_values,
+)
+from ..core.netio import MAX_COORDINATE_MM
 from ..core.simulate import Tool, ToolShape, zmap_shape
 from ..core.toolpath.common import (
     MAX_TOOL_DIAMETER,
@@ -31,14 +40,18 @@ from ..core.toolpath.common import (
     check_range,
     check_tool_fits,
 )
+from ..core.tooltable import check_program_tools, parse_tools_option, read_tool_table
 from ..core.verify import (
     DEFAULT_COVERAGE_TOLERANCE,
     DEFAULT_RAPID_RATE,
     DEFAULT_STOCK_MARGIN,
     StockTop,
     verify,
+    verify_faces,
     verify_job,
 )
+from . import parts, report
+from .cli_common import check_interrupted, check_output, emit, json_text, staged_output
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -93,8 +106,6 @@ COVERAGE_TOLERANCE_RANGE = (0.0, 100.0)
 
 def add_machine_options(p: argparse.ArgumentParser) -> None:
     """Options of the machine model behind ``machining_time_with_acceleration_s``."""
-    from ..core.machining_time import DEFAULT_ACCELERATION, DEFAULT_JUNCTION_DEVIATION
-
     p.add_argument("--accel", default=str(DEFAULT_ACCELERATION),
                    help="axis acceleration for the machine time: one value or X,Y,Z "
                         f"(mm/s^2, default {DEFAULT_ACCELERATION:g})")
@@ -105,8 +116,6 @@ def add_machine_options(p: argparse.ArgumentParser) -> None:
 
 def check_machine_limits(args: argparse.Namespace):
     """--accel, --rapid-rate and --junction-deviation as validated MachineLimits."""
-    from ..core.machining_time import MachineLimits, parse_axis_values
-
     accel = parse_axis_values(args.accel, "--accel", "mm/s^2")
     return MachineLimits.checked(accel, args.rapid_rate, args.junction_deviation,
                                  names=("--accel", "--rapid-rate", "--junction-deviation",
@@ -115,8 +124,6 @@ def check_machine_limits(args: argparse.Namespace):
 
 def machine_time_metrics(args: argparse.Namespace, program) -> dict:
     """The program's time on the machine of the options, for verify.json."""
-    from ..core.machining_time import machining_time
-
     return machining_time(program, check_machine_limits(args)).metrics()
 
 
@@ -161,8 +168,6 @@ _STOCK_NAMES = ("x0", "x1", "y0", "y1", "z0", "z1")
 def parse_stock(text: str) -> tuple[float, float, float, float, float, float]:
     """--stock x0,x1,y0,y1,z0,z1 (mm), finite, each pair increasing, within the machine's
     reach; ParameterError naming --stock otherwise."""
-    from ..core.netio import MAX_COORDINATE_MM
-
     items = text.split(",")
     if len(items) != 6:
         raise ParameterError(f"--stock must be six numbers x0,x1,y0,y1,z0,z1 (mm), got {text!r}")
@@ -184,8 +189,6 @@ def job_tools(args: argparse.Namespace, tool: Tool | None, program) -> dict[int,
     """Tools by number for the program: from --tools / --tool-table, or --tool-diameter's tool
     for every tool of a program with at most one (None then, unless --stock asks for the
     whole-program simulation); a program changing between tools needs --tools/--tool-table."""
-    from ..core.tooltable import check_program_tools, parse_tools_option, read_tool_table
-
     if args.tools is not None:
         tools = parse_tools_option(args.tools)
     elif args.tool_table is not None:
@@ -210,13 +213,9 @@ def _tools_fit(model, tools: dict[int, Tool]) -> None:
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
-    from .cli import check_interrupted, check_output
-
     started = time.perf_counter()
     tool = check_options(args)
     check_output(args.out)
-    from . import parts
-
     if parts.is_part(args.net):
         return cmd_verify_part(args, tool)
     parts.refuse_faces_on_net(args.faces, args.net)
@@ -252,9 +251,6 @@ def cmd_verify_part(args: argparse.Namespace, tool: Tool | None) -> int:
     exact faces (``core.verify.verify_faces``): gouge over the whole model, scallop and
     coverage on the selected faces away from their borders; the same outputs as for a net,
     plus the selected and check faces."""
-    from . import parts
-    from .cli import check_interrupted
-
     started = time.perf_counter()
     if args.knots is not None:
         raise ParameterError(f"--knots applies to control nets, not to the part {args.net}")
@@ -288,9 +284,6 @@ SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "edge_scallop_max
 def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple = ()) -> int:
     """--out/verify.json, deviation.png and simulated.png (all or nothing), the warnings on
     stderr and the summary (``SUMMARY`` + ``extra``) on stdout; exit status 0."""
-    from . import report
-    from .cli import emit, json_text, staged_output
-
     with staged_output(Path(args.out)) as stage:
         report.plot_deviation(result, stage / "deviation.png")
         report.plot_simulated(result, stage / "simulated.png")
@@ -307,9 +300,6 @@ def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple 
 def verify_faces_checked(args: argparse.Namespace, faces, program, tool: Tool | None):
     """``core.verify.verify_faces`` (``verify_job`` with --tools, --tool-table or --stock)
     after the Z-map size check over the part's and the stock's extent."""
-    from ..core.faces_height import FacesHeight
-    from ..core.verify import verify_faces
-
     x0, x1, y0, y1 = FacesHeight(faces, args.cell).bounds()
     x0, x1, y0, y1 = x0 - args.cell, x1 + args.cell, y0 - args.cell, y1 + args.cell
     stock = None if getattr(args, "stock", None) is None else parse_stock(args.stock)

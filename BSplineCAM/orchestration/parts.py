@@ -32,11 +32,25 @@ from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
+from ..app import compat, runtime
 from ..core import faces as core_faces
+from ..core.basis import cox_de_boor
 from ..core.errors import BSplineCAMError, ParameterError
 from ..core.face_import import ACCEPT_SHARE, DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
-from . import runtime
+from ..core.toolpath import faces_program_moves, generate_faces, program_moves
+from ..core.toolpath.faceset import FaceSet
+from . import rs274
+from .cli_common import (
+    EXIT_CHECK_FAILED,
+    _safe_name,
+    captured_console,
+    check_interrupted,
+    emit,
+    json_text,
+    staged_output,
+)
+from .pipeline_run import machining_time
 
 if TYPE_CHECKING:
     import argparse
@@ -243,7 +257,6 @@ def freecad_check(path: str, selection: FacesArg, tolerance: float, samples: int
 
 
 def _freecad_check(path: str, selection: FacesArg, tolerance: float, samples: int) -> dict:
-    from ..app import compat
     from ..app import faces as app_faces
 
     shape = app_faces.read_part(path)
@@ -339,8 +352,6 @@ def handle(request: dict) -> dict:
 def cox_de_boor_points(face: Face, uv: np.ndarray) -> np.ndarray:
     """The face's NURBS at ``uv`` by Cox-de Boor's recursion (``core.basis``, independent of
     the matrix evaluator), rational by the weighted sum: (k, 3) mm."""
-    from ..core.basis import cox_de_boor
-
     surface = face.surface
     nu = cox_de_boor(surface.knots_u, surface.degree_u, uv[:, 0])
     nv = cox_de_boor(surface.knots_v, surface.degree_v, uv[:, 1])
@@ -427,29 +438,15 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
     surfaces), posted by FreeCAD from a job whose model is the part, with one-sided arcs as
     for nets if ``--arcs on``; writes --out/NAME.ngc, toolpath.json and NAME-job.FCStd, all
     or nothing."""
-    from ..core.toolpath.faceset import FaceSet
-    from . import rs274
-    from .cli import (
-        EXIT_CHECK_FAILED,
-        _safe_name,
-        check_interrupted,
-        emit,
-        json_text,
-        staged_output,
-    )
-    from .cli_toolpath import machining_time
-
     if not runtime.freecad_in_process():
         raise runtime.BackendUnavailable("toolpath on a part: run bin/bsplinecam (FreeCAD's "
                                          "Python) to post the program")
-    from ..app import cam, compat
+    from ..app import cam
 
     try:
         compat.post_module(args.post)
     except ValueError as exc:
         raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
-    from ..core.toolpath import generate_faces
-
     faceset = FaceSet(faces)
     strategy = getattr(args, "strategy", "raster")
     toolpath = generate_faces(faceset, strategy, 2.0 * tool.radius, tool.scallop,
@@ -466,8 +463,6 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
     name = _safe_name(Path(args.net).stem)
     with staged_output(Path(args.out)) as stage:
         program = stage / f"{name}.ngc"
-        from .cli import captured_console
-
         with captured_console():
             commands, clearance, safe = post_toolpath(
                 args.net, toolpath, 2.0 * tool.radius, cutting, args.post, program,
@@ -523,7 +518,6 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
     from ..app import cam
     from ..app import faces as app_faces
     from ..app.finishing_op import moves_to_commands
-    from ..core.toolpath import faces_program_moves, program_moves
 
     shape = app_faces.read_part(path)
     doc = FreeCAD.newDocument("BSplineCAMPart")

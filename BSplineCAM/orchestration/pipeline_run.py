@@ -13,9 +13,11 @@ import argparse
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
+from ..app import compat
 from ..core.errors import ParameterError
 from ..core.gcode import MoveKind, read_gcode
 from ..core.toolpath.common import CuttingParameters
+from .cli_common import captured_console, check_interrupted
 
 #: Option names, in the order CuttingParameters.validate takes them.
 CUTTING_OPTIONS = ("--feed", "--plunge-feed", "--spindle", "--rapid")
@@ -34,8 +36,6 @@ def cutting_parameters(args: argparse.Namespace) -> CuttingParameters:
 def check_posts(posts: Iterable[str], option: str = "--post") -> None:
     """Refuse, before any work, a post-processor name that FreeCAD does not have (the
     ParameterError names ``option``).  Needs FreeCAD."""
-    from ..app import compat
-
     for post in posts:
         try:
             compat.post_module(post)
@@ -65,8 +65,6 @@ def run_pipeline(run: Callable[[], dict], program: Path, rapid: float) -> dict:
     op's ValueError becomes a ParameterError, an interruption stops here.  Returns its report
     with the program's name, cutting length (mm) and machining time (s) at ``rapid``
     (mm/min)."""
-    from .cli import captured_console, check_interrupted
-
     try:
         with captured_console():
             report = run()

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..app.compat import freecad_version
 from ..core import Surface
 from ..core.netio import net_from_dict
 
@@ -89,15 +90,15 @@ def handle(request: dict) -> dict:
         face = impl.paper_route(grid)
         return impl.deviation_between(face, surface, int(request.get("samples", 41)))
     if op == "save_document" and backend == "freecad":
-        impl.save_document(surface, request["path"], bool(request.get("solid", True)))
+        from ..app.surface_feature import save_document
+
+        save_document(surface, request["path"], bool(request.get("solid", True)))
         return {"path": request["path"]}
     raise ValueError(f"operation {op!r} is not available for backend {backend!r}")
 
 
 def backend_version(backend: str) -> str:
     if backend == "freecad":
-        from ..app.compat import freecad_version
-
         return ".".join(map(str, freecad_version()))
     import OCP
 
