@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from .errors import ParameterError
-from .toolpath.common import check_finite
 from .typing import FloatArray
+from .validation import check_finite
 
 
 def _finite(value: Any, argument: str) -> float:

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..typing import FloatArray
-from .common import max_into
+from .primitives import max_into
 
 #: A chord may dip below the exact CL height by at most this (mm): numerically zero.
 DIP_LIMIT = 1e-7

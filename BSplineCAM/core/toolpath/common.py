@@ -17,6 +17,14 @@ import numpy as np
 
 from ..errors import BSplineCAMError, ParameterError
 from ..typing import FloatArray
+from ..validation import (  # noqa: F401  (re-exported: the toolpath modules take them from here)
+    check_finite,
+    check_positive,
+    check_range,
+    parse_enum,
+)
+from .links import join_links
+from .primitives import Jet, max_into, min_into, upward_sign  # noqa: F401  (re-exported)
 
 #: Valid range of the chordal tolerance (mm).
 TOLERANCE_RANGE = (1e-5, 1.0)
@@ -54,50 +62,6 @@ class IsoDirection(str, Enum):
 
 class ToolpathCancelled(BSplineCAMError):
     """Raised when the ``cancel`` callback asks to stop; the message says how far it got."""
-
-
-def parse_enum(enum: type[Enum], value: Any, argument: str) -> Any:
-    """Enum member from itself or its string; ParameterError naming ``argument`` otherwise."""
-    if isinstance(value, enum):
-        return value
-    try:
-        return enum(str(value).strip().lower())
-    except ValueError:
-        valid = ", ".join(repr(m.value) for m in enum)
-        raise ParameterError(f"unknown {argument} {value!r}: expected one of {valid}") from None
-
-
-def check_positive(value: Any, argument: str, unit: str = "mm") -> float:
-    """A finite number > 0, else ParameterError naming argument and unit."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"{argument} must be a number in {unit}, got {value!r}") from None
-    if not math.isfinite(number) or number <= 0.0:
-        raise ParameterError(f"{argument} must be a finite number > 0 {unit}, got {value!r}")
-    return number
-
-
-def check_finite(value: Any, argument: str, unit: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"{argument} must be a number in {unit}, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ParameterError(f"{argument} must be finite ({unit}), got {value!r}")
-    return number
-
-
-def check_range(value: Any, argument: str, unit: str, low: float, high: float,
-                low_open: bool = False) -> float:
-    """A finite number in [low, high] ((low, high] if ``low_open``), else ParameterError
-    naming ``argument``, the range and ``unit``."""
-    number = check_finite(value, argument, unit)
-    if number < low or number > high or (low_open and number == low):
-        bracket = "(" if low_open else "["
-        raise ParameterError(
-            f"{argument} must lie in {bracket}{low:g}, {high:g}] {unit}, got {number:g} {unit}")
-    return number
 
 
 #: Raster angle range (degrees): any direction is reachable within one turn either way.
@@ -234,47 +198,6 @@ def curved_stepover(radius: float, scallop: float, curvature: FloatArray) -> Flo
     bad = ~np.isfinite(out) | (out <= 0)
     out[bad] = flat[bad]
     return out
-
-
-# -- local geometry -------------------------------------------------------------------------------
-@dataclass
-class Jet:
-    """Point, first and second derivatives and the upward unit normal at scattered parameters.
-
-    Built by :meth:`at` from :meth:`Surface.derivatives` (the cached per-patch matrix form);
-    ``sign`` (+1 or -1) orients the normal sign * Su x Sw up, the side the ball comes from.
-    """
-
-    u: FloatArray
-    w: FloatArray
-    p: FloatArray
-    su: FloatArray
-    sw: FloatArray
-    suu: FloatArray
-    suw: FloatArray
-    sww: FloatArray
-    sign: float = 1.0
-
-    @classmethod
-    def at(cls, surface: Any, u: FloatArray, w: FloatArray, sign: float = 1.0) -> Jet:
-        """Jet at parameters (u, w), clipped to [0, 1]."""
-        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
-        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
-        d = surface.derivatives(u, w)
-        return cls(u, w, d.point, d.su, d.sw, d.suu, d.suw, d.sww, sign)
-
-    @property
-    def normal(self) -> FloatArray:
-        n = self.sign * np.cross(self.su, self.sw)
-        length = np.linalg.norm(n, axis=-1, keepdims=True)
-        return n / np.where(length > 0, length, 1.0)
-
-
-def upward_sign(surface: Any) -> float:
-    """+1 if Su x Sw points up (+z) on average over the surface, else -1."""
-    pts = surface.grid(9, 9)
-    nz = np.cross(np.gradient(pts, axis=0), np.gradient(pts, axis=1))[..., 2]
-    return 1.0 if float(nz.sum()) >= 0 else -1.0
 
 
 def normal_curvature(jet: Jet, direction: FloatArray) -> FloatArray:
@@ -432,26 +355,6 @@ def split_runs(valid: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[0::2].tolist(), edges[1::2].tolist()))
 
 
-def _reduce_into(op: np.ufunc, out: np.ndarray, keys: np.ndarray, values: np.ndarray) -> None:
-    """out[k] = op(out[k], values with key k) for non-decreasing ``keys``: ``op.at`` by
-    segments (much faster on numpy 1.x)."""
-    if len(keys) == 0:
-        return
-    starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])
-    heads = keys[starts]
-    out[heads] = op(out[heads], op.reduceat(values, starts))
-
-
-def max_into(out: FloatArray, keys: np.ndarray, values: FloatArray) -> None:
-    """out[k] = max(out[k], values with key k) for non-decreasing ``keys``."""
-    _reduce_into(np.maximum, out, keys, values)
-
-
-def min_into(out: np.ndarray, keys: np.ndarray, values: np.ndarray) -> None:
-    """out[k] = min(out[k], values with key k) for non-decreasing ``keys``."""
-    _reduce_into(np.minimum, out, keys, values)
-
-
 def simplify(points: FloatArray, starts: np.ndarray, tolerance: float, metric: str) -> np.ndarray:
     """Douglas–Peucker (1973) on many polylines at once; returns the mask of kept points.
 
@@ -596,8 +499,6 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
             raise ParameterError(f"safe_height ({safe_height:g} mm) must not exceed "
                                  f"clearance_height ({clear:g} mm)")
     moves: list[Move] = []
-    from .links import join_links
-
     # a stay-down link may have lifted its end vertices: the pass ends and starts there
     passes = [p.copy() for p in toolpath.passes]
     links = [None if lk is None else np.array(lk, dtype=float) for lk in

@@ -35,7 +35,7 @@ import numpy as np
 from .. import matrix
 from ..numeric import THREADS
 from ..typing import FloatArray
-from .common import Jet, upward_sign
+from .primitives import Jet, upward_sign
 
 #: Queries handled per chunk: bounds the (queries x candidates) temporaries.
 QUERY_CHUNK = 1024
