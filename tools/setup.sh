@@ -17,7 +17,7 @@ say() { printf '[setup] %s\n' "$*" >&2; }
 
 debian_packages=(freecad xvfb xauth linuxcnc-uspace python3-pip python3-matplotlib python3-scipy)
 if [ "$want_test" = 1 ]; then
-  debian_packages+=(python3-pytest python3-hypothesis debootstrap)
+  debian_packages+=(python3-pytest python3-pytest-xdist python3-hypothesis debootstrap)
 fi
 missing=()
 for pkg in "${debian_packages[@]}"; do
