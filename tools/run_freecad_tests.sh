@@ -9,6 +9,8 @@
 #
 # `freecadcmd FILE` ignores the file's exit status, `freecadcmd -c CODE` returns sys.exit's,
 # so the runner is passed as code.  Modules are looked up in tests/ (repo root on sys.path).
+# After the unittest summary it prints the ten slowest tests (seconds, test id); a test's time
+# runs from the end of the one before, so a class's setUpClass counts in its first test.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -20,12 +22,22 @@ for m in "$@"; do
 done
 MODULES="$(printf "'%s'," "$@")"
 CODE="
-import sys, unittest
+import sys, time, unittest
 sys.path[:0] = ['$ROOT/tests', '$ROOT']
 suite = unittest.TestSuite()
 for name in [$MODULES]:
     suite.addTests(unittest.defaultTestLoader.loadTestsFromName(name))
-result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout).run(suite)
+times, last = [], [time.perf_counter()]
+class TimedResult(unittest.TextTestResult):
+    def stopTest(self, test):  # time since the previous test ended: setUpClass counts in the first
+        super().stopTest(test)
+        now = time.perf_counter()
+        times.append((now - last[0], test.id()))
+        last[0] = now
+result = unittest.TextTestRunner(verbosity=2, stream=sys.stdout, resultclass=TimedResult).run(suite)
+print('slowest tests (s since the previous one ended, so a class set-up counts in its first test):')
+for seconds, name in sorted(times, reverse=True)[:10]:
+    print(f'{seconds:8.2f}  {name}')
 sys.stdout.flush()
 sys.exit(0 if result.wasSuccessful() and result.testsRun else 1)
 "
