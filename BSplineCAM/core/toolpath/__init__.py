@@ -11,14 +11,12 @@ returns a :class:`Toolpath` of plain data; :func:`to_moves` links its passes wit
 
 from __future__ import annotations
 
-import math
 import time
 from typing import Any
 
-import numpy as np
-
 from ..errors import ParameterError
-from .common import (
+from .arcs import contour_side, fit_arcs
+from .common import (  # noqa: F401  (the package's names for its callers)
     CancelFn,
     Direction,
     IsoDirection,
@@ -41,75 +39,19 @@ from .common import (
     unreachable_regions,
 )
 from .dropcutter import DropCutter
-
-#: Longest stay-down link between zig-zag passes, in tool radii; longer gaps retract.
-STAY_DOWN_LINK = 2.0
-#: Most cutter locations a toolpath may need: about 2 minutes and 3.5 GB on a 2-core machine
-#: (measured: 1.4 million took 35 s and 1 GB).  A request for more is refused up front.
-MAX_CUTTER_LOCATIONS = 5_000_000
-
-
-def estimated_cutter_locations(surface: Any, tool: ToolParameters,
-                               strategy: str | Strategy | None = None) -> float:
-    """Upper estimate of the exact cutter locations a finish of the whole surface samples.
-
-    The largest of: the surface's area over the flat stepover times the point spacing along a
-    pass, sqrt(8 R tol) (every strategy); at least two points on each of the passes the flat
-    stepover puts across the footprint's diagonal (raster); whole iso-curves of points along
-    the longer parameter direction (isoparametric); the R/4 height grid over the footprint
-    (waterline).  Only a 33 x 33 sample is evaluated, so the estimate itself is cheap.
-    """
-    grid = surface.grid(33, 33)
-    cross = np.cross(np.diff(grid, axis=0)[:, :-1], np.diff(grid, axis=1)[:-1, :])
-    area = float(np.linalg.norm(cross, axis=-1).sum())
-    step = min(math.sqrt(8.0 * tool.radius * tool.tolerance), tool.radius / 2.0)
-    flat = tool.flat_stepover
-    estimate = area / (flat * step)
-    ex = float(np.ptp(grid[..., 0]))
-    ey = float(np.ptp(grid[..., 1]))
-    strategy = None if strategy is None else parse_enum(Strategy, strategy, "strategy")
-    if strategy is Strategy.STEEP_SHALLOW:  # a raster and a waterline of the whole surface
-        strategy = None
-    if strategy in (None, Strategy.RASTER):
-        estimate = max(estimate, 2.0 * (math.hypot(ex, ey) / flat + 1.0))
-    if strategy in (None, Strategy.ISOPARAMETRIC):
-        lengths = [float(np.linalg.norm(np.diff(grid, axis=k), axis=-1).sum(axis=k).max())
-                   for k in (0, 1)]
-        estimate = max(estimate, (max(lengths) / step + 1.0) * (min(lengths) / flat + 1.0))
-    if strategy in (None, Strategy.WATERLINE):
-        g = tool.radius / 4.0
-        estimate = max(estimate, (ex / g + 1.0) * (ey / g + 1.0))
-    return estimate
-
-
-def check_request(surface: Any, strategy: str | Strategy, tool_diameter: Any, scallop: Any,
-                  tolerance: Any, angle: Any = 0.0,
-                  names: tuple[str, str, str, str] = ("tool_diameter", "scallop", "tolerance",
-                                                      "angle"),
-                  ) -> tuple[Strategy, ToolParameters, float]:
-    """Every check :func:`generate` makes before any work, for callers that must refuse a
-    request before starting (the command line validates with it before FreeCAD recomputes).
-
-    Tool, scallop and tolerance (mm, :meth:`ToolParameters.validate`), the angle (degrees,
-    [-360, 360]), a tool smaller than the part's footprint, and at most
-    ``MAX_CUTTER_LOCATIONS`` estimated cutter locations.  ParameterError names the argument
-    (``names``) and its unit.
-    """
-    if not (hasattr(surface, "control_points") and hasattr(surface, "knots")):
-        raise ParameterError(f"surface must be a BSplineCAM Surface, got {type(surface).__name__}")
-    strategy = parse_enum(Strategy, strategy, "strategy")
-    tool = ToolParameters.validate(tool_diameter, scallop, tolerance, names[:3])
-    angle = check_angle(angle, names[3])
-    check_tool_fits(surface, 2.0 * tool.radius, names[0])
-    needed = estimated_cutter_locations(surface, tool, strategy)
-    if not needed <= MAX_CUTTER_LOCATIONS:
-        raise ParameterError(
-            f"{names[1]} {tool.scallop:g} mm with {names[2]} {tool.tolerance:g} mm and a "
-            f"{2.0 * tool.radius:g} mm tool needs about {needed / 1e6:.3g} million cutter "
-            f"locations on this surface (at most {MAX_CUTTER_LOCATIONS / 1e6:g} million): "
-            "raise the scallop height or the tolerance"
-        )
-    return strategy, tool, angle
+from .faces_iso import generate_faces_iso
+from .faces_raster import generate_faces_raster
+from .faces_waterline import generate_faces_waterline
+from .generator import (  # noqa: F401  (re-exported: the package's request checks)
+    MAX_CUTTER_LOCATIONS,
+    STAY_DOWN_LINK,
+    check_generate,
+    check_request,
+    estimated_cutter_locations,
+    run_strategy,
+)
+from .reach import unreachable_corners
+from .rest import generate_faces_steep_shallow, generate_steep_shallow
 
 
 def generate(
@@ -139,55 +81,15 @@ def generate(
     listed in ``Toolpath.unreachable`` and left uncut, never gouged.
     """
     started = time.perf_counter()
-    strategy, tool, angle = check_request(surface, strategy, tool_diameter, scallop, tolerance,
-                                          angle)
-    direction = parse_enum(Direction, direction, "direction")
-    iso_direction = parse_enum(IsoDirection, iso_direction, "iso_direction")
-    min_slope = check_finite(min_slope, "min_slope", "degrees")
-    if not 0.0 < min_slope < 90.0:
-        raise ParameterError(f"min_slope must lie in (0, 90) degrees, got {min_slope:g}")
-    if clearance_height is not None:
-        check_finite(clearance_height, "clearance_height", "mm")
+    strategy, tool, angle, direction, iso_direction, min_slope = check_generate(
+        surface, strategy, tool_diameter, scallop, tolerance, angle, direction, iso_direction,
+        clearance_height, min_slope)
     if strategy is Strategy.STEEP_SHALLOW:
-        from .rest import generate_steep_shallow
-
         return generate_steep_shallow(surface, 2.0 * tool.radius, tool.scallop, tool.tolerance,
                                       threshold, angle, clearance_height=clearance_height,
                                       progress=progress, cancel=cancel)
-    monitor = Monitor(progress, cancel, strategy.value)
-    monitor(0.0)
-    dc = DropCutter(surface, tool.radius)
-    if strategy is Strategy.RASTER:
-        from .raster import raster
-
-        passes, extra = raster(surface, tool, angle, direction, monitor, dc)
-    elif strategy is Strategy.WATERLINE:
-        from .waterline import waterline
-
-        passes, extra = waterline(surface, tool, math.radians(min_slope), monitor, dc)
-    else:
-        from .isoparametric import isoparametric
-
-        passes, extra = isoparametric(surface, tool, iso_direction, direction, monitor, dc)
-    parameters = {
-        "strategy": strategy.value, "tool_diameter": 2.0 * tool.radius, "scallop": tool.scallop,
-        "tolerance": tool.tolerance, "angle": angle, "direction": direction.value,
-        "iso_direction": iso_direction.value, "min_slope": min_slope,
-    }
-    stats = ToolpathStats(
-        stepover_min_mm=extra.pop("stepover_min_mm", float("nan")),
-        stepover_max_mm=extra.pop("stepover_max_mm", float("nan")),
-        notes=extra.pop("notes", []),
-    )
-    toolpath = Toolpath(strategy.value, passes, parameters,
-                        unreachable_regions(surface, tool.radius, dc.sign), stats, extra=extra)
-    toolpath.finish(started, clearance_height)
-    if direction is Direction.ZIGZAG and strategy is not Strategy.WATERLINE:
-        from .links import stay_down_links
-
-        toolpath.links = stay_down_links(dc, toolpath.passes, STAY_DOWN_LINK * tool.radius, tool.tolerance)
-        toolpath.finish(started, clearance_height)
-    return toolpath
+    return run_strategy(started, surface, strategy, tool, angle, direction, iso_direction,
+                        min_slope, clearance_height, progress, cancel)
 
 
 def program_moves(toolpath: Toolpath, clearance_height: float | None = None,
@@ -201,8 +103,6 @@ def program_moves(toolpath: Toolpath, clearance_height: float | None = None,
     moves = to_moves(toolpath, clearance_height, safe_height)
     if not arcs:
         return moves
-    from .arcs import contour_side, fit_arcs
-
     side17 = None
     if surface is not None and toolpath.strategy == Strategy.WATERLINE.value:
         dc = DropCutter(surface, 0.5 * float(toolpath.parameters["tool_diameter"]))
@@ -242,8 +142,6 @@ def generate_faces(faceset, strategy: str, tool_diameter: float, scallop: float,
     raises :class:`~BSplineCAM.core.errors.ParameterError` naming ``where`` and the property or option (``names``)."""
     toolpath = _faces_toolpath(faceset, strategy, tool_diameter, scallop, tolerance, angle,
                                direction, iso_direction, progress, where, names, threshold)
-    from .reach import unreachable_corners
-
     lo, hi = faceset.bounds(selected_only=True)
     toolpath.unreachable = unreachable_corners(
         faceset.faces, [f.selected for f in faceset.faces],
@@ -264,21 +162,13 @@ def _faces_toolpath(faceset, strategy: str, tool_diameter: float, scallop: float
         raise ParameterError(f"{where}: {direction_name} {direction!r} is not available on faces "
                       f"with {strategy}: use zigzag")
     if strategy == Strategy.STEEP_SHALLOW.value:
-        from .rest import generate_faces_steep_shallow
-
         return generate_faces_steep_shallow(faceset, tool_diameter, scallop, tolerance,
                                             threshold, angle, progress=progress)
     if strategy == Strategy.WATERLINE.value:
-        from .faces_waterline import generate_faces_waterline
-
         return generate_faces_waterline(faceset, tool_diameter, scallop, tolerance, progress)
     if strategy == Strategy.ISOPARAMETRIC.value:
-        from .faces_iso import generate_faces_iso
-
         return generate_faces_iso(faceset, tool_diameter, scallop, tolerance, iso_direction,
                                   progress)
-    from .faces_raster import generate_faces_raster
-
     return generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle, progress)
 
 
@@ -295,8 +185,6 @@ def faces_program_moves(toolpath, faceset, clearance_height: float,
     ``arcs``, fitted by one-sided G2/G3 arcs within half the toolpath's tolerance, as for
     nets (:func:`program_moves`): waterline contours in G17, their
     free side told by the certified drop-cutter over all of ``faceset``'s faces."""
-    from .arcs import contour_side, fit_arcs
-
     moves = to_moves(toolpath, clearance_height, safe_height)
     if not arcs:
         return moves

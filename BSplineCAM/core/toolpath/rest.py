@@ -30,9 +30,14 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ParameterError
+from ..footprint import footprint_bounds
+from ..gcode import Segments
+from ..simulate import Grid, Tool, simulate
 from ..typing import FloatArray
 from .chords import ChordSamples, lift_chords, sample_chords
 from .common import (
+    MAX_TOOL_DIAMETER,
+    MIN_TOOL_DIAMETER,
     TOLERANCE_RANGE,
     CancelFn,
     Monitor,
@@ -45,6 +50,13 @@ from .common import (
     check_range,
     simplify,
 )
+from .dropcutter import DropCutter
+from .faces_raster import STAY_DOWN_LINK as FACES_LINK
+from .faces_raster import FaceQuery, generate_faces_raster
+from .faces_waterline import generate_faces_waterline
+from .generator import STAY_DOWN_LINK as RASTER_LINK
+from .generator import generate_single
+from .links import stay_down_links
 
 #: cl_height(radius) -> heights(xy): ball tip heights (mm, NaN off the part) at (n, 2) points.
 HeightFn = Callable[[FloatArray], FloatArray]
@@ -118,8 +130,6 @@ class _FaceHeights:
     bounds within ``REST_CERTIFY`` of the true tip height."""
 
     def __init__(self, faceset: Any, radius: float):
-        from .faces_raster import FaceQuery
-
         self.query = FaceQuery(faceset, radius)
 
     def _heights(self, xy: FloatArray):
@@ -140,8 +150,6 @@ class _FaceHeights:
 def net_cl_height(surface: Any) -> ClHeightFn:
     """``cl_height`` of a core Surface: the exact ball drop-cutter (:class:`DropCutter`),
     one per radius (mm)."""
-    from .dropcutter import DropCutter
-
     cache: dict = {}
 
     def make(radius: float) -> HeightFn:
@@ -183,8 +191,6 @@ def _stock_arrays(stock: Any) -> tuple[Any, FloatArray]:
 def _refine_stock(grid: Any, height: FloatArray, cell: float) -> tuple[Any, FloatArray]:
     """The Z-map on cells of at most ``cell`` mm; a fine cell takes the highest of the coarse
     cell centres around it (never less material than the Z-map holds)."""
-    from ..simulate import Grid
-
     k = max(1, math.ceil(grid.cell / cell - 1e-9))
     if k == 1:
         return grid, height
@@ -281,8 +287,6 @@ def _check_extent(extent: Any, grid: Any) -> tuple[float, float, float, float]:
 
 
 def _tool_radius(tool_diameter: Any) -> float:
-    from .common import MAX_TOOL_DIAMETER, MIN_TOOL_DIAMETER
-
     return 0.5 * check_range(tool_diameter, "tool_diameter", "mm", MIN_TOOL_DIAMETER,
                              MAX_TOOL_DIAMETER)
 
@@ -384,8 +388,6 @@ class _Sweeper:
     """The remaining stock on the analysis Z-map, lowered move by move by core.simulate."""
 
     def __init__(self, grid: Any, height: FloatArray, radius: float):
-        from ..simulate import Tool
-
         self.grid = grid
         self.height = height.copy()
         self.tool = Tool(2.0 * radius)
@@ -394,9 +396,6 @@ class _Sweeper:
     def envelope(self, poly: FloatArray) -> tuple[tuple[slice, slice], FloatArray] | None:
         """Window of cells the ball reaches along ``poly`` ((n, 3) tips) and the lower
         envelope of the sweep there (mm; the window's stock top where untouched)."""
-        from ..gcode import Segments
-        from ..simulate import Grid, simulate
-
         g, R = self.grid, self.radius
         lo = np.floor((poly[:, :2].min(axis=0) - R - np.array([g.x0, g.y0])) / g.cell) - 1
         hi = np.ceil((poly[:, :2].max(axis=0) + R - np.array([g.x0, g.y0])) / g.cell) + 1
@@ -607,10 +606,6 @@ def split_by_slope(surface: Any, threshold_deg: float, tool_diameter: float,
     the contact point of the ball (``tool_diameter`` mm) whose tip is above each cell centre,
     so that a toolpath position can be classified by its XY.  ``cell`` (mm, default R/8) is
     the grid spacing over the footprint grown by the tool radius."""
-    from ..footprint import footprint_bounds
-    from ..simulate import Grid
-    from .dropcutter import DropCutter
-
     threshold = _check_threshold(threshold_deg)
     R = _tool_radius(tool_diameter)
     cell = 0.125 * R if cell is None else check_positive(cell, "cell", "mm")
@@ -668,8 +663,6 @@ def split_faces_by_slope(faceset: Any, threshold_deg: float, tool_diameter: floa
     faces included, a trim edge too: there the ball rests on the edge and the normal is the
     edge contact's), so a position is classified by what the ball really touches.  ``cell``
     (mm, default R/4) spans the selected faces' extent grown by the tool radius."""
-    from ..simulate import Grid
-
     threshold = _check_threshold(threshold_deg)
     R = _tool_radius(tool_diameter)
     cell = 0.25 * R if cell is None else check_positive(cell, "cell", "mm")
@@ -697,8 +690,6 @@ def _steep_shallow(raster: Toolpath, water: Toolpath, split: SlopeSplit, query: 
     """Raster passes kept on the shallow zone and contours on the steep one, each grown by
     ``overlap`` mm; raster pieces linked by stay-down feeds up to ``max_link`` mm over the
     exact heights of ``query`` (a DropCutter or FaceQuery), contours retract."""
-    from .links import stay_down_links
-
     step = 0.5 * split.grid.cell
     shallow = clip_polylines(raster.passes, split.grid, split.zone("shallow", overlap), step)
     steep = clip_polylines(water.passes, split.grid, split.zone("steep", overlap), step)
@@ -741,18 +732,14 @@ def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
     holds, so the two overlap and leave no seam.  Raster pieces are linked by stay-down
     feeds where short (:func:`links.stay_down_links`), contours retract.  ``extra`` holds
     the split and how many passes of each kind were kept."""
-    from . import STAY_DOWN_LINK as RASTER_LINK
-    from . import generate
-    from .dropcutter import DropCutter
-
     started, threshold, R, overlap, monitor = _steep_shallow_request(
         threshold_deg, tool_diameter, overlap, progress, cancel)
-    raster = generate(surface, "raster", tool_diameter, scallop, tolerance, angle,
-                      clearance_height=clearance_height)
+    raster = generate_single(surface, "raster", tool_diameter, scallop, tolerance, angle,
+                             clearance_height=clearance_height)
     monitor(0.4)
     wall = max(threshold - 10.0, 1.0)
-    water = generate(surface, "waterline", tool_diameter, scallop, tolerance,
-                     clearance_height=clearance_height, min_slope=wall)
+    water = generate_single(surface, "waterline", tool_diameter, scallop, tolerance,
+                            clearance_height=clearance_height, min_slope=wall)
     monitor(0.8)
     split = split_by_slope(surface, threshold, tool_diameter, cell)
     toolpath = _steep_shallow(raster, water, split, DropCutter(surface, R), overlap, wall,
@@ -771,10 +758,6 @@ def generate_faces_steep_shallow(faceset: Any, tool_diameter: float, scallop: fl
     (:func:`.faces_waterline.generate_faces_waterline`, levels from the scallop on walls
     over ``threshold_deg`` - 10 degrees) on the steep one, split by
     :func:`split_faces_by_slope`; every height the certified drop-cutter over all faces."""
-    from .faces_raster import STAY_DOWN_LINK as FACES_LINK
-    from .faces_raster import FaceQuery, generate_faces_raster
-    from .faces_waterline import generate_faces_waterline
-
     started, threshold, R, overlap, monitor = _steep_shallow_request(
         threshold_deg, tool_diameter, overlap, progress, cancel)
     raster = generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle,
