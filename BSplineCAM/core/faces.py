@@ -29,6 +29,7 @@ from typing import Union
 import numpy as np
 
 from .errors import BSplineCAMError
+from .nurbs import NurbsSurface
 from .typing import ArrayLike, FloatArray
 
 #: Name and version written into every face's plain-data form.
@@ -477,8 +478,6 @@ def surface_to_dict(surface) -> dict:
 def make_surface(poles, knots_u, knots_v, degree_u, degree_v, weights=None,
                  periodic_u=False, periodic_v=False, name="face"):
     """The core NurbsSurface (BSplineCAM.core.nurbs) from plain arrays."""
-    from .nurbs import NurbsSurface
-
     return NurbsSurface(poles, knots_u, knots_v, degree_u, degree_v, weights=weights,
                         periodic_u=periodic_u, periodic_v=periodic_v, name=name)
 

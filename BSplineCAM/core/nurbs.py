@@ -63,6 +63,7 @@ from .nurbs_spans import (  # noqa: F401  (re-exported: the knot and span functi
     span_matrices,
     unperiodize,
 )
+from .surface import Derivatives, unit_normals
 from .typing import ArrayLike, FloatArray
 
 #: Degrees accepted in each direction: every degree OCCT allows (Geom_BSplineSurface's
@@ -350,8 +351,6 @@ class NurbsSurface:
 
     def derivatives(self, u: ArrayLike, w: ArrayLike, grid: bool = False):
         """Point, Su, Sw, Suu, Suw, Sww as a :class:`~BSplineCAM.core.surface.Derivatives`."""
-        from .surface import Derivatives
-
         if grid:
             return Derivatives(*self._grid_orders(u, w, SECOND_ORDER))
         return Derivatives(*self._evaluate_orders(u, w, SECOND_ORDER))
@@ -464,16 +463,12 @@ class NurbsSurface:
         return self._scattered_normals(u, w).reshape(shape + (3,))
 
     def _scattered_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
-        from .surface import unit_normals
-
         (u0, u1), (w0, w1) = self._u.domain, self._v.domain
         scale = self.size() ** 2 / ((u1 - u0) * (w1 - w0))  # |Su x Sw| of a surface this size
         return unit_normals(*self._tangent_pair(u, w), lambda: self._nudged_normals(u, w),
                             scale)
 
     def _nudged_normals(self, u: FloatArray, w: FloatArray) -> FloatArray:
-        from .surface import unit_normals
-
         moved = []
         for t, (lo, hi) in ((u, self._u.domain), (w, self._v.domain)):
             shift = 1e-6 * (hi - lo)

@@ -21,6 +21,7 @@ from OCP.TColgp import TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
 from ..core import Surface
+from ..core.basis import unique_knots
 from ..core.typing import FloatArray
 
 
@@ -100,8 +101,6 @@ def nurbs_geom(poles, knots_u, knots_v, degree_u: int, degree_v: int, weights=No
                periodic_u: bool = False, periodic_v: bool = False) -> Geom_BSplineSurface:
     """Geom_BSplineSurface from the arguments of :class:`~BSplineCAM.core.nurbs.NurbsSurface`
     (full flat knot vectors, periodic directions in OCCT's own form)."""
-    from ..core.basis import unique_knots
-
     poles = np.asarray(poles, dtype=float)
     rows, cols = poles.shape[:2]
     net = TColgp_Array2OfPnt(1, rows, 1, cols)

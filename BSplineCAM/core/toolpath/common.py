@@ -16,6 +16,7 @@ from typing import Any, Callable, NamedTuple, Optional
 import numpy as np
 
 from ..errors import BSplineCAMError, ParameterError
+from ..footprint import footprint_bounds
 from ..typing import FloatArray
 from ..validation import (  # noqa: F401  (re-exported: the toolpath modules take them from here)
     check_finite,
@@ -104,8 +105,6 @@ class CuttingParameters:
 def check_tool_fits(surface: Any, tool_diameter: float, argument: str = "tool_diameter") -> None:
     """One rule for the toolpath and the verification: the tool must be smaller than the
     part's XY footprint in both directions (mm)."""
-    from ..footprint import footprint_bounds
-
     x0, x1, y0, y1 = footprint_bounds(surface)
     if not tool_diameter < min(x1 - x0, y1 - y0):
         raise ParameterError(

@@ -53,6 +53,7 @@ from .common import (
 from .faces_raster import STAY_DOWN_LINK, STEEPEST_REACHED, FaceQuery
 from .faceset import FaceSet
 from .isoparametric import _allowed_step, lifted_runs, too_many_curves
+from .links import stay_down_links
 from .raster import zigzag_by_line
 
 #: Halvings of a parameter interval that crosses the trim (the crossing is then known to
@@ -448,8 +449,6 @@ def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
     toolpath = Toolpath("isoparametric", passes, parameters, [], ToolpathStats(notes=notes),
                         extra=extra)
     toolpath.finish(started, None)
-    from .links import stay_down_links
-
     toolpath.links = stay_down_links(query, toolpath.passes, STAY_DOWN_LINK * tool.radius,
                                      tool.tolerance)
     toolpath.finish(started, None)

@@ -35,6 +35,7 @@ from .common import (
     principal_curvatures,
 )
 from .faceset import FaceSet
+from .links import stay_down_links
 from .raster import (
     cross_section_stepover,
     lifted_line_runs,
@@ -257,8 +258,6 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
              "dropcutter": dict(faceset.stats)}
     toolpath = Toolpath("raster", ordered, parameters, [], stats, extra=extra)
     toolpath.finish(started, None)
-    from .links import stay_down_links
-
     toolpath.links = stay_down_links(query, toolpath.passes, STAY_DOWN_LINK * R, tool.tolerance)
     toolpath.finish(started, None)
     monitor(1.0)
