@@ -200,8 +200,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    # run the imported module's main, not this __main__ copy: the stage commands import
-    # BSplineCAM.orchestration.cli, and the signal state must be one and the same
+    # run the imported module's main, not this __main__ copy, so that there is one module
+    # object (tests and callers patch BSplineCAM.orchestration.cli; the signal state itself
+    # lives in cli_common)
     from BSplineCAM.orchestration import cli as _cli
 
     sys.exit(_cli.main())
