@@ -219,10 +219,14 @@ def make_tool_bit(doc, shape: str, diameter: float, corner_radius: float = 0.0):
             bit.CornerRadius = corner_radius
         else:
             bit.FlatRadius = 0.5 * diameter - corner_radius
-    if hasattr(bit, "Length"):
-        bit.Length = max(float(bit.Length), 50.0)
+    # a long enough flute and body for the shape's sketch to close at any diameter
     if hasattr(bit, "CuttingEdgeHeight"):
-        bit.CuttingEdgeHeight = max(float(bit.CuttingEdgeHeight), 30.0)
+        bit.CuttingEdgeHeight = max(float(bit.CuttingEdgeHeight), 30.0, diameter)
+    if hasattr(bit, "Length"):
+        edge = float(getattr(bit, "CuttingEdgeHeight", 0.0))
+        bit.Length = max(float(bit.Length), 50.0, edge + 0.5 * diameter)
+    if hasattr(bit, "ShankDiameter") and float(bit.ShankDiameter) < diameter / 4:
+        bit.ShankDiameter = diameter / 2
     return bit
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from ..core import Surface
 from ..core.gcode import read_gcode
 from ..core.simulate import Tool
-from ..core.verify import Verification, verify
+from ..core.verify import Verification, verify, verify_faces
 from . import cam, compat
 from .proxy import StatelessProxy, add_missing_properties
 
@@ -187,12 +187,14 @@ def default_cell(surface: Surface) -> float:
 
 def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float | None = None,
                       stride: int | None = None, program: str = "program", job=None,
-                      surface: Surface | None = None, doc=None, progress=None,
+                      surface: Surface | list | None = None, doc=None, progress=None,
                       tools: dict | None = None, stock: tuple | None = None):
-    """Simulate G-code text against a surface object; return the new simulated-part object.
+    """Simulate G-code text against a design; return the new simulated-part object.
 
-    ``surface_obj`` is the design (a BSplineCAM surface object; ``surface`` overrides its
-    geometry, e.g. in job coordinates); ``tool_diameter`` is the ball end's (mm); ``cell``
+    ``surface_obj`` is the design object (a BSplineCAM surface object, or the part whose faces
+    are machined); ``surface`` overrides its geometry: a core Surface (e.g. in job
+    coordinates) or a part's core faces (:func:`BSplineCAM.core.verify.verify_faces`: gouge on
+    the whole model, scallop and coverage on the selected faces); ``tool_diameter`` is the ball end's (mm); ``cell``
     the Z-map cell (mm, default: :func:`default_cell`).  With ``tools`` ({number: core Tool})
     the program's tool changes are followed from the block ``stock`` (x0, x1, y0, y1, z0, z1
     mm, a core Stock, or a core CylinderStock; :func:`BSplineCAM.core.verify.verify_job`), the per-tool figures join the metrics and
@@ -216,9 +218,12 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
 
             result = verify_program_job(surface, parsed, tools, stock, cell,
                                         progress=lambda f: progress(0.15 + 0.65 * f))
-        else:
+        elif isinstance(surface, Surface):
             result = verify(surface, parsed, Tool(float(tool_diameter)), cell,
                             progress=lambda f: progress(0.15 + 0.65 * f))
+        else:
+            result = verify_faces(surface, parsed, Tool(float(tool_diameter)), cell,
+                                  progress=lambda f: progress(0.15 + 0.65 * f))
         progress(0.8)
         data = zmap_mesh(result, stride)
         mesh = to_mesh(data)
@@ -311,10 +316,36 @@ def job_program(job, post: str = "linuxcnc") -> str:
 
 
 def finishing_ops(job) -> list:
+    """The job's BSplineCAM ops (finishing and roughing, whose class derives from it)."""
     from .finishing_op import ObjectSurfaceFinish
 
     return [op for op in job.Operations.Group
             if isinstance(getattr(op, "Proxy", None), ObjectSurfaceFinish)]
+
+
+def finishing_op_of(job):
+    """The op that finishes the part: the last active BSplineCAM op that is not a roughing
+    (a roughing op when the job has nothing else); None when the job has no BSplineCAM op."""
+    from .roughing_op import ObjectSurfaceRough
+
+    ops = [op for op in finishing_ops(job) if getattr(op, "Active", True)]
+    finishing = [op for op in ops if not isinstance(op.Proxy, ObjectSurfaceRough)]
+    return (finishing or ops or [None])[-1]
+
+
+def design_of(op):
+    """(design object, exact model) an op is verified against: its surface object and the
+    exact surface in job coordinates, or for an op on faces the part it machines and its
+    faces (selected ones machined, every other face of the job's models a check surface)."""
+    from .finishing_op import find_surface_object
+
+    if op.Proxy.uses_faces(op):
+        job = op.Proxy.job_of(op)
+        base = list(getattr(op, "Base", None) or [])
+        source = base[0][0] if base else (job.Model.Group[0] if job.Model.Group else None)
+        originals = list(getattr(source, "Objects", None) or [])  # the job's model clone
+        return (originals[0] if len(originals) == 1 else source), list(op.Proxy.faces(op))
+    return op.Surface or find_surface_object(op.Proxy.job_of(op)), op.Proxy.surface(op)
 
 
 def job_of(obj):
@@ -339,15 +370,15 @@ def _parent_job(obj):
 
 
 def verify_job(job, cell: float | None = None, stride: int | None = None, progress=None):
-    """Post ``job`` (linuxcnc) and verify the program on its first finishing op's surface,
-    with that op's ball end; the simulated part is added to the job's document."""
-    ops = finishing_ops(job)
-    if not ops:
-        raise ValueError(f"job {job.Label!r} has no B-spline finishing operation to verify")
-    op = ops[0]
-    surface = op.Proxy.surface(op)
+    """Post ``job`` (linuxcnc) and verify the program against what its finishing op machines
+    (:func:`design_of`: a surface, or a part's exact faces with gouge over the whole model),
+    with that op's tool; a job with several tools is simulated whole from the job's stock.
+    The simulated part is added to the job's document."""
+    op = finishing_op_of(job)
+    if op is None:
+        raise ValueError(f"{job.Label}: the job has no BSplineCAM operation to verify")
+    source, model = design_of(op)
     diameter = float(op.ToolController.Tool.Diameter)
-    source = op.Surface
     gcode = job_program(job)
     used = {int(o.ToolController.ToolNumber) for o in job.Operations.Group
             if getattr(o, "Active", True) and getattr(o, "ToolController", None) is not None}
@@ -356,8 +387,13 @@ def verify_job(job, cell: float | None = None, stride: int | None = None, progre
         from .stock_left import job_stock
 
         tools, stock = job_tools(job), job_stock(job)  # a block, or a cylinder as one
+    elif job_tools(job).get(int(op.ToolController.ToolNumber), Tool(diameter)).shape.value != "ball":
+        tools = job_tools(job)  # one end mill: simulated with its own shape
+    if cell is None and not isinstance(model, Surface):
+        b = job.Stock.Shape.BoundBox
+        cell = max(b.XLength, b.YLength) / DEFAULT_CELLS
     return make_verification(source, gcode, diameter, cell, stride, program=f"{job.Label} (linuxcnc)",
-                             job=job, surface=surface, doc=job.Document, progress=progress,
+                             job=job, surface=model, doc=job.Document, progress=progress,
                              tools=tools, stock=stock)
 
 
@@ -393,7 +429,8 @@ def format_metrics(label: str, m: dict) -> str:
         lines.append(
             f"  T{number} {tool['shape']} {tool['diameter_mm']:g} mm: removed "
             f"{t['removed_volume_mm3'] / 1000:.1f} cm3, radial engagement max "
-            f"{t['radial_engagement_max_mm']} mm, axial max {t['axial_engagement_max_mm']} mm, "
+            f"{t['radial_engagement_max_mm']:.3f} mm, axial max "
+            f"{t['axial_engagement_max_mm']:.3f} mm, "
             f"{len(t['rapid_collisions'])} rapid collisions")
     return "\n".join(lines) + "\n"
 

@@ -94,15 +94,60 @@ def selected_surface():
 
 
 def selected_faces() -> list[tuple[object, list[str]]]:
-    """(object, face names) of the faces picked in the 3D view, in selection order ([] when
-    anything else is selected; cheap)."""
+    """(object, face names) of the faces picked in the 3D view, in selection order (other
+    sub-elements are left out: :func:`selected_non_faces` names them; cheap)."""
     out = []
     for sel in FreeCADGui.Selection.getSelectionEx():
         names = [n for n in sel.SubElementNames if n.startswith("Face")]
-        if not names or len(names) != len(sel.SubElementNames):
-            return []
-        out.append((sel.Object, names))
+        if names:
+            out.append((sel.Object, names))
     return out
+
+
+def selected_non_faces() -> list[str]:
+    """"Label.Edge12"-style names of the picked sub-elements that are not faces, and of whole
+    objects picked beside faces (a job is made on faces only)."""
+    selection = FreeCADGui.Selection.getSelectionEx()
+    if not any(n.startswith("Face") for sel in selection for n in sel.SubElementNames):
+        return []
+    out = []
+    for sel in selection:
+        if not sel.SubElementNames:
+            out.append(sel.Object.Label)
+        out += [f"{sel.Object.Label}.{n}" for n in sel.SubElementNames if not n.startswith("Face")]
+    return out
+
+
+def non_faces_text(names: list[str]) -> str:
+    """The panel's word on a selection with edges or vertices in it."""
+    def kind(name: str) -> str:
+        element = name.rsplit(".", 1)[-1]
+        word = next((w for w in ("Edge", "Vertex") if element.startswith(w)), "")
+        return f"{name} is {'an edge' if word == 'Edge' else 'a vertex' if word else 'an object'}"
+    shown = ", ".join(kind(n) for n in names[:3]) + (", ..." if len(names) > 3 else "")
+    return f"select faces only: {shown}; left out of the job"
+
+
+def faces_extent(faces) -> tuple[float, float]:
+    """(x, y) mm of the box around the faces (their objects' placements applied)."""
+    box = None
+    for obj, names in faces:
+        for name in names:
+            b = obj.Shape.getElement(name).BoundBox
+            if box is None:
+                box = b
+            else:
+                box = FreeCAD.BoundBox(box)
+                box.add(b)
+    return (0.0, 0.0) if box is None else (float(box.XLength), float(box.YLength))
+
+
+def check_tool_fits(diameter: float, faces) -> None:
+    """ValueError when a ball of ``diameter`` mm is wider than every side of the faces' box."""
+    x, y = faces_extent(faces)
+    if diameter > max(x, y) > 0:
+        raise ValueError(f"the {diameter:g} mm ball is larger than the selected faces "
+                         f"({x:.1f} x {y:.1f} mm): choose a tool of at most {max(x, y):.1f} mm")
 
 
 def faces_text(faces) -> str:
@@ -208,6 +253,7 @@ def create_job(surface, params, cutting) -> tuple:
         FreeCADGui.doCommand(f"job = cam.make_job(surface, {params.tool_diameter!r}, {cut})")
         FreeCADGui.doCommand("op = finishing_op.Create('SurfaceFinish', parentJob=job)")
         FreeCADGui.doCommand("op.Surface = surface")
+        set_output_file(next(o for o in doc.Objects if o.Name not in before and is_job(o)))
         job, op = _finish_op(params, doc, before)
     FreeCADGui.doCommand(f"{gui_ref(surface)}.Visibility = False")  # the job's clone shows it
     return job, op
@@ -228,10 +274,40 @@ def create_faces_job(faces, params, cutting) -> tuple:
         FreeCADGui.doCommand("op = finishing_op.Create('SurfaceFinish', parentJob=job)")
         base = ", ".join(f"({obj_ref(obj)}, {list(names)!r})" for obj, names in faces)
         FreeCADGui.doCommand(f"op.Base = [{base}]")
+        set_output_file(next(o for o in doc.Objects if o.Name not in before and is_job(o)))
         job, op = _finish_op(params, doc, before)
     if model.ViewObject is not None and model.ViewObject.Visibility:
         FreeCADGui.doCommand(f"{gui_ref(model)}.Visibility = False")  # the job's clone shows it
     return job, op
+
+
+#: Where a job's programs go when its document has a file: beside it, named after the job
+#: (CAM's own substitutions: %D the document's folder, %j the job's label).
+OUTPUT_BESIDE_DOCUMENT = "%D/%j.ngc"
+
+
+def output_file_for(job) -> str:
+    """The PostProcessorOutputFile a new job gets: beside its saved document, or (a document
+    never saved) in the folder of FreeCAD's last file dialog, else the home folder."""
+    doc = job.Document
+    if doc.FileName:
+        return OUTPUT_BESIDE_DOCUMENT
+    general = FreeCAD.ParamGet("User parameter:BaseApp/Preferences/General")
+    folder = general.GetString("FileOpenSavePath", "") or os.path.expanduser("~")
+    if not os.path.isdir(folder):
+        folder = os.path.expanduser("~")
+    return os.path.join(folder, f"{doc.Label}-{job.Label}.ngc")
+
+
+def set_output_file(job) -> None:
+    """Give a new job its output file (:func:`output_file_for`; one it has is kept), on the
+    console like the rest of the job, and say where programs go."""
+    if getattr(job, "PostProcessorOutputFile", "") or not hasattr(job, "PostProcessorOutputFile"):
+        return
+    path = output_file_for(job)
+    FreeCADGui.doCommand(f"job.PostProcessorOutputFile = {path!r}")
+    FreeCAD.Console.PrintMessage(f"BSplineCAM: {job.Label} posts its program to {path} (the "
+                                 "job's PostProcessorOutputFile)\n")
 
 
 def check_op(op) -> None:
@@ -471,6 +547,7 @@ class JobPanel(PanelBase):
                 raise ValueError("no face to machine: select faces in the 3D view and press "
                                  "Add selected faces")
             else:
+                check_tool_fits(params.tool_diameter, self.faces)
                 self.job, self.op = create_faces_job(self.faces, params, cutting)
 
         if not self.attempt("Machining job", work):
@@ -499,8 +576,12 @@ class MakeJob(BaseCommand):
     def run(self) -> None:
         surface = selected_surface()
         faces = [] if surface is not None else selected_faces()
+        left_out = [] if surface is not None else selected_non_faces()
         results_panel.close_results()
-        FreeCADGui.Control.showDialog(JobPanel(surface, faces))
+        panel = JobPanel(surface, faces)
+        if left_out:
+            panel.message.setText(non_faces_text(left_out))
+        FreeCADGui.Control.showDialog(panel)
 
 
 # -- post-processing -------------------------------------------------------------------------
@@ -626,8 +707,8 @@ class Verify(BaseCommand):
             show_info("Verification", f"gouge max {metrics['gouge_max_mm']:.4f} mm, scallop "
                       f"max {metrics['scallop_max_mm']:.4f} mm, coverage "
                       f"{100 * metrics['coverage']:.1f} %")
+            # unselected: the selection colour would hide the deviation map
             FreeCADGui.Selection.clearSelection()
-            FreeCADGui.Selection.addSelection(result)
             results_panel.show(results_panel.verification_panel(result))
 
 
