@@ -1,0 +1,136 @@
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Subdivision of the drop-cutter's sub-patches (:mod:`.faceset`): each open sub-patch is
+halved along its longer side by de Casteljau's algorithm, or split along a side of its face's
+certified region, and its halves classified against the trim."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..typing import FloatArray
+from .faceset_bezier import _split_at, _split_into
+from .faceset_params import CUT_MARGIN, MAX_SEGMENTS
+from .faceset_trims import _FaceData, _Items
+
+
+def children(d: _FaceData, it: _Items, mask: np.ndarray | None = None,
+             cut: tuple | None = None) -> _Items:
+    """Halve each sub-patch (those in ``mask``) along its longer side (corner distances);
+    with ``cut`` = (t, along_u) (n,) each, a sub-patch whose t is finite is split at its
+    local parameter t along u (along_u) or v instead.
+
+    Halving depends on the sub-patch alone, and the queries of a pass share their shallow
+    sub-patches: each node of the table is halved once, its halves shared (the pieces of
+    a split at a region's side, which depends on the query, are the pair's own)."""
+    idx_all = np.arange(len(it.query)) if mask is None else np.flatnonzero(mask)
+    free = np.ones(len(idx_all), bool)
+    if cut is not None:
+        t_all = cut[0][idx_all]
+        free = ~np.isfinite(t_all)
+    nets, boxes, parents, nodes = [], [], [], []
+    count = 0
+    fi = idx_all[free]
+    if len(fi):
+        un, inv = np.unique(it.node[fi], return_inverse=True)
+        inv = inv.ravel()
+        pn = it.nets[un]
+        along_u = _longer_u(d, pn)
+        left = np.empty_like(pn)
+        right = np.empty_like(pn)
+        for axis, sel in ((2, along_u), (3, ~along_u)):
+            if sel.any():
+                k = np.flatnonzero(sel)
+                lk = np.empty_like(pn[k])
+                rk = np.empty_like(lk)
+                _split_into(pn[k], axis, lk, rk)
+                left[k], right[k] = lk, rk
+        b = it.box[fi]
+        au = along_u[inv]
+        mu = 0.5 * (b[:, 0] + b[:, 1])
+        mv = 0.5 * (b[:, 2] + b[:, 3])
+        bl, br = b.copy(), b.copy()
+        bl[:, 1] = np.where(au, mu, b[:, 1])
+        br[:, 0] = np.where(au, mu, b[:, 0])
+        bl[:, 3] = np.where(au, b[:, 3], mv)
+        br[:, 2] = np.where(au, b[:, 2], mv)
+        nets += [left, right]
+        boxes += [bl, br]
+        parents += [fi, fi]
+        nodes += [inv, len(un) + inv]
+        count = 2 * len(un)
+    ci = idx_all[~free]
+    if len(ci):
+        t = t_all[~free]
+        along = cut[1][ci]
+        b = it.box[ci]
+        for axis, sel in ((2, along), (3, ~along)):
+            idx = ci[sel]
+            m = len(idx)
+            if m == 0:
+                continue
+            lo, hi = (0, 1) if axis == 2 else (2, 3)
+            tt = t[sel]
+            bb = b[sel]
+            mid = bb[:, lo] + tt * (bb[:, hi] - bb[:, lo])
+            b0, b1 = bb.copy(), bb.copy()
+            b0[:, hi] = mid
+            b1[:, lo] = mid
+            pn = it.nets[it.node[idx]]
+            nets += [_split_at(pn, axis, tt, True), _split_at(pn, axis, tt, False)]
+            boxes += [b0, b1]
+            parents += [idx, idx]
+            nodes += [count + np.arange(m), count + m + np.arange(m)]
+            count += 2 * m
+    if not parents:
+        return it.take(np.zeros(0, np.intp))
+    out = np.concatenate(nets)
+    box = np.concatenate(boxes)
+    parent = np.concatenate(parents)
+    node = np.concatenate(nodes)
+    n2 = len(parent)
+    status = np.ones(n2, np.int8)
+    segs = np.full((n2, MAX_SEGMENTS), -1, dtype=np.int64)
+    strad = np.flatnonzero(it.status[parent] == 2)
+    if len(strad):
+        status[strad], segs[strad] = d.classify(box[strad], it.segs[parent[strad]])
+    pieces = _Items(it.query[parent], node, out, box, it.depth[parent] + 1, status, segs)
+    keep = status > 0
+    return pieces if keep.all() else pieces.take(keep)
+
+
+def _longer_u(d: _FaceData, net: FloatArray) -> np.ndarray:
+    """Whether each net's u side is the longer (the sum of its corners' xy distances)."""
+    k2, k3 = net.shape[2] - 1, net.shape[3] - 1
+    corner = net[:, :, ::k2, ::k3]  # (n, 4, 2, 2)
+    if d.face.surface.rational:
+        corner = corner[:, :2] / corner[:, 3:]
+    len_u = np.abs(corner[:, :2, 1] - corner[:, :2, 0]).sum(axis=(1, 2))
+    len_v = np.abs(corner[:, :2, :, 1] - corner[:, :2, :, 0]).sum(axis=(1, 2))
+    return len_u >= len_v
+
+
+def region_cuts(it: _Items, open_: np.ndarray, rb: FloatArray,
+                inreg: np.ndarray) -> tuple[FloatArray, np.ndarray]:
+    """Where an open sub-patch overlaps its face's certified region, split it along a side
+    of the region instead of at its middle (the side cutting it most evenly, if it cuts it
+    between CUT_MARGIN and 1 - CUT_MARGIN), so that the piece inside the region is dropped
+    after a few splits instead of being halved down to the region's scale."""
+    b = it.box
+    over = (open_ & inreg & (b[:, 0] < rb[:, 1]) & (b[:, 1] > rb[:, 0])
+            & (b[:, 2] < rb[:, 3]) & (b[:, 3] > rb[:, 2]))
+    t = np.full(len(b), np.nan)
+    along_u = np.zeros(len(b), bool)
+    if not over.any():
+        return t, along_u
+    wu = b[:, 1] - b[:, 0]
+    wv = b[:, 3] - b[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cand = np.column_stack([(rb[:, 0] - b[:, 0]) / wu, (rb[:, 1] - b[:, 0]) / wu,
+                                (rb[:, 2] - b[:, 2]) / wv, (rb[:, 3] - b[:, 2]) / wv])
+    ok = (cand > CUT_MARGIN) & (cand < 1.0 - CUT_MARGIN) & over[:, None]
+    score = np.where(ok, np.abs(cand - 0.5), np.inf)
+    k = np.argmin(score, axis=1)
+    rows = np.flatnonzero(np.isfinite(score[np.arange(len(b)), k]))
+    t[rows] = cand[rows, k[rows]]
+    along_u[rows] = k[rows] < 2
+    return t, along_u
