@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 from conftest import CASE_STUDY, ROOT, run_main
 
+from BSplineCAM.app import runtime
 from BSplineCAM.core.faces import Face, FaceError, sample_points, to_dict
 from BSplineCAM.core.nurbs import NurbsSurface
-from BSplineCAM.app import runtime
 from BSplineCAM.orchestration import cli_toolpath, parts
 
 EXAMPLE = ROOT / "examples" / "part.step"
@@ -237,6 +237,7 @@ def example_check(tmp_path_factory):
     return proc, out
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_check_example_part(example_check):
     proc, out = example_check
@@ -263,6 +264,7 @@ def test_check_example_part(example_check):
     assert sum(f["holes"] for f in faces) == 2  # top and bottom
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_fillets_meeting_at_corners(tmp_path):
@@ -298,6 +300,7 @@ cq.exporters.export(cq.Workplane().add(solid), sys.argv[1])
 """
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_corner_blends_of_a_filleted_block_are_machined_from_above(tmp_path):
@@ -333,6 +336,7 @@ def test_corner_blends_of_a_filleted_block_are_machined_from_above(tmp_path):
     assert all(verified["face_cells"][f"Face{i}"] > 0 for i in blends)
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_check_example_matches_cadquery(example_check):
@@ -350,6 +354,7 @@ def test_check_example_matches_cadquery(example_check):
                                                   for f in report["faces"]]
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_check_up_selection():
@@ -379,6 +384,7 @@ cq.exporters.export(part, sys.argv[1])
 """
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_check_analytic_faces(tmp_path):
@@ -403,6 +409,7 @@ def test_check_analytic_faces(tmp_path):
     assert all(not f["rational"] and f["degree_u"] == 1 for f in by_kind["Plane"])
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_load_faces_against_cadquery(tmp_path):
@@ -437,6 +444,7 @@ def test_load_faces_against_cadquery(tmp_path):
 
 
 # -- bad input on the real command line ------------------------------------------------------------
+@pytest.mark.venv_only
 @needs_freecad
 @pytest.mark.parametrize("faces, fragments", [
     ("20", ["part.step: face 20 of 9: no such face"]),
@@ -460,6 +468,7 @@ cq.Workplane().box(10, 10, 10).val().exportBrep(folder + "/box.brep")
 """
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @needs_cadquery
 def test_check_bad_files(tmp_path):
@@ -495,6 +504,7 @@ doc.saveAs({out!r})
 """
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_check_fcstd_and_brep(tmp_path):
     """The example as a FreeCAD document (its visible solid only) and a cadquery box as BREP."""
@@ -536,6 +546,7 @@ Path({ngc!r} + ".json").write_text(json.dumps(posted))
 """
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_post_toolpath_of_a_part(tmp_path):
     """A two-pass toolpath posted from a job whose model is the example part: the program's
@@ -580,6 +591,7 @@ bspline_block().exportStep({step!r})
 """
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @pytest.mark.parametrize("strategy", ["isoparametric"])
 def test_toolpath_part_strategy(tmp_path, strategy):
