@@ -61,7 +61,26 @@ def make_controller(shape: str, diameter: float, corner_radius: float = 0.0,
     compat.make_proxy_restorable(tc)
     set_cutting(tc, cutting)
     tc.recompute()
+    settle_tool_bit(bit)
     return tc
+
+
+def settle_tool_bit(bit) -> None:
+    """Recompute the bit and the body that draws it until none of them is touched: FreeCAD
+    1.1's bit sets its sketch's sizes while it recomputes, touching the sketch, revolution
+    and body again, which would make the next recompute (CAM's Post Process) redo the job;
+    a sketch that cannot be built at the bit's sizes is a ValueError naming the bit."""
+    doc = bit.Document
+    for _ in range(3):
+        objects = [bit, *bit.OutListRecursive]
+        stale = [o for o in objects if "Touched" in o.State]
+        if not stale:
+            break
+        doc.recompute(stale)
+    broken = [o.Label for o in [bit, *bit.OutListRecursive] if "Invalid" in o.State]
+    if broken:
+        raise ValueError(f"{bit.Label}: FreeCAD cannot build the tool's shape at these sizes "
+                         f"({', '.join(broken)} failed)")
 
 
 def set_cutting(tc, cutting: Cutting) -> None:
