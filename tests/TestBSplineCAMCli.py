@@ -370,6 +370,7 @@ needs_freecad = pytest.mark.skipif(
     reason="freecadcmd is not installed")
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_signal_removes_staging(tmp_path, signum):
@@ -400,6 +401,7 @@ def test_signal_removes_staging(tmp_path, signum):
     assert not (tmp_path / "new").exists()
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_real_cli_refusal_is_one_line(tmp_path):
     out = tmp_path / "out"

@@ -270,6 +270,7 @@ def runs(tmp_path_factory) -> dict[str, Run]:
         return dict(pool.map(one, CASES))
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @pytest.mark.parametrize("ident, bound", [(case[0], case[4]) for case in CASES],
                          ids=[case[0] for case in CASES])
@@ -284,6 +285,7 @@ def test_isolated(runs, ident, bound):
         assert f"did not finish within {SHORT_LIMIT_S} s" in line, line
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_crashing_damages_crash_the_reader(runs):
     """At least one damaged copy really kills FreeCAD's OCCT reader with SIGSEGV (the garbage
@@ -331,6 +333,7 @@ def _gone(pid: int, seconds: float = 10.0) -> bool:
     return False
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_time_limit_kills_the_worker(monkeypatch, tmp_path):
     """In-process: the hanging worker is killed at the limit and the error names the file."""
@@ -355,6 +358,7 @@ def test_time_limit_kills_the_worker(monkeypatch, tmp_path):
     assert len(started) == 1 and _gone(started[0])
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_crash_hook_in_process(monkeypatch, tmp_path):
     monkeypatch.setenv("HOME", own_home(tmp_path)["HOME"])
@@ -378,6 +382,7 @@ def test_time_limit_default(monkeypatch):
     assert parts.part_time_limit() == 12.5
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_ctrl_c_kills_the_worker(tmp_path):
     """SIGINT to the command while its worker reads: status 130, one line, the worker gone."""

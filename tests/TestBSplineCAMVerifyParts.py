@@ -212,6 +212,7 @@ def run_bin(*args: str) -> subprocess.CompletedProcess:
                           cwd=ROOT, check=False)
 
 
+@pytest.mark.venv_only
 @needs_freecad
 def test_cli_verify_part(part, tmp_path):
     step, faces, top = part
@@ -231,6 +232,7 @@ def test_cli_verify_part(part, tmp_path):
     assert (out / "deviation.png").is_file() and (out / "simulated.png").is_file()
 
 
+@pytest.mark.venv_only
 @needs_freecad
 @pytest.mark.parametrize("faces, fragments", [
     ("20", ["block.step: face 20 of"]),
