@@ -164,6 +164,7 @@ class TestPartJobWalk(CamTestCase):
         self.assertIn(part.Label, result.Label)
         self.assertEqual(vf.finishing_op_of(job), op)
         self.assertEqual(touched(self.doc), [])
+        self.picture(result)
 
         # CAM's own Post Process: the program goes to the job's output file, toolpaths are
         # not recomputed (nothing touched)
@@ -217,6 +218,29 @@ class TestPartJobWalk(CamTestCase):
             FreeCADGui.Control.closeDialog()
         process_events()
         return made[0]
+
+    def picture(self, result) -> None:
+        """part_verify.png: the bench with the simulated part coloured by deviation and the
+        stock after roughing hidden; only the part's mesh is drawn (no selection colour)."""
+        from TestBSplineCAMGui import DOCS, bench_window, drawn_boxes, isometric_view, wait
+
+        mw, mdi = bench_window()
+        view = isometric_view(mdi)
+        boxes = drawn_boxes(view, self.doc)
+        boxes = {name: box for name, box in boxes.items()
+                 if not self.doc.getObject(name).TypeId.startswith("App::")}
+        job_axes = [n for n in boxes if hasattr(self.doc.getObject(n), "Operations")]
+        for name in job_axes:
+            boxes.pop(name)
+        self.assertEqual(list(boxes), [result.Name])
+        self.assertFalse(FreeCADGui.Selection.isSelected(result))
+        view.viewIsometric()
+        view.fitAll()
+        wait(1000)
+        DOCS.mkdir(parents=True, exist_ok=True)
+        path = DOCS / "part_verify.png"
+        self.assertTrue(QtGui.QApplication.primaryScreen().grabWindow(mw.winId())
+                        .save(str(path), "PNG"))
 
     def modal_dialogs_accepted(self):
         """Accept any modal dialog (0.20's G-code editor) that a post opens meanwhile."""
