@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM.core import gcode
+from BSplineCAM.core import gcode, rs274
 from BSplineCAM.core.gcode import (
     GcodeError,
     MoveKind,
@@ -21,7 +21,6 @@ from BSplineCAM.core.gcode import (
     read_canonical,
     read_gcode,
 )
-from BSplineCAM.orchestration import rs274
 
 RS274 = shutil.which("rs274")
 

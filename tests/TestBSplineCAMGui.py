@@ -685,8 +685,8 @@ class TestCamCommands(CamTestCase):
         from pivy import coin
 
         from BSplineCAM.app import verify_feature as vf
+        from BSplineCAM.core import rs274
         from BSplineCAM.gui import cam_commands, verify_view
-        from BSplineCAM.orchestration import rs274
 
         surface, job, op = self.make_job()
         self.assertTrue(surface.MakeSolid)
@@ -1175,8 +1175,8 @@ class TestReopenedDocument(CamTestCase):
     """Every command on a job document saved, closed and opened again (fresh proxies)."""
 
     def test_every_command_after_reopen(self) -> None:
+        from BSplineCAM.core import rs274
         from BSplineCAM.gui import cam_commands, results_panel
-        from BSplineCAM.orchestration import rs274
 
         surface, job, op = self.reopen("job.FCStd", *self.make_job())
         self.assertEqual(type(op.ViewObject.Proxy).__name__, "FinishOpViewProvider")

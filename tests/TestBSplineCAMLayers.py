@@ -45,6 +45,7 @@ FREECAD = "needs FreeCAD (Part, CAM), and this module must import without it (ve
 OPTIONAL = "optional dependency: OCP / cadquery"
 STARTUP = "a worker's net request never loads the part machinery"
 OWNER = "owner to move to module level (issue 42 item 3)"
+LOAD_ON_USE = "loaded by the command that uses it: the workbench activates fast"
 
 #: (importer, imported) relative to BSplineCAM -> why the import sits inside a function.
 LAZY = {
@@ -75,19 +76,17 @@ LAZY = {
         "app.cam", "app.finishing_op", "app.stock_left", "core.faces_height", "core.footprint",
         "core.simulate", "core.toolpath.arcs", "core.toolpath.common",
         "core.toolpath.roughing")},
-    **{("app.verify_feature", t): OWNER for t in (
-        "app.finishing_op", "app.progress", "app.roughing_op", "app.stock_left",
-        "app.surface_feature", "core.footprint", "core.simulate", "core.verify")},
-    # gui/: the GUI's owner's (gui -> orchestration.rs274 is also an upward import to remove)
-    **{("gui.cam_commands", t): OWNER for t in (
+    # gui/: the workbench activates without loading CAM, the ops or the simulation; each
+    # command loads what it runs when it runs
+    **{("gui.cam_commands", t): LOAD_ON_USE for t in (
         "app.cam", "app.finishing_op", "app.pipeline", "app.verify_feature",
-        "core.toolpath.common", "orchestration.rs274")},
-    **{("gui.commands", t): OWNER for t in ("app.importers", "core", "gui.results_panel")},
-    **{("gui.results_panel", t): OWNER for t in ("app.surface_feature", "app.verify_feature")},
-    **{("gui.rough_panel", t): OWNER for t in (
+        "core.rs274", "core.toolpath.common")},
+    **{("gui.commands", t): LOAD_ON_USE for t in ("app.importers", "core", "gui.results_panel")},
+    **{("gui.results_panel", t): LOAD_ON_USE for t in ("app.surface_feature", "app.verify_feature")},
+    **{("gui.rough_panel", t): LOAD_ON_USE for t in (
         "app.cam", "app.pipeline", "app.roughing_op", "core.simulate")},
-    **{("gui.surface_view", t): OWNER for t in ("gui.net_panel", "gui.results_panel")},
-    **{("gui.verify_view", t): OWNER for t in ("app.verify_feature", "gui.results_panel")},
+    **{("gui.surface_view", t): LOAD_ON_USE for t in ("gui.net_panel", "gui.results_panel")},
+    **{("gui.verify_view", t): LOAD_ON_USE for t in ("app.verify_feature", "gui.results_panel")},
 }
 #: Modules being split by their owners: function-local imports allowed there for now.
 LAZY_OWNERS = ("core.toolpath.roughing", "core.toolpath.faceset")

@@ -554,8 +554,8 @@ def test_post_toolpath_of_a_part(tmp_path):
     job's stock (the part's exact top 29.824 mm, not OCCT's box of its poles at 41.6 mm, + 1 mm
     of stock + CAM's SafeHeightOffset of 3 mm), the feeds and spindle are those given, and
     LinuxCNC's rs274 accepts it."""
+    from BSplineCAM.core import rs274
     from BSplineCAM.core.gcode import MoveKind, read_gcode
-    from BSplineCAM.orchestration import rs274
 
     ngc, doc = tmp_path / "part.ngc", tmp_path / "part-job.FCStd"
     script = tmp_path / "post.py"
@@ -598,10 +598,10 @@ def test_toolpath_part_strategy(tmp_path, strategy):
     """``toolpath PART --strategy isoparametric`` on a block with a B-spline top: the program
     passes rs274 and, simulated from its text, never cuts below the exact faces (FaceSet.height
     of every face of the part) by more than 1 um, and leaves the scallop inside the top."""
+    from BSplineCAM.core import rs274
     from BSplineCAM.core.gcode import MoveKind, read_gcode
     from BSplineCAM.core.simulate import Grid, Tool, simulate_program
     from BSplineCAM.core.toolpath.faceset import FaceSet
-    from BSplineCAM.orchestration import rs274
 
     step = tmp_path / "block.step"
     script = tmp_path / "block.py"

@@ -22,10 +22,10 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
+from BSplineCAM.core import rs274  # noqa: E402
 from BSplineCAM.core.gcode import read_gcode  # noqa: E402
 from BSplineCAM.core.simulate import Tool  # noqa: E402
 from BSplineCAM.core.verify import verify_job  # noqa: E402
-from BSplineCAM.orchestration import rs274  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 ROUGH = pipeline.RoughingParameters(shape="flat", diameter=8.0, stepdown=2.0,

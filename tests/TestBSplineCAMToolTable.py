@@ -15,6 +15,7 @@ from conftest import FUZZ, hang_guard, plane_net, run_main
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from BSplineCAM.core import rs274
 from BSplineCAM.core.errors import BSplineCAMError, ParameterError
 from BSplineCAM.core.gcode import read_canonical, read_gcode
 from BSplineCAM.core.simulate import Tool, ToolShape
@@ -25,7 +26,6 @@ from BSplineCAM.core.tooltable import (
     parse_tools_option,
     read_tool_table,
 )
-from BSplineCAM.orchestration import rs274
 
 # -- --tools -----------------------------------------------------------------------------------
 

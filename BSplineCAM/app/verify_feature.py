@@ -26,11 +26,18 @@ from pathlib import Path
 import numpy as np
 
 from ..core import Surface
+from ..core.footprint import footprint_bounds
 from ..core.gcode import read_gcode
-from ..core.simulate import Tool
+from ..core.simulate import Simulation, Tool
 from ..core.verify import Verification, verify, verify_faces
+from ..core.verify import verify_job as verify_job_program
 from . import cam, compat
+from .finishing_op import ObjectSurfaceFinish, find_surface_object
+from .progress import StatusProgress
 from .proxy import StatelessProxy, add_missing_properties
+from .roughing_op import ObjectSurfaceRough
+from .stock_left import core_tool, job_stock
+from .surface_feature import surface_of
 
 FreeCAD = compat.ensure_freecad()
 
@@ -179,8 +186,6 @@ def to_mesh(data: ZMapMesh):
 
 def default_cell(surface: Surface) -> float:
     """A Z-map cell (mm) giving about DEFAULT_CELLS cells along the footprint's longer side."""
-    from ..core.footprint import footprint_bounds
-
     x0, x1, y0, y1 = footprint_bounds(surface)
     return max(x1 - x0, y1 - y0) / DEFAULT_CELLS
 
@@ -206,17 +211,13 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
     progress = progress or _progress_reporter(f"Verifying {program}")
     try:
         if surface is None:
-            from .surface_feature import surface_of
-
             surface = surface_of(surface_obj)
         cell = default_cell(surface) if cell is None else float(cell)
         progress(0.05)
         parsed = read_gcode(gcode, source=program)
         progress(0.15)
         if tools:
-            from ..core.verify import verify_job as verify_program_job
-
-            result = verify_program_job(surface, parsed, tools, stock, cell,
+            result = verify_job_program(surface, parsed, tools, stock, cell,
                                         progress=lambda f: progress(0.15 + 0.65 * f))
         elif isinstance(surface, Surface):
             result = verify(surface, parsed, Tool(float(tool_diameter)), cell,
@@ -282,8 +283,6 @@ def stage_meshes(result: Verification, stride: int) -> list:
         return []
     import dataclasses
 
-    from ..core.simulate import Simulation
-
     out = []
     order = list(job.snapshots)  # in the order the program used them
     for number in order[:-1]:
@@ -298,8 +297,6 @@ def stage_meshes(result: Verification, stride: int) -> list:
 
 def job_tools(job) -> dict:
     """{tool number: core Tool} of the job's tool controllers (flat, bull-nose, ball)."""
-    from .stock_left import core_tool
-
     return {int(tc.ToolNumber): core_tool(tc) for tc in job.Tools.Group}
 
 
@@ -317,8 +314,6 @@ def job_program(job, post: str = "linuxcnc") -> str:
 
 def finishing_ops(job) -> list:
     """The job's BSplineCAM ops (finishing and roughing, whose class derives from it)."""
-    from .finishing_op import ObjectSurfaceFinish
-
     return [op for op in job.Operations.Group
             if isinstance(getattr(op, "Proxy", None), ObjectSurfaceFinish)]
 
@@ -326,8 +321,6 @@ def finishing_ops(job) -> list:
 def finishing_op_of(job):
     """The op that finishes the part: the last active BSplineCAM op that is not a roughing
     (a roughing op when the job has nothing else); None when the job has no BSplineCAM op."""
-    from .roughing_op import ObjectSurfaceRough
-
     ops = [op for op in finishing_ops(job) if getattr(op, "Active", True)]
     finishing = [op for op in ops if not isinstance(op.Proxy, ObjectSurfaceRough)]
     return (finishing or ops or [None])[-1]
@@ -337,8 +330,6 @@ def design_of(op):
     """(design object, exact model) an op is verified against: its surface object and the
     exact surface in job coordinates, or for an op on faces the part it machines and its
     faces (selected ones machined, every other face of the job's models a check surface)."""
-    from .finishing_op import find_surface_object
-
     if op.Proxy.uses_faces(op):
         job = op.Proxy.job_of(op)
         base = list(getattr(op, "Base", None) or [])
@@ -350,8 +341,6 @@ def design_of(op):
 
 def job_of(obj):
     """The job of a job or of an operation in one (None otherwise)."""
-    from .finishing_op import ObjectSurfaceFinish
-
     if obj is None:
         return None
     if hasattr(obj, "Operations") and hasattr(obj, "Tools"):
@@ -384,8 +373,6 @@ def verify_job(job, cell: float | None = None, stride: int | None = None, progre
             if getattr(o, "Active", True) and getattr(o, "ToolController", None) is not None}
     tools = stock = None
     if len(used) > 1:  # roughing and finishing: the whole program from the job's stock
-        from .stock_left import job_stock
-
         tools, stock = job_tools(job), job_stock(job)  # a block, or a cylinder as one
     elif job_tools(job).get(int(op.ToolController.ToolNumber), Tool(diameter)).shape.value != "ball":
         tools = job_tools(job)  # one end mill: simulated with its own shape
@@ -439,8 +426,6 @@ def _progress_reporter(message: str):
     """FreeCAD's progress bar when the GUI is up (cancellable); a no-op headless."""
     if not FreeCAD.GuiUp:
         return _no_progress
-    from .progress import StatusProgress
-
     return StatusProgress(message)
 
 

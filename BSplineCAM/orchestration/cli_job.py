@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..core import BSplineCAMError, Surface
+from ..core import BSplineCAMError, Surface, rs274
 from ..core.errors import ParameterError
 from ..core.gcode import read_gcode_file
 from ..core.toolpath import check_request
@@ -33,7 +33,7 @@ from ..core.toolpath.roughing import (
 )
 from ..core.tooltable import MAX_LINE_CHARS, parse_tool_spec
 from ..core.verify import verify_job
-from . import parts, rs274
+from . import parts
 from . import report as pictures
 from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
 from .cli_verify import add_machine_options, check_machine_limits, machine_time_metrics

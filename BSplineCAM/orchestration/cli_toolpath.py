@@ -12,7 +12,7 @@ import argparse
 import importlib.util
 from pathlib import Path
 
-from ..core import BSplineCAMError, Surface
+from ..core import BSplineCAMError, Surface, rs274
 from ..core.errors import ParameterError
 from ..core.toolpath import check_request
 from ..core.toolpath.common import (
@@ -23,7 +23,7 @@ from ..core.toolpath.common import (
     ToolParameters,
     check_angle,
 )
-from . import parts, rs274
+from . import parts
 from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
 from .pipeline_run import (
     DEFAULT_RAPID,

@@ -34,13 +34,13 @@ import numpy as np
 
 from ..app import compat, runtime
 from ..core import faces as core_faces
+from ..core import rs274
 from ..core.basis import cox_de_boor
 from ..core.errors import BSplineCAMError, ParameterError
 from ..core.face_import import ACCEPT_SHARE, DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
 from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
 from ..core.toolpath import faces_program_moves, generate_faces, program_moves
 from ..core.toolpath.faceset import FaceSet
-from . import rs274
 from .cli_common import (
     EXIT_CHECK_FAILED,
     _safe_name,
