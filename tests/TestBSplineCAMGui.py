@@ -3,9 +3,10 @@
 
 ``tools/run_gui_test.sh`` starts FreeCAD with ``tests/gui_run_tests.py``, which runs these
 classes in FreeCAD's event loop, writes a JSON result and exits with its status.  The last
-class saves ``docs/view3d.png`` (3D view) and ``docs/workbench.png`` (main window);
+class saves ``view3d.png`` (3D view) and ``workbench.png`` (main window);
 ``TestCamCommands`` runs the job, post-process and verify commands on the case study (coarse
-scallop) and saves ``docs/verify3d.png`` (simulated part) and ``docs/job.png`` (job tree).
+scallop) and saves ``verify3d.png`` (simulated part) and ``job.png`` (job tree), all in
+:data:`DOCS` (build/screenshots; ``make screenshots`` refreshes docs/).
 File dialogs are replaced by fixed paths; error boxes are closed by a timer and recorded.
 """
 
@@ -42,7 +43,8 @@ from BSplineCAM.app import surface_feature as sf  # noqa: E402
 from BSplineCAM.core import Surface  # noqa: E402
 
 CASE_STUDY = ROOT / "examples" / "case-study.json"
-DOCS = Path(os.environ.get("BSPLINECAM_DOCS", ROOT / "docs"))
+#: Where the screenshots go (tools/run_gui_test.sh: build/screenshots, or docs/ on purpose).
+DOCS = Path(os.environ.get("BSPLINECAM_DOCS", ROOT / "build" / "screenshots"))
 WORKBENCH = "BSplineCAMWorkbench"
 #: Commands that need a selected surface, and the one that needs nothing.
 SELECTION_COMMANDS = ("BSplineCAM_EditNet", "BSplineCAM_ExportDat", "BSplineCAM_ExportStep",

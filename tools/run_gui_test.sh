@@ -6,12 +6,13 @@
 #   FREECAD             GUI binary (default: freecad)
 #   FREECADCMD          its command-line twin, asked where the Mod folder is (default: freecadcmd)
 #   BSPLINECAM_TIMEOUT  seconds before FreeCAD is killed (default: 900)
-#   BSPLINECAM_DOCS     where screenshots go (default: docs/)
+#   BSPLINECAM_DOCS     where screenshots go (default: build/screenshots/; `make screenshots`
+#                       writes them to docs/ on purpose)
 #
 # FreeCAD runs with a throw-away HOME whose Mod folder links to this repository, so the test
-# neither depends on nor changes the user's FreeCAD settings.  Writes docs/view3d.png,
-# docs/workbench.png, docs/net_editor.png, docs/verify3d.png (the simulated part coloured by
-# deviation) and docs/job.png (the bench with a machining job).
+# neither depends on nor changes the user's FreeCAD settings.  Writes view3d.png,
+# workbench.png, net_editor.png, verify3d.png (the simulated part coloured by deviation),
+# job.png (the bench with a machining job), part_verify.png (a part job verified) and more.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 FREECAD="${FREECAD:-freecad}"
@@ -26,7 +27,7 @@ export XDG_CONFIG_HOME="$HOME/.config" XDG_DATA_HOME="$HOME/.local/share"
 python3 "$ROOT/tools/install_addon.py" --freecadcmd "${FREECADCMD:-freecadcmd}" >/dev/null
 export BSPLINECAM_GUI_OUT="$WORK/result.json"
 export BSPLINECAM_GUI_TESTS="${*:-TestBSplineCAMGui TestBSplineCAMGuiPart}"
-export BSPLINECAM_DOCS="${BSPLINECAM_DOCS:-$ROOT/docs}"
+export BSPLINECAM_DOCS="${BSPLINECAM_DOCS:-$ROOT/build/screenshots}"
 [[ $EUID -eq 0 ]] && export QTWEBENGINE_DISABLE_SANDBOX=1
 
 cd "$ROOT"
