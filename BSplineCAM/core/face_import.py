@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""What the two readers of parts share once OCCT has a face's B-spline and trim loops.
+"""A core Face from a face's B-spline arrays and trim loops as OCCT gives them.
 
-FreeCAD's Part (``app/faces.py``) and OCP (``ocp/faces.py``) reach OCCT by different APIs but
-make a core Face the same way:
+The reader of parts (:mod:`.part_reader`, with FreeCAD's Part or OCP as its adapter) makes
+every core Face the same way:
 
 * the core takes clamped knot vectors only, so a periodic or unclamped surface is segmented
   first (OCCT's exact knot insertion keeps its parameters) to its own bounds, but a periodic
