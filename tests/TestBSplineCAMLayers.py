@@ -66,16 +66,6 @@ LAZY = {
     ("orchestration.worker", "app.surface_feature"): FREECAD,
     ("orchestration.worker", "ocp.occ"): OPTIONAL,
     ("orchestration.worker", "orchestration.parts"): STARTUP,
-    # app/finishing_op.py, roughing_op.py, verify_feature.py: their owner's
-    **{("app.finishing_op", t): OWNER for t in (
-        "app.cam", "app.faces", "app.part", "app.progress", "app.stock_left",
-        "app.surface_feature", "core.face_import", "core.faces", "core.toolpath",
-        "core.toolpath.arcs", "core.toolpath.common", "core.toolpath.faceset",
-        "core.toolpath.rest")},
-    **{("app.roughing_op", t): OWNER for t in (
-        "app.cam", "app.finishing_op", "app.stock_left", "core.faces_height", "core.footprint",
-        "core.simulate", "core.toolpath.arcs", "core.toolpath.common",
-        "core.toolpath.roughing")},
     # gui/: the workbench activates without loading CAM, the ops or the simulation; each
     # command loads what it runs when it runs
     **{("gui.cam_commands", t): LOAD_ON_USE for t in (

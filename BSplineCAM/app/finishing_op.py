@@ -27,10 +27,23 @@ import re
 import numpy as np
 
 from ..core import Surface
+from ..core import faces as core_faces
+from ..core import toolpath as core_toolpath
 from ..core.errors import BSplineCAMError
+from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE
+from ..core.faces import FaceError
 from ..core.toolpath import common as toolpath_common
-from . import compat
+from ..core.toolpath.arcs import feed_length
+from ..core.toolpath.common import RAPID_RANGE, CuttingParameters, ToolParameters
+from ..core.toolpath.faceset import FaceSet
+from ..core.toolpath.rest import faceset_cl_height, generate_rest, net_cl_height
+from . import cam, compat
+from .faces import faces_and_reach
+from .part import Extent, surface_extent
+from .progress import op_progress, previous_commands, report_cancelled
 from .proxy import add_missing_properties
+from .stock_left import stock_after_ops
+from .surface_feature import is_surface
 
 FreeCAD = compat.ensure_freecad()
 import Path  # noqa: E402  (FreeCAD's Path module, 0.20 and 1.0)
@@ -105,8 +118,6 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         self.ensure_properties(obj)
         if not had_arcs:
             obj.Arcs = False
-        from . import cam
-
         job = self.job_of(obj)
         if job is not None:
             cam.use_surface_stock(job)
@@ -140,8 +151,6 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         return faces
 
     def faceset(self, obj):
-        from ..core.toolpath.faceset import FaceSet
-
         key = _faces_key(obj, self.job_of(obj))
         cached = getattr(self, "_faceset_cache", None)
         if cached is not None and cached[0] == key:
@@ -152,23 +161,19 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
 
     def surface(self, obj) -> Surface:
         """The exact surface in job coordinates (the model clone's placement applied)."""
-        from . import cam
-
         job = self.job_of(obj)
         source = obj.Surface or find_surface_object(job)
         if source is None:
             raise OpError(f"{obj.Label}: the job has no BSplineCAM surface to machine")
         return cam.surface_in_job(source, _model_clone_of(job, source))
 
-    def rest_toolpath(self, obj, cl_height, toolpath):
-        """Rest passes over the stock the ops of ``RestFrom`` left (:mod:`.stock_left`), or
-        None: RestLimit 0, no such op with a path, or nothing above the limit."""
+    def rest_toolpath(self, obj, cl_height, toolpath, tool: ToolParameters):
+        """Rest passes of the op's ball ``tool`` over the stock the ops of ``RestFrom`` left
+        (:mod:`.stock_left`), or None: RestLimit 0, no such op with a path, or nothing above
+        the limit."""
         limit = float(getattr(obj, "RestLimit", 0.0).Value) if hasattr(obj, "RestLimit") else 0.0
         if not limit > 0:
             return None
-        from ..core.toolpath.rest import generate_rest
-        from .stock_left import stock_after_ops
-
         job = self.job_of(obj)
         if job is None or not getattr(obj, "RestFrom", None):
             return None
@@ -187,7 +192,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
                   min(float(points[:, 1].max()), g.y0 + g.ny * g.cell))
         if not (extent[1] > extent[0] and extent[3] > extent[2]):
             return None
-        diameter = 2.0 * self.radius
+        diameter = tool.diameter
         rest = generate_rest(cl_height, (stock.grid, stock.height), diameter, limit,
                              0.25 * diameter, extent, angle=float(obj.Angle.Value),
                              tolerance=max(obj.Tolerance.Value, 0.005), progress=progress,
@@ -204,9 +209,6 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         stock computed from the exact surface (:func:`cam.stock_box`), so they move with the
         surface and are the same on every recompute.
         """
-        from . import cam
-        from .part import surface_extent
-
         job = self.job_of(obj)
         try:
             if self.uses_faces(obj):
@@ -240,8 +242,6 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         FeaturePython reports the Python stack).  Anything else is a bug: it is recorded and
         raised, traceback and all.
         """
-        from .progress import previous_commands, report_cancelled
-
         try:
             self._execute(obj)
         except toolpath_common.ToolpathCancelled as exc:  # the user cancelled: keep the past
@@ -256,10 +256,13 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             FreeCAD.Console.PrintError(f"{_labelled(obj, exc)}\n")
             raise
 
-    def _execute(self, obj) -> None:
-        from ..core.toolpath import generate
-        from ..core.toolpath.common import RAPID_RANGE, CuttingParameters
+    def ball(self, obj) -> ToolParameters:
+        """The op's ball: its tool controller's bit diameter, ``ScallopHeight`` and
+        ``Tolerance`` (mm), validated (:meth:`ToolParameters.validate`)."""
+        return ToolParameters.validate(float(self.tool.Diameter), obj.ScallopHeight.Value,
+                                       obj.Tolerance.Value)
 
+    def _execute(self, obj) -> None:
         # the command line's ranges (finite, a controller accepts them), named as in the panel
         tc = obj.ToolController.Label
         CuttingParameters.validate(
@@ -272,12 +275,11 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             self._execute_faces(obj)
             return
         surface = self.surface(obj)
-        toolpath = generate(
+        tool = self.ball(obj)
+        toolpath = core_toolpath.generate_for_tool(
             surface,
+            tool,
             strategy=obj.Strategy,
-            tool_diameter=2.0 * self.radius,
-            scallop=obj.ScallopHeight.Value,
-            tolerance=obj.Tolerance.Value,
             angle=obj.Angle.Value,
             direction=obj.Direction,
             iso_direction=obj.IsoDirection,
@@ -288,16 +290,13 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             raise OpError(f"{obj.Label}: the strategy produced no pass")
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
-        from ..core.toolpath import program_moves
-        from ..core.toolpath.rest import net_cl_height
-
-        rest = self.rest_toolpath(obj, net_cl_height(surface), toolpath)
+        rest = self.rest_toolpath(obj, net_cl_height(surface), toolpath, tool)
         moves = []
         if rest is not None:
             lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
-            moves = program_moves(rest, clearance, max(obj.SafeHeight.Value, lowest),
+            moves = core_toolpath.program_moves(rest, clearance, max(obj.SafeHeight.Value, lowest),
                                   arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
-        moves += program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
+        moves += core_toolpath.program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
                                arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
@@ -311,29 +310,25 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         """Finishing of the op's faces (:func:`job_faces`) by raster, waterline or
         iso-parametric passes (:func:`BSplineCAM.core.toolpath.generate_faces`), heights from
         the certified drop-cutter over all of the job's faces."""
-        from ..core.toolpath import faces_program_moves, generate_faces, no_pass_hint
-
         faceset = self.faceset(obj)
-        toolpath = generate_faces(
-            faceset, obj.Strategy, 2.0 * self.radius, obj.ScallopHeight.Value,
-            obj.Tolerance.Value, angle=obj.Angle.Value, direction=obj.Direction,
+        tool = self.ball(obj)
+        toolpath = core_toolpath.generate_faces(
+            faceset, obj.Strategy, angle=obj.Angle.Value, direction=obj.Direction,
             iso_direction=obj.IsoDirection, progress=progress_reporter(obj),
-            where=obj.Label)
+            where=obj.Label, tool=tool)
         if not toolpath.passes:
             raise OpError(f"{obj.Label}: the {obj.Strategy} strategy produced no pass on the "
-                          "selected faces" + no_pass_hint(toolpath))
+                          "selected faces" + core_toolpath.no_pass_hint(toolpath))
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
-        from ..core.toolpath.rest import faceset_cl_height
-
-        rest = self.rest_toolpath(obj, faceset_cl_height(faceset), toolpath)
+        rest = self.rest_toolpath(obj, faceset_cl_height(faceset), toolpath, tool)
         arcs = bool(getattr(obj, "Arcs", False))
         moves = []
         if rest is not None:
             lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
-            moves = faces_program_moves(rest, faceset, clearance,
+            moves = core_toolpath.faces_program_moves(rest, faceset, clearance,
                                         max(obj.SafeHeight.Value, lowest), arcs)
-        moves += faces_program_moves(toolpath, faceset, clearance,
+        moves += core_toolpath.faces_program_moves(toolpath, faceset, clearance,
                                      max(obj.SafeHeight.Value, lowest), arcs)
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
@@ -453,8 +448,6 @@ def report(toolpath, commands=None, moves=None) -> dict:
     ``pass_length_mm`` is the length along the passes and stay-down links alone (the core's
     figure, also the cutting length without ``moves``); with ``commands``, also
     ``program_moves`` (G0-G3) and ``arc_moves`` (G2/G3)."""
-    from ..core.toolpath.arcs import feed_length
-
     stats = toolpath.stats
     cutting = stats.cutting_length_mm if moves is None else feed_length(moves)
     out = {
@@ -487,8 +480,6 @@ def progress_reporter(obj):
     None headless.  See :mod:`BSplineCAM.app.progress`."""
     if not FreeCAD.GuiUp:
         return None
-    from .progress import op_progress
-
     return op_progress(obj)
 
 
@@ -498,7 +489,7 @@ def find_surface_object(job):
         return None
     for model in job.Model.Group:
         for candidate in [model, *getattr(model, "Objects", []), *getattr(model, "OutList", [])]:
-            if _is_surface(candidate):
+            if is_surface(candidate):
                 return candidate
     return None
 
@@ -537,8 +528,6 @@ def _faces_key(obj, job) -> tuple:
 def _chordal_tolerance(obj) -> float:
     """The op's chordal tolerance (mm) that faces are accepted for (``core.face_import``): its
     ``Tolerance`` property, or the default when it has none."""
-    from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE
-
     value = getattr(getattr(obj, "Tolerance", None), "Value", None)
     if isinstance(value, (int, float)) and value > 0:
         return float(value)
@@ -549,8 +538,6 @@ def _requested_faces(obj, job) -> list[tuple[object, list[int]]]:
     """(target object, 1-based face numbers) per object of ``Base``; a Base object that is the
     original behind a job model becomes that model (the clone, in job coordinates).  Errors
     name the op, the object and the sub-element."""
-    from ..core.faces import FaceError
-
     requested: list[tuple[object, list[int]]] = []
     for source, subs in obj.Base:
         names = [s for s in subs if s]
@@ -588,10 +575,6 @@ def job_faces(obj, job) -> list:
     names are "<object label>.Face<n>".  FaceError names the op, object and face at fault: a
     sub-element that is no face, an empty selection, a face seen from below, no upward face.
     """
-    from ..core import faces as core_faces
-    from ..core.faces import FaceError
-    from .faces import faces_and_reach
-
     models = [m for m in (job.Model.Group if job is not None else [])
               if getattr(m, "Shape", None) is not None and not m.Shape.isNull()]
     base = list(getattr(obj, "Base", None) or [])
@@ -654,8 +637,6 @@ def hidden_faces(shape) -> set[int]:
 
 def _faces_extent(faceset):
     """The selected faces' box (FaceSet.bounds, within 1e-6 of their size) as an Extent."""
-    from .part import Extent
-
     lo, hi = faceset.bounds(selected_only=True)
     return Extent(*(float(v) for v in (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])))
 
@@ -663,9 +644,7 @@ def _faces_extent(faceset):
 def _model_clone_of(job, source):
     if job is None:
         return None
-    from .cam import model_surfaces
-
-    for found, clone in model_surfaces(job.Model.Group):
+    for found, clone in cam.model_surfaces(job.Model.Group):
         if found is source:
             return clone
     return None
@@ -675,12 +654,6 @@ def _set_length(obj, name: str, value: float) -> None:
     """Set a length property only when it changes (no needless touch)."""
     if abs(getattr(obj, name).Value - value) > 1e-9:
         setattr(obj, name, value)
-
-
-def _is_surface(obj) -> bool:
-    from .surface_feature import is_surface
-
-    return is_surface(obj)
 
 
 def new_op(proxy_class, type_name: str, factory, name: str, obj=None, parentJob=None):  # noqa: N803

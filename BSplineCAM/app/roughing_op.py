@@ -17,20 +17,29 @@ import json
 import numpy as np
 
 from ..core.errors import ParameterError
+from ..core.faces_height import FacesHeight
+from ..core.footprint import surface_height
+from ..core.simulate import Tool
+from ..core.toolpath.arcs import feed_length, fit_arcs
+from ..core.toolpath.common import RAPID_RANGE, CuttingParameters
 from ..core.toolpath.roughing import (
     MAX_RAMP_ANGLE_DEG,
     RAMP_ANGLE_DEG,
     check_fine_stepdown,
     check_ramp_angle,
+    generate_roughing,
 )
-from . import compat
+from . import cam, compat
 from .finishing_op import (
     FreeCAD,
     ObjectSurfaceFinish,
     OpError,
+    find_surface_object,
     moves_to_commands,
+    new_op,
     progress_reporter,
 )
+from .stock_left import job_stock
 
 OBJECT_VERSION = "1"
 #: Chordal tolerance (mm) of the helical arcs fitted to the entries: the roughing's own
@@ -76,8 +85,6 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
 
     def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
         self.ensure_properties(obj)
-        from . import cam
-
         job = self.job_of(obj)
         if job is not None:
             cam.use_surface_stock(job)
@@ -92,8 +99,6 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         """The job's stock as core data (mm): a CylinderStock for CAM's cylinder stock (its
         axis along Z), so that the roughing cuts no air in the corners of its box, else the
         Stock block of its shape's box (:func:`.stock_left.job_stock`)."""
-        from .stock_left import job_stock
-
         job = self.job_of(obj)
         if job is None or getattr(job, "Stock", None) is None or job.Stock.Shape.isNull():
             raise OpError(f"{obj.Label}: the job has no stock to rough from")
@@ -103,16 +108,12 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
         """height(xs, ys) -> (len(ys), len(xs)) top of the part (NaN off it), exact: the
         surface's footprint inversion, or the top-most face of the job's model."""
         if self.uses_faces(obj):
-            from ..core.faces_height import FacesHeight
-
             faces = self.faces(obj)
 
             def height(xs, ys):
                 cell = float(xs[1] - xs[0]) if len(xs) > 1 else 0.1
                 return FacesHeight(faces, cell).grid(np.asarray(xs), np.asarray(ys)).z
             return height
-        from ..core.footprint import surface_height
-
         surface = self.surface(obj)
 
         def height(xs, ys):
@@ -121,15 +122,10 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
 
     def tool_of(self, obj):
         """The ToolController's bit as a core Tool (flat, bull-nose or ball)."""
-        from ..core.simulate import Tool
-
         shape, diameter, corner = compat.core_tool_shape(self.tool)
         return Tool(diameter, shape, corner if shape == "bullnose" else 0.0)
 
     def _execute(self, obj) -> None:
-        from ..core.toolpath.common import RAPID_RANGE, CuttingParameters
-        from ..core.toolpath.roughing import generate_roughing
-
         tc = obj.ToolController.Label
         CuttingParameters.validate(
             self.horizFeed, self.vertFeed, float(obj.ToolController.SpindleSpeed), RAPID_RANGE[0],
@@ -163,8 +159,6 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
             progress=progress_reporter(obj))
         if not rough.moves:
             raise OpError(f"{obj.Label}: there is no stock to remove above the part")
-        from ..core.toolpath.arcs import fit_arcs
-
         # helical entries become G17 helices; level contours stay lines (no surface to tell
         # their free side), see core.toolpath.arcs
         moves = fit_arcs(rough.moves, ARC_TOLERANCE)
@@ -180,8 +174,6 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
 def rough_report(rough, commands, moves, tool) -> dict:
     """The op's statistics: the core's figures plus the program's moves and the feed length
     of the moves the commands are made of."""
-    from ..core.toolpath.arcs import feed_length
-
     out = {k: v for k, v in rough.stats.items() if isinstance(v, (int, float, str, list))}
     out.update({
         "strategy": "roughing",
@@ -200,13 +192,9 @@ def rough_report(rough, commands, moves, tool) -> dict:
 
 
 def find_surface(job):
-    from .finishing_op import find_surface_object
-
     return find_surface_object(job)
 
 
 def Create(name: str = "SurfaceRough", obj=None, parentJob=None):  # noqa: N802, N803 - FreeCAD factory convention
     """A new roughing op in ``parentJob`` (default: the active job), like CAM's ops' Create."""
-    from .finishing_op import new_op
-
     return new_op(ObjectSurfaceRough, "SurfaceRough", Create, name, obj, parentJob)

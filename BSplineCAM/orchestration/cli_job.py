@@ -186,7 +186,7 @@ def cmd_job(args: argparse.Namespace) -> int:
     roughing = pipeline.RoughingParameters(**roughing)
     check_posts(posts)
     params = pipeline.FinishingParameters(
-        tool_diameter=finish_tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
+        tool_diameter=tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, arcs=args.arcs == "on", rest_limit=rest_limit)
     cutting = freecad_cutting(cutting_params)
     with staged_output(Path(args.out)) as stage:

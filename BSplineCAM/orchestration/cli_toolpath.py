@@ -77,7 +77,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
 
     check_posts([args.post])
     params = pipeline.FinishingParameters(
-        tool_diameter=2.0 * tool.radius, scallop=tool.scallop, tolerance=tool.tolerance,
+        tool_diameter=tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, direction=args.direction,
         iso_direction=args.iso_direction, arcs=args.arcs == "on")
     cutting = freecad_cutting(cutting_params)
@@ -91,11 +91,11 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
         report["parameters"] = {
             "strategy": strategy.value, "angle_deg": angle, "direction": args.direction,
             "iso_direction": args.iso_direction, "arcs": args.arcs,
-            "tool_diameter_mm": 2.0 * tool.radius,
+            "tool_diameter_mm": tool.diameter,
             "scallop_mm": tool.scallop, "tolerance_mm": tool.tolerance}
         report["angle_deg"] = angle
         if not args.no_rs274 and rs274.available():
-            check = rs274.check(program, {1: 2.0 * tool.radius})
+            check = rs274.check(program, {1: tool.diameter})
             report["rs274"] = check.as_dict()
             if not check.ok:
                 emit(report)

@@ -449,10 +449,11 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         raise ParameterError(f"--post: {' '.join(str(exc).split())}") from None
     faceset = FaceSet(faces)
     strategy = getattr(args, "strategy", "raster")
-    toolpath = generate_faces(faceset, strategy, 2.0 * tool.radius, tool.scallop,
-                              tool.tolerance, angle, getattr(args, "direction", "zigzag"),
-                              getattr(args, "iso_direction", "u"), where=str(args.net),
-                              names=("--strategy", "--direction"))
+    toolpath = generate_faces(faceset, strategy, angle=angle,
+                              direction=getattr(args, "direction", "zigzag"),
+                              iso_direction=getattr(args, "iso_direction", "u"),
+                              where=str(args.net), names=("--strategy", "--direction"),
+                              tool=tool)
     check_interrupted()
     if not toolpath.passes:
         notes = "; ".join(toolpath.stats.notes)
@@ -465,7 +466,7 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
         program = stage / f"{name}.ngc"
         with captured_console():
             commands, clearance, safe = post_toolpath(
-                args.net, toolpath, 2.0 * tool.radius, cutting, args.post, program,
+                args.net, toolpath, tool.diameter, cutting, args.post, program,
                 stage / f"{name}-job.FCStd", arcs=getattr(args, "arcs", "off") == "on",
                 faceset=faceset)
         check_interrupted()
@@ -487,12 +488,12 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                            "direction": getattr(args, "direction", "zigzag"),
                            "iso_direction": getattr(args, "iso_direction", "u"),
                            "arcs": getattr(args, "arcs", "off"),
-                           "tool_diameter_mm": 2.0 * tool.radius, "scallop_mm": tool.scallop,
+                           "tool_diameter_mm": tool.diameter, "scallop_mm": tool.scallop,
                            "tolerance_mm": tool.tolerance}}
         report["cutting_length_mm"], report["machining_time_s"] = (
             round(v, 3) for v in machining_time(text, cutting_params.rapid))
         if not args.no_rs274 and rs274.available():
-            check = rs274.check(program, {1: 2.0 * tool.radius})
+            check = rs274.check(program, {1: tool.diameter})
             report["rs274"] = check.as_dict()
             if not check.ok:
                 emit(report)

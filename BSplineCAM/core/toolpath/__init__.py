@@ -39,19 +39,21 @@ from .common import (  # noqa: F401  (the package's names for its callers)
     unreachable_regions,
 )
 from .dropcutter import DropCutter
-from .faces_iso import generate_faces_iso
-from .faces_raster import generate_faces_raster
-from .faces_waterline import generate_faces_waterline
+from .faces_iso import iso_faces
+from .faces_raster import raster_faces
+from .faces_waterline import waterline_faces
 from .generator import (  # noqa: F401  (re-exported: the package's request checks)
     MAX_CUTTER_LOCATIONS,
     STAY_DOWN_LINK,
     check_generate,
     check_request,
+    check_tool_request,
     estimated_cutter_locations,
+    request_tool,
     run_strategy,
 )
 from .reach import unreachable_corners
-from .rest import generate_faces_steep_shallow, generate_steep_shallow
+from .rest import steep_shallow, steep_shallow_faces
 
 
 def generate(
@@ -80,14 +82,32 @@ def generate(
     :class:`ToolpathCancelled`.  Regions whose concave radius is below the tool radius are
     listed in ``Toolpath.unreachable`` and left uncut, never gouged.
     """
+    tool = request_tool(surface, strategy, tool_diameter, scallop, tolerance)
+    return generate_for_tool(surface, tool, strategy, angle, direction, iso_direction,
+                             clearance_height, progress, cancel, min_slope, threshold)
+
+
+def generate_for_tool(
+    surface: Any,
+    tool: ToolParameters,
+    strategy: str | Strategy = Strategy.RASTER,
+    angle: float = 0.0,
+    direction: str | Direction = Direction.ZIGZAG,
+    iso_direction: str | IsoDirection = IsoDirection.U,
+    clearance_height: float | None = None,
+    progress: ProgressFn = None,
+    cancel: CancelFn = None,
+    min_slope: float = 30.0,
+    threshold: float = 45.0,
+) -> Toolpath:
+    """:func:`generate` for a ``tool`` validated where the request came in
+    (:meth:`ToolParameters.validate`); every other argument is checked here."""
     started = time.perf_counter()
-    strategy, tool, angle, direction, iso_direction, min_slope = check_generate(
-        surface, strategy, tool_diameter, scallop, tolerance, angle, direction, iso_direction,
-        clearance_height, min_slope)
+    strategy, angle, direction, iso_direction, min_slope = check_generate(
+        surface, strategy, tool, angle, direction, iso_direction, clearance_height, min_slope)
     if strategy is Strategy.STEEP_SHALLOW:
-        return generate_steep_shallow(surface, 2.0 * tool.radius, tool.scallop, tool.tolerance,
-                                      threshold, angle, clearance_height=clearance_height,
-                                      progress=progress, cancel=cancel)
+        return steep_shallow(surface, tool, threshold, angle, clearance_height=clearance_height,
+                             progress=progress, cancel=cancel)
     return run_strategy(started, surface, strategy, tool, angle, direction, iso_direction,
                         min_slope, clearance_height, progress, cancel)
 
@@ -113,8 +133,8 @@ def program_moves(toolpath: Toolpath, clearance_height: float | None = None,
 __all__ = [
     "MAX_CUTTER_LOCATIONS", "Direction", "DropCutter", "IsoDirection", "Move", "Region",
     "Strategy", "Toolpath", "ToolpathCancelled", "ToolpathStats", "check_request",
-    "curved_stepover", "estimated_cutter_locations", "flat_stepover", "generate", "program_moves",
-    "to_moves",
+    "curved_stepover", "estimated_cutter_locations", "flat_stepover", "generate",
+    "generate_for_tool", "program_moves", "to_moves",
 ]
 
 
@@ -125,34 +145,44 @@ FACE_STRATEGIES = (Strategy.RASTER.value,
                    Strategy.STEEP_SHALLOW.value)
 
 
-def generate_faces(faceset, strategy: str, tool_diameter: float, scallop: float,
-                   tolerance: float, angle: float = 0.0, direction: str = "zigzag",
-                   iso_direction: str = "u", progress=None, where: str = "op",
-                   names: tuple[str, str] = ("Strategy", "Direction"), threshold: float = 45.0):
+def generate_faces(faceset, strategy: str, tool_diameter: float | None = None,
+                   scallop: float | None = None, tolerance: float | None = None,
+                   angle: float = 0.0, direction: str = "zigzag", iso_direction: str = "u",
+                   progress=None, where: str = "op",
+                   names: tuple[str, str] = ("Strategy", "Direction"), threshold: float = 45.0,
+                   *, tool: ToolParameters | None = None):
     """The toolpath of the selected faces of ``faceset`` (a core FaceSet) by ``strategy``:
-    raster (:func:`~BSplineCAM.core.toolpath.faces_raster.generate_faces_raster`, zigzag at
+    raster (:func:`~BSplineCAM.core.toolpath.faces_raster.raster_faces`, zigzag at
     ``angle`` degrees), waterline (:mod:`~BSplineCAM.core.toolpath.faces_waterline`, levels
     from the scallop on walls over 30 degrees), isoparametric
     (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``) or
-    steep_shallow (:func:`~BSplineCAM.core.toolpath.rest.generate_faces_steep_shallow`:
+    steep_shallow (:func:`~BSplineCAM.core.toolpath.rest.steep_shallow_faces`:
     contours on walls steeper than ``threshold`` degrees, raster at ``angle`` on the rest).
-    tool_diameter, scallop and tolerance in mm.  ``unreachable`` lists the regions of the
+    The ball is ``tool``, validated where the request came in, or else tool_diameter,
+    scallop and tolerance (mm), validated here (:meth:`ToolParameters.validate`).
+    ``unreachable`` lists the regions of the
     selected faces the ball cannot reach (:func:`.reach.unreachable_corners`: inside corners
     and hollows tighter than it), whatever the strategy.  A strategy or direction faces do not have
     raises :class:`~BSplineCAM.core.errors.ParameterError` naming ``where`` and the property or option (``names``)."""
-    toolpath = _faces_toolpath(faceset, strategy, tool_diameter, scallop, tolerance, angle,
-                               direction, iso_direction, progress, where, names, threshold)
+    _check_faces_request(strategy, direction, where, names)
+    if tool is None:
+        tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
+    elif (tool_diameter, scallop, tolerance) != (None, None, None):
+        raise ParameterError("generate_faces: give the tool or its tool_diameter, scallop and "
+                             "tolerance, not both")
+    toolpath = _faces_toolpath(faceset, strategy, tool, angle, direction, iso_direction,
+                               progress, where, names, threshold)
     lo, hi = faceset.bounds(selected_only=True)
     toolpath.unreachable = unreachable_corners(
         faceset.faces, [f.selected for f in faceset.faces],
-        (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])), 0.5 * float(tool_diameter))
+        (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])), tool.radius)
     return toolpath
 
 
-def _faces_toolpath(faceset, strategy: str, tool_diameter: float, scallop: float,
-                    tolerance: float, angle: float, direction: str, iso_direction: str,
-                    progress, where: str, names: tuple[str, str], threshold: float):
-    """:func:`generate_faces` without the unreachable regions."""
+def _check_faces_request(strategy: str, direction: str, where: str,
+                         names: tuple[str, str]) -> None:
+    """A strategy faces have, and zigzag passes unless it is waterline; the ParameterError
+    names ``where`` and the property or option (``names``)."""
     strategy_name, direction_name = names
     if strategy not in FACE_STRATEGIES:
         raise ParameterError(f"{where}: {strategy_name} {strategy!r} is not available on faces: use "
@@ -161,15 +191,19 @@ def _faces_toolpath(faceset, strategy: str, tool_diameter: float, scallop: float
             direction != Direction.ZIGZAG.value:
         raise ParameterError(f"{where}: {direction_name} {direction!r} is not available on faces "
                       f"with {strategy}: use zigzag")
+
+
+def _faces_toolpath(faceset, strategy: str, tool: ToolParameters, angle: float,
+                    direction: str, iso_direction: str, progress, where: str,
+                    names: tuple[str, str], threshold: float):
+    """:func:`generate_faces` without the unreachable regions, its request checked."""
     if strategy == Strategy.STEEP_SHALLOW.value:
-        return generate_faces_steep_shallow(faceset, tool_diameter, scallop, tolerance,
-                                            threshold, angle, progress=progress)
+        return steep_shallow_faces(faceset, tool, threshold, angle, progress=progress)
     if strategy == Strategy.WATERLINE.value:
-        return generate_faces_waterline(faceset, tool_diameter, scallop, tolerance, progress)
+        return waterline_faces(faceset, tool, progress)
     if strategy == Strategy.ISOPARAMETRIC.value:
-        return generate_faces_iso(faceset, tool_diameter, scallop, tolerance, iso_direction,
-                                  progress)
-    return generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle, progress)
+        return iso_faces(faceset, tool, iso_direction, progress)
+    return raster_faces(faceset, tool, angle, progress)
 
 
 def no_pass_hint(toolpath) -> str:

@@ -114,11 +114,18 @@ def check_tool_fits(surface: Any, tool_diameter: float, argument: str = "tool_di
 
 @dataclass(frozen=True)
 class ToolParameters:
-    """Validated common arguments: ball radius R, scallop h and chordal tolerance (all mm)."""
+    """The ball-end tool of a finishing request, validated once where the request comes in
+    (:meth:`validate`) and passed down as is: diameter D (radius R = D / 2), scallop h and
+    chordal tolerance (all mm)."""
 
-    radius: float
+    diameter: float
     scallop: float
     tolerance: float
+
+    @property
+    def radius(self) -> float:
+        """Ball radius R = D / 2 (mm)."""
+        return self.diameter / 2.0
 
     @classmethod
     def validate(cls, tool_diameter: Any, scallop: Any, tolerance: Any,
@@ -141,7 +148,7 @@ class ToolParameters:
         lo, hi = TOLERANCE_RANGE
         if not lo <= tol <= hi:
             raise ParameterError(f"{names[2]} must lie in [{lo:g}, {hi:g}] mm, got {tol:g} mm")
-        return cls(radius, h, tol)
+        return cls(diameter, h, tol)
 
     @property
     def flat_stepover(self) -> float:

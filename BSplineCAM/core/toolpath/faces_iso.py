@@ -403,15 +403,22 @@ def _face_passes(face, k: int, faceset: FaceSet, query: FaceQuery, tool: ToolPar
 def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
                        tolerance: float, direction: str = "u",
                        progress: ProgressFn = None) -> Toolpath:
+    """:func:`iso_faces` with the tool given by its diameter, scallop (cusp height) and
+    tolerance (one-sided chordal), all mm, validated here."""
+    return iso_faces(faceset, ToolParameters.validate(tool_diameter, scallop, tolerance),
+                     direction, progress)
+
+
+def iso_faces(faceset: FaceSet, tool: ToolParameters, direction: str = "u",
+              progress: ProgressFn = None) -> Toolpath:
     """Iso-parametric toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
 
-    tool_diameter, scallop (cusp height) and tolerance (one-sided chordal) in mm; ``direction``
-    names the face parameter that varies along a pass ('u' or 'v').  Each selected face is
-    machined by its own iso-curves inside its trim; heights are never below the certified
-    drop-cutter over every face of the set (check surfaces included).
+    ``tool`` is validated (:meth:`ToolParameters.validate`); ``direction`` names the face
+    parameter that varies along a pass ('u' or 'v').  Each selected face is machined by its
+    own iso-curves inside its trim; heights are never below the certified drop-cutter over
+    every face of the set (check surfaces included).
     """
     started = time.perf_counter()
-    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
     iso = _check_direction(direction)
     if not isinstance(faceset, FaceSet):
         raise ParameterError(f"faceset must be a FaceSet, got {type(faceset).__name__}")
@@ -438,10 +445,10 @@ def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
     notes = [f"{lifted} cutter locations lifted to avoid gouging"] if lifted else []
     fits = [name for name, v in per_face.items() if v["chord_lift"].get("collapsed")]
     if fits:
-        notes.append(f"the {2.0 * tool.radius:g} mm ball fits {', '.join(fits)} across: all "
+        notes.append(f"the {tool.diameter:g} mm ball fits {', '.join(fits)} across: all "
                      "its iso-curves fall on one line of cutter locations, so iso leaves it; "
                      "finish it by raster or waterline")
-    parameters = {"strategy": "isoparametric", "tool_diameter": 2.0 * tool.radius,
+    parameters = {"strategy": "isoparametric", "tool_diameter": tool.diameter,
                   "scallop": tool.scallop, "tolerance": tool.tolerance,
                   "direction": "zigzag", "iso_direction": "u" if iso is IsoDirection.U else "v",
                   "faces": [faceset.faces[k].name for k in chosen]}
@@ -456,4 +463,4 @@ def generate_faces_iso(faceset: FaceSet, tool_diameter: float, scallop: float,
     return toolpath
 
 
-__all__ = ["generate_faces_iso"]
+__all__ = ["generate_faces_iso", "iso_faces"]

@@ -166,13 +166,20 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
 def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float,
                           tolerance: float, angle: float = 0.0,
                           progress: ProgressFn = None) -> Toolpath:
+    """:func:`raster_faces` with the tool given by its diameter, scallop (cusp height) and
+    tolerance (one-sided chordal), all mm, validated here."""
+    return raster_faces(faceset, ToolParameters.validate(tool_diameter, scallop, tolerance),
+                        angle, progress)
+
+
+def raster_faces(faceset: FaceSet, tool: ToolParameters, angle: float = 0.0,
+                 progress: ProgressFn = None) -> Toolpath:
     """Zig-zag raster toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
 
-    tool_diameter, scallop (cusp height) and tolerance (one-sided chordal) in mm, angle in
-    degrees from +X.  Heights are the certified drop-cutter over every face of the set.
+    ``tool`` is validated (:meth:`ToolParameters.validate`); angle in degrees from +X.
+    Heights are the certified drop-cutter over every face of the set.
     """
     started = time.perf_counter()
-    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
     angle = check_angle(angle)
     monitor = Monitor(progress, None, "raster")
     monitor(0.0)
@@ -248,7 +255,7 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     ordered = zigzag_by_line(passes)
     monitor(0.95)
     steps = np.diff(bvals)
-    parameters = {"strategy": "raster", "tool_diameter": 2.0 * R, "scallop": tool.scallop,
+    parameters = {"strategy": "raster", "tool_diameter": tool.diameter, "scallop": tool.scallop,
                   "tolerance": tool.tolerance, "angle": angle, "direction": "zigzag",
                   "faces": [f.name for f in faceset.faces if f.selected]}
     stats = ToolpathStats(stepover_min_mm=float(steps.min()) if len(steps) else float("nan"),
@@ -264,4 +271,4 @@ def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float
     return toolpath
 
 
-__all__ = ["FaceQuery", "generate_faces_raster"]
+__all__ = ["FaceQuery", "generate_faces_raster", "raster_faces"]

@@ -476,15 +476,22 @@ def _densify_jumps(query: FaceQuery, pts: FloatArray, starts: np.ndarray, gap: f
 def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: float,
                              tolerance: float, progress: ProgressFn = None,
                              min_slope: float = 30.0) -> Toolpath:
+    """:func:`waterline_faces` with the tool given by its diameter, scallop (cusp height) and
+    tolerance (chordal), all mm, validated here."""
+    return waterline_faces(faceset, ToolParameters.validate(tool_diameter, scallop, tolerance),
+                           progress, min_slope)
+
+
+def waterline_faces(faceset: FaceSet, tool: ToolParameters, progress: ProgressFn = None,
+                    min_slope: float = 30.0) -> Toolpath:
     """Waterline toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
 
-    tool_diameter, scallop (cusp height) and tolerance (chordal) in mm; ``min_slope`` in
-    degrees: walls shallower than this are spaced by the flat stepover only (pair the
-    waterline with a raster pass there).  Contours are closed or open polylines at constant Z,
-    top level first, never below the certified drop-cutter height over every face.
+    ``tool`` is validated (:meth:`ToolParameters.validate`); ``min_slope`` in degrees: walls
+    shallower than this are spaced by the flat stepover only (pair the waterline with a
+    raster pass there).  Contours are closed or open polylines at constant Z, top level
+    first, never below the certified drop-cutter height over every face.
     """
     started = time.perf_counter()
-    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
     slope_deg = check_finite(min_slope, "min_slope", "degrees")
     if not 0.0 < slope_deg < 90.0:
         raise ParameterError(f"min_slope must lie in (0, 90) degrees, got {slope_deg:g}")
@@ -520,7 +527,7 @@ def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: fl
             polylines.append(np.asarray(chain))
             heights.append(level)
     notes = shallow_notes(*_face_normals(faceset, signs), slope, "the selected faces'")
-    parameters = {"strategy": "waterline", "tool_diameter": 2.0 * R, "scallop": tool.scallop,
+    parameters = {"strategy": "waterline", "tool_diameter": tool.diameter, "scallop": tool.scallop,
                   "tolerance": tool.tolerance, "min_slope": slope_deg,
                   "faces": [f.name for f in faceset.faces if f.selected]}
     steps = -np.diff(levels)
@@ -647,4 +654,4 @@ def _xy_keys(xy: FloatArray) -> list:
 
 
 __all__ = ["FALSI_STEPS", "JUMP_WIDTH", "SURFACE_TILT", "generate_faces_waterline",
-           "level_heights", "polish_crossings"]
+           "level_heights", "polish_crossings", "waterline_faces"]

@@ -78,6 +78,22 @@ def estimated_cutter_locations(surface: Any, tool: ToolParameters,
     return estimate
 
 
+def request_tool(surface: Any, strategy: str | Strategy, tool_diameter: Any, scallop: Any,
+                 tolerance: Any,
+                 names: tuple[str, str, str] = ("tool_diameter", "scallop", "tolerance"),
+                 ) -> ToolParameters:
+    """The tool of a request given by its raw values: the surface and the strategy checked
+    first, then the tool (:meth:`ToolParameters.validate`, errors naming ``names``)."""
+    _check_surface(surface)
+    parse_enum(Strategy, strategy, "strategy")
+    return ToolParameters.validate(tool_diameter, scallop, tolerance, names)
+
+
+def _check_surface(surface: Any) -> None:
+    if not (hasattr(surface, "control_points") and hasattr(surface, "knots")):
+        raise ParameterError(f"surface must be a BSplineCAM Surface, got {type(surface).__name__}")
+
+
 def check_request(surface: Any, strategy: str | Strategy, tool_diameter: Any, scallop: Any,
                   tolerance: Any, angle: Any = 0.0,
                   names: tuple[str, str, str, str] = ("tool_diameter", "scallop", "tolerance",
@@ -86,37 +102,44 @@ def check_request(surface: Any, strategy: str | Strategy, tool_diameter: Any, sc
     """Every check :func:`generate` makes before any work, for callers that must refuse a
     request before starting (the command line validates with it before FreeCAD recomputes).
 
-    Tool, scallop and tolerance (mm, :meth:`ToolParameters.validate`), the angle (degrees,
-    [-360, 360]), a tool smaller than the part's footprint, and at most
-    ``MAX_CUTTER_LOCATIONS`` estimated cutter locations.  ParameterError names the argument
-    (``names``) and its unit.
+    Tool, scallop and tolerance (mm, :meth:`ToolParameters.validate`), then
+    :func:`check_tool_request`.  ParameterError names the argument (``names``) and its unit.
     """
-    if not (hasattr(surface, "control_points") and hasattr(surface, "knots")):
-        raise ParameterError(f"surface must be a BSplineCAM Surface, got {type(surface).__name__}")
+    tool = request_tool(surface, strategy, tool_diameter, scallop, tolerance, names[:3])
+    return check_tool_request(surface, strategy, tool, angle, names)
+
+
+def check_tool_request(surface: Any, strategy: str | Strategy, tool: ToolParameters,
+                       angle: Any = 0.0,
+                       names: tuple[str, str, str, str] = ("tool_diameter", "scallop",
+                                                           "tolerance", "angle"),
+                       ) -> tuple[Strategy, ToolParameters, float]:
+    """The checks of a request whose ``tool`` is validated: the angle (degrees, [-360, 360]),
+    a tool smaller than the part's footprint, and at most ``MAX_CUTTER_LOCATIONS`` estimated
+    cutter locations.  Returns (strategy, tool, angle); ParameterError names the argument
+    (``names``) and its unit."""
+    _check_surface(surface)
     strategy = parse_enum(Strategy, strategy, "strategy")
-    tool = ToolParameters.validate(tool_diameter, scallop, tolerance, names[:3])
     angle = check_angle(angle, names[3])
-    check_tool_fits(surface, 2.0 * tool.radius, names[0])
+    check_tool_fits(surface, tool.diameter, names[0])
     needed = estimated_cutter_locations(surface, tool, strategy)
     if not needed <= MAX_CUTTER_LOCATIONS:
         raise ParameterError(
             f"{names[1]} {tool.scallop:g} mm with {names[2]} {tool.tolerance:g} mm and a "
-            f"{2.0 * tool.radius:g} mm tool needs about {needed / 1e6:.3g} million cutter "
+            f"{tool.diameter:g} mm tool needs about {needed / 1e6:.3g} million cutter "
             f"locations on this surface (at most {MAX_CUTTER_LOCATIONS / 1e6:g} million): "
             "raise the scallop height or the tolerance"
         )
     return strategy, tool, angle
 
 
-def check_generate(surface: Any, strategy: str | Strategy, tool_diameter: Any, scallop: Any,
-                   tolerance: Any, angle: Any, direction: str | Direction,
-                   iso_direction: str | IsoDirection, clearance_height: float | None,
-                   min_slope: Any) -> tuple[Strategy, ToolParameters, float, Direction,
-                                            IsoDirection, float]:
-    """Every check :func:`~BSplineCAM.core.toolpath.generate` makes, in its order: (strategy,
-    tool, angle, direction, iso_direction, min_slope), checked."""
-    strategy, tool, angle = check_request(surface, strategy, tool_diameter, scallop, tolerance,
-                                          angle)
+def check_generate(surface: Any, strategy: str | Strategy, tool: ToolParameters, angle: Any,
+                   direction: str | Direction, iso_direction: str | IsoDirection,
+                   clearance_height: float | None, min_slope: Any,
+                   ) -> tuple[Strategy, float, Direction, IsoDirection, float]:
+    """Every check :func:`~BSplineCAM.core.toolpath.generate` makes after the tool's, in its
+    order: (strategy, angle, direction, iso_direction, min_slope), checked."""
+    strategy, tool, angle = check_tool_request(surface, strategy, tool, angle)
     direction = parse_enum(Direction, direction, "direction")
     iso_direction = parse_enum(IsoDirection, iso_direction, "iso_direction")
     min_slope = check_finite(min_slope, "min_slope", "degrees")
@@ -124,7 +147,7 @@ def check_generate(surface: Any, strategy: str | Strategy, tool_diameter: Any, s
         raise ParameterError(f"min_slope must lie in (0, 90) degrees, got {min_slope:g}")
     if clearance_height is not None:
         check_finite(clearance_height, "clearance_height", "mm")
-    return strategy, tool, angle, direction, iso_direction, min_slope
+    return strategy, angle, direction, iso_direction, min_slope
 
 
 def run_strategy(started: float, surface: Any, strategy: Strategy, tool: ToolParameters,
@@ -143,7 +166,7 @@ def run_strategy(started: float, surface: Any, strategy: Strategy, tool: ToolPar
     else:
         passes, extra = isoparametric(surface, tool, iso_direction, direction, monitor, dc)
     parameters = {
-        "strategy": strategy.value, "tool_diameter": 2.0 * tool.radius, "scallop": tool.scallop,
+        "strategy": strategy.value, "tool_diameter": tool.diameter, "scallop": tool.scallop,
         "tolerance": tool.tolerance, "angle": angle, "direction": direction.value,
         "iso_direction": iso_direction.value, "min_slope": min_slope,
     }
@@ -163,10 +186,8 @@ def run_strategy(started: float, surface: Any, strategy: Strategy, tool: ToolPar
 
 def generate_single(
     surface: Any,
-    strategy: str | Strategy = Strategy.RASTER,
-    tool_diameter: float = 6.0,
-    scallop: float = 0.01,
-    tolerance: float = 0.002,
+    strategy: str | Strategy,
+    tool: ToolParameters,
     angle: float = 0.0,
     direction: str | Direction = Direction.ZIGZAG,
     iso_direction: str | IsoDirection = IsoDirection.U,
@@ -176,11 +197,10 @@ def generate_single(
     min_slope: float = 30.0,
 ) -> Toolpath:
     """:func:`~BSplineCAM.core.toolpath.generate` for one strategy (raster, waterline or
-    isoparametric); steep_shallow, which combines two, is refused."""
+    isoparametric) and a validated ``tool``; steep_shallow, which combines two, is refused."""
     started = time.perf_counter()
-    strategy, tool, angle, direction, iso_direction, min_slope = check_generate(
-        surface, strategy, tool_diameter, scallop, tolerance, angle, direction, iso_direction,
-        clearance_height, min_slope)
+    strategy, angle, direction, iso_direction, min_slope = check_generate(
+        surface, strategy, tool, angle, direction, iso_direction, clearance_height, min_slope)
     if strategy is Strategy.STEEP_SHALLOW:
         raise ParameterError("strategy 'steep_shallow' combines two strategies: "
                              "use BSplineCAM.core.toolpath.generate")

@@ -42,6 +42,8 @@ from .common import (
     CancelFn,
     Monitor,
     ProgressFn,
+    Strategy,
+    ToolParameters,
     Toolpath,
     ToolpathStats,
     check_angle,
@@ -52,10 +54,10 @@ from .common import (
 )
 from .dropcutter import DropCutter
 from .faces_raster import STAY_DOWN_LINK as FACES_LINK
-from .faces_raster import FaceQuery, generate_faces_raster
-from .faces_waterline import generate_faces_waterline
+from .faces_raster import FaceQuery, raster_faces
+from .faces_waterline import waterline_faces
 from .generator import STAY_DOWN_LINK as RASTER_LINK
-from .generator import generate_single
+from .generator import generate_single, request_tool
 from .links import stay_down_links
 
 #: cl_height(radius) -> heights(xy): ball tip heights (mm, NaN off the part) at (n, 2) points.
@@ -708,17 +710,28 @@ def _steep_shallow(raster: Toolpath, water: Toolpath, split: SlopeSplit, query: 
     return toolpath.finish(started, clearance_height)
 
 
-def _steep_shallow_request(threshold_deg: Any, tool_diameter: Any, overlap: Any,
+def _check_overlap(overlap: Any, radius: float) -> float:
+    """The overlap of the two zones (mm), R/2 by default."""
+    return 0.5 * radius if overlap is None else check_positive(overlap, "overlap", "mm")
+
+
+def _steep_shallow_request(threshold_deg: Any, tool: ToolParameters, overlap: Any,
                            progress: ProgressFn, cancel: CancelFn) -> tuple:
-    """(start time, threshold degrees, tool radius mm, overlap mm (default R/2), monitor at 0)
-    of a steep/shallow request, its arguments checked."""
+    """(start time, threshold degrees, overlap mm (default R/2), monitor at 0) of a
+    steep/shallow request with a validated ``tool``, its other arguments checked."""
     started = time.perf_counter()
     threshold = _check_threshold(threshold_deg)
-    R = _tool_radius(tool_diameter)
-    overlap = 0.5 * R if overlap is None else check_positive(overlap, "overlap", "mm")
+    overlap = _check_overlap(overlap, tool.radius)
     monitor = Monitor(progress, cancel, "steep/shallow")
     monitor(0.0)
-    return started, threshold, R, overlap, monitor
+    return started, threshold, overlap, monitor
+
+
+def _check_raw_request(threshold_deg: Any, tool_diameter: Any, overlap: Any) -> None:
+    """The threshold, the diameter's range and the overlap of a steep/shallow request given
+    by raw values, checked in that order before the tool is validated."""
+    _check_threshold(threshold_deg)
+    _check_overlap(overlap, _tool_radius(tool_diameter))
 
 
 def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
@@ -726,22 +739,35 @@ def generate_steep_shallow(surface: Any, tool_diameter: float, scallop: float,
                            overlap: float | None = None, cell: float | None = None,
                            clearance_height: float | None = None, progress: ProgressFn = None,
                            cancel: CancelFn = None) -> Toolpath:
+    """:func:`steep_shallow` with the tool given by its diameter, scallop and tolerance (mm),
+    validated here."""
+    _check_raw_request(threshold_deg, tool_diameter, overlap)
+    tool = request_tool(surface, Strategy.RASTER, tool_diameter, scallop, tolerance)
+    return steep_shallow(surface, tool, threshold_deg, angle, overlap, cell, clearance_height,
+                         progress, cancel)
+
+
+def steep_shallow(surface: Any, tool: ToolParameters, threshold_deg: float = 45.0,
+                  angle: float = 0.0, overlap: float | None = None, cell: float | None = None,
+                  clearance_height: float | None = None, progress: ProgressFn = None,
+                  cancel: CancelFn = None) -> Toolpath:
     """Raster passes (direction ``angle`` degrees) on the shallow part of a core Surface and
     waterline contours on the steep part, split at ``threshold_deg`` by
     :func:`split_by_slope`; each kept where its zone grown by ``overlap`` (mm, default R/2)
     holds, so the two overlap and leave no seam.  Raster pieces are linked by stay-down
     feeds where short (:func:`links.stay_down_links`), contours retract.  ``extra`` holds
-    the split and how many passes of each kind were kept."""
-    started, threshold, R, overlap, monitor = _steep_shallow_request(
-        threshold_deg, tool_diameter, overlap, progress, cancel)
-    raster = generate_single(surface, "raster", tool_diameter, scallop, tolerance, angle,
+    the split and how many passes of each kind were kept.  ``tool`` is validated."""
+    started, threshold, overlap, monitor = _steep_shallow_request(
+        threshold_deg, tool, overlap, progress, cancel)
+    R = tool.radius
+    raster = generate_single(surface, Strategy.RASTER, tool, angle,
                              clearance_height=clearance_height)
     monitor(0.4)
     wall = max(threshold - 10.0, 1.0)
-    water = generate_single(surface, "waterline", tool_diameter, scallop, tolerance,
+    water = generate_single(surface, Strategy.WATERLINE, tool,
                             clearance_height=clearance_height, min_slope=wall)
     monitor(0.8)
-    split = split_by_slope(surface, threshold, tool_diameter, cell)
+    split = split_by_slope(surface, threshold, tool.diameter, cell)
     toolpath = _steep_shallow(raster, water, split, DropCutter(surface, R), overlap, wall,
                               RASTER_LINK * R, started, clearance_height)
     monitor(1.0)
@@ -753,19 +779,31 @@ def generate_faces_steep_shallow(faceset: Any, tool_diameter: float, scallop: fl
                                  angle: float = 0.0, overlap: float | None = None,
                                  cell: float | None = None, progress: ProgressFn = None,
                                  cancel: CancelFn = None) -> Toolpath:
-    """:func:`generate_steep_shallow` on the selected faces of a FaceSet: raster passes
-    (:func:`.faces_raster.generate_faces_raster`) on the shallow zone, waterline contours
-    (:func:`.faces_waterline.generate_faces_waterline`, levels from the scallop on walls
+    """:func:`steep_shallow_faces` with the tool given by its diameter, scallop and tolerance
+    (mm), validated here."""
+    _check_raw_request(threshold_deg, tool_diameter, overlap)
+    tool = ToolParameters.validate(tool_diameter, scallop, tolerance)
+    return steep_shallow_faces(faceset, tool, threshold_deg, angle, overlap, cell, progress,
+                               cancel)
+
+
+def steep_shallow_faces(faceset: Any, tool: ToolParameters, threshold_deg: float = 45.0,
+                        angle: float = 0.0, overlap: float | None = None,
+                        cell: float | None = None, progress: ProgressFn = None,
+                        cancel: CancelFn = None) -> Toolpath:
+    """:func:`steep_shallow` on the selected faces of a FaceSet: raster passes
+    (:func:`.faces_raster.raster_faces`) on the shallow zone, waterline contours
+    (:func:`.faces_waterline.waterline_faces`, levels from the scallop on walls
     over ``threshold_deg`` - 10 degrees) on the steep one, split by
-    :func:`split_faces_by_slope`; every height the certified drop-cutter over all faces."""
-    started, threshold, R, overlap, monitor = _steep_shallow_request(
-        threshold_deg, tool_diameter, overlap, progress, cancel)
-    raster = generate_faces_raster(faceset, tool_diameter, scallop, tolerance, angle,
-                                   lambda f: monitor(0.3 * f))
+    :func:`split_faces_by_slope`; every height the certified drop-cutter over all faces.
+    ``tool`` is validated."""
+    started, threshold, overlap, monitor = _steep_shallow_request(
+        threshold_deg, tool, overlap, progress, cancel)
+    R = tool.radius
+    raster = raster_faces(faceset, tool, angle, lambda f: monitor(0.3 * f))
     wall = max(threshold - 10.0, 1.0)
-    water = generate_faces_waterline(faceset, tool_diameter, scallop, tolerance,
-                                     lambda f: monitor(0.3 + 0.55 * f), min_slope=wall)
-    split = split_faces_by_slope(faceset, threshold, tool_diameter, cell)
+    water = waterline_faces(faceset, tool, lambda f: monitor(0.3 + 0.55 * f), min_slope=wall)
+    split = split_faces_by_slope(faceset, threshold, tool.diameter, cell)
     monitor(0.95)
     toolpath = _steep_shallow(raster, water, split, FaceQuery(faceset, R), overlap, wall,
                               FACES_LINK * R, started, None)
@@ -775,4 +813,5 @@ def generate_faces_steep_shallow(faceset: Any, tool_diameter: float, scallop: fl
 
 __all__ = ["OffsetHeights", "SlopeSplit", "clip_polylines", "faceset_cl_height",
            "generate_faces_steep_shallow", "generate_rest", "generate_steep_shallow",
-           "net_cl_height", "split_by_slope", "split_faces_by_slope"]
+           "net_cl_height", "split_by_slope", "split_faces_by_slope", "steep_shallow",
+           "steep_shallow_faces"]
