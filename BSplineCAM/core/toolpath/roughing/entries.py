@@ -210,6 +210,16 @@ class _Entries:
         self.passes += 1
         self.mark(p)
 
+    def entering_diameter(self, reach: float) -> float:
+        """The largest tool diameter (mm) whose helix fits a pocket where this tool's centre
+        reaches ``reach`` mm from the pocket's middle (0 when none the grid resolves): the
+        pocket is this tool's radius wider than its centre's reach, and a tool of radius r
+        needs its centre's reach to hold the helix's smallest radius as :meth:`helix` asks,
+        max(2 cells, 0.1 r), beside the 1.5 cells kept from the walls."""
+        pocket = reach + self.R
+        radius = min(pocket - 3.5 * self.cell, (pocket - 1.5 * self.cell) / 1.1)
+        return max(0.0, 2.0 * radius)
+
     def helix(self, mask, z, z_above):
         """Helical entry into a component not reaching air; (cx, cy, radius) or None."""
         idx = np.argwhere(mask)
@@ -225,7 +235,8 @@ class _Entries:
         r_min = max(2 * self.cell, 0.05 * self.tool.diameter)
         cx, cy = self.xy(np.array([[cj + j0, ci + i0]], dtype=float))[0]
         if r_fit < r_min:
-            self.skipped.append((z, float(cx), float(cy), mask.sum() * self.cell ** 2))
+            self.skipped.append((z, float(cx), float(cy), mask.sum() * self.cell ** 2,
+                                 self.entering_diameter(float(d.flat[at]) * self.cell)))
             return None
         rh = min(0.4 * self.tool.diameter, 0.8 * self.R, r_fit)
         w = self.writer

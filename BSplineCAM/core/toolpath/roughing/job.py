@@ -75,20 +75,30 @@ class _Job(_Levels, _Passes, _Entries, _Peel, _Replay, _Engagement, _GridState):
         if self.skipped:
             # one entry per place (levels of one pocket lie within a tool radius)
             groups: list = []
-            for z, x, y, _ in self.skipped:
+            for z, x, y, _, fits in self.skipped:
                 for g in groups:
                     if math.hypot(g[0] - x, g[1] - y) <= self.R:
-                        g[2], g[3] = max(g[2], z), min(g[3], z)
+                        g[2], g[3], g[4] = max(g[2], z), min(g[3], z), min(g[4], fits)
                         break
                 else:
-                    groups.append([x, y, z, z])
-            parts = ", ".join(
-                f"({x:.1f}, {y:.1f}) at Z {hi:.2f}" + (f" to {lo:.2f}" if lo < hi else "")
-                for x, y, hi, lo in groups[:6])
-            more = f" and {len(groups) - 6} more" if len(groups) > 6 else ""
+                    groups.append([x, y, z, z, fits])
+
+            def mm(v: float) -> str:  # no "-0.00"
+                return f"{0.0 if abs(v) < 0.005 else v:.2f}"
+
+            def which(fits: float) -> str:
+                return (f"a tool of at most {fits:.1f} mm enters it by a helix" if fits > 0
+                        else "narrower than the roughing grid resolves")
+
+            parts = "; ".join(
+                f"({x:.1f}, {y:.1f}) mm, uncut from Z {mm(lo)} to {mm(hi)} mm ({which(fits)})"
+                for x, y, hi, lo, fits in groups[:6])
+            more = f"; and {len(groups) - 6} more" if len(groups) > 6 else ""
             self.notes.append(
-                f"{len(groups)} pocket(s) where no helical entry fits the tool were skipped, "
-                f"left for a smaller tool: {parts}{more}")
+                f"{len(groups)} closed pocket(s) too narrow for a helical entry of the "
+                f"{self.tool.diameter:g} mm tool were left uncut: {parts}{more}. The finishing "
+                "tool would meet that stock at full width: rough it with the smaller tool "
+                "named, or drill it, first")
         # material more than a stepdown above the part, away from every wall that explains it
         gap = self.ar + GRID_GROWTH_CELLS * cell + max(2 * cell, 0.45 * self.R)
         base = np.where(np.isfinite(self.Hp), self.Hp, self.stock.z_min)
