@@ -79,7 +79,7 @@ LAZY = {
     **{("gui.verify_view", t): LOAD_ON_USE for t in ("app.verify_feature", "gui.results_panel")},
 }
 #: Modules being split by their owners: function-local imports allowed there for now.
-LAZY_OWNERS = ("core.toolpath.roughing", "core.toolpath.faceset")
+LAZY_OWNERS: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
