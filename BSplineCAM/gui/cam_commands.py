@@ -526,10 +526,12 @@ class JobPanel(PanelBase):
         from ..app.pipeline import FinishingParameters
         from ..core.toolpath.common import ToolParameters
 
-        ToolParameters.validate(self.tool.value(), self.scallop.value(), self.tolerance.value())
+        tool = ToolParameters.validate(self.tool.value(), self.scallop.value(),
+                                       self.tolerance.value(),
+                                       ("Ball-end diameter", "Scallop height", "Tolerance"))
         params = FinishingParameters(
-            tool_diameter=self.tool.value(), scallop=self.scallop.value(),
-            tolerance=self.tolerance.value(), strategy=self.strategy.currentText(),
+            tool_diameter=tool.diameter, scallop=tool.scallop,
+            tolerance=tool.tolerance, strategy=self.strategy.currentText(),
             angle=self.angle.value(), direction=self.direction.currentText(),
             iso_direction=self.iso_direction.currentText(),
             # FreeCAD's path view cannot draw the R-form G18/G19 arcs the posts need: a job
