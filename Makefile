@@ -1,5 +1,5 @@
 # BSplineCAM: the two commands of the README.  Each installs what is missing first.
-.PHONY: demo test setup bench lock fresh-check
+.PHONY: demo test setup bench lock fresh-check screenshots
 
 # The main job: the case-study net to exported surface, G-code and its verification, in out/.
 demo:
@@ -27,3 +27,9 @@ lock:
 # there with every cache rebuilt (new venv, new chroots, a throw-away HOME for the addon link).
 fresh-check:
 	tools/fresh_check.sh
+
+# Refresh the workbench's pictures in docs/ on purpose (the GUI tests in FreeCAD 0.20 under Xvfb;
+# `make test` writes them to build/screenshots).
+screenshots:
+	tools/setup.sh --test
+	BSPLINECAM_DOCS="$(CURDIR)/docs" tools/run_gui_test.sh
