@@ -370,10 +370,14 @@ def test_region_too_small_is_reported_not_cut():
     slot = [n for n in notes if "cannot reach" in n and "x=0.0" in n and "y=0.0" in n]
     assert len(slot) == 1, notes
     # the 9.6 mm pocket: the tool fits, but no helix does (a straight plunge would be needed)
-    helix = [n for n in notes if "no helical entry" in n]
-    assert len(helix) == 1 and helix[0].startswith("1 pocket"), notes
+    helix = [n for n in notes if "too narrow for a helical entry" in n]
+    assert len(helix) == 1 and helix[0].startswith("1 closed pocket"), notes
     x, y = (float(v) for v in re.search(r"\(([-\d.]+), ([-\d.]+)\)", helix[0]).groups())
     assert math.hypot(x - 14.0, y - 9.0) < 0.5
+    # the note names a smaller tool that enters the 9.6 mm pocket by a helix, and what is uncut
+    fits = float(re.search(r"a tool of at most ([\d.]+) mm enters it", helix[0]).group(1))
+    assert 0.0 < fits < 8.0
+    assert "uncut from Z" in helix[0] and "full width" in helix[0]
     assert rough.stats["entries"]["helical"] == 0
     # neither keeps less material: the tool never reaches below the plate inside them
     sim = Machined(rough, stock, tool)
