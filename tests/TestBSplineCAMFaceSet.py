@@ -9,42 +9,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import circle, cylinder_quarter, holed_plane, plane, rectangle, two_faces
 
 from BSplineCAM.core import Surface
 from BSplineCAM.core.faces import Face
 from BSplineCAM.core.nurbs import NurbsSurface
-from BSplineCAM.core.toolpath import to_moves
 from BSplineCAM.core.toolpath.dropcutter import DropCutter, brute_force_heights
 from BSplineCAM.core.toolpath.faceset import CERTIFY, FaceSet
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def rectangle(surface) -> np.ndarray:
-    (u0, u1), (v0, v1) = surface.domain
-    return np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1], [u0, v0]])
-
-
-def circle(cu: float, cv: float, r: float, n: int) -> np.ndarray:
-    t = np.linspace(0.0, 2.0 * np.pi, n + 1)
-    t[-1] = 0.0
-    return np.column_stack([cu + r * np.cos(t), cv + r * np.sin(t)])
-
-
-def plane(x0, x1, y0, y1, z) -> NurbsSurface:
-    """Bilinear plane: u, v in [0, 1] map linearly onto [x0, x1] x [y0, y1] at height z."""
-    poles = np.array([[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]], float)
-    return NurbsSurface(poles, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
-
-
-def gcode(toolpath, feed: float = 1000.0) -> str:
-    lines = ["G21 G90"]
-    for m in to_moves(toolpath):
-        word = "G0" if m.kind == "rapid" else "G1"
-        tail = "" if m.kind == "rapid" else f" F{feed:g}"
-        lines.append(f"{word} X{m.x:.4f} Y{m.y:.4f} Z{m.z:.4f}{tail}")
-    lines.append("M2")
-    return "\n".join(lines) + "\n"
 
 
 @pytest.fixture(scope="module")
@@ -135,16 +108,6 @@ def test_adversarial_spike_found_by_the_bound():
     assert np.all(tip[near] >= apex[2] + np.sqrt(R * R - r[near] ** 2) - R - 1e-9)
 
 
-def cylinder_quarter(rho: float, length: float) -> NurbsSurface:
-    """Exact quarter of a circular cylinder (axis along y at z = 0, radius rho), from 45 to
-    135 degrees: a rational quadratic arc ("The NURBS Book" sec. 7.3) extruded along y."""
-    c = math.sqrt(0.5)
-    arc = [(rho * c, rho * c), (0.0, rho * 2 * c), (-rho * c, rho * c)]
-    poles = np.array([[[x, y, z] for y in (0.0, length)] for x, z in arc])
-    weights = np.array([[1.0, 1.0], [c, c], [1.0, 1.0]])
-    return NurbsSurface(poles, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1, weights=weights)
-
-
 def test_rational_cylinder_closed_form():
     rho, R = 10.0, 3.0
     ns = cylinder_quarter(rho, 30.0)
@@ -226,11 +189,6 @@ def test_bounds_of_a_trimmed_rational_face_tied_along_a_trim_edge():
     np.testing.assert_allclose(hi, g.max(axis=0), atol=2e-3)
 
 
-def holed_plane(n: int = 1000):
-    ns = plane(0.0, 40.0, 0.0, 40.0, 1.5)
-    return Face(ns, rectangle(ns), holes=(circle(0.5, 0.5, 0.2, n),))
-
-
 def test_ball_rests_on_the_rim_of_a_hole():
     face = holed_plane()
     fs = FaceSet([face])
@@ -264,20 +222,6 @@ def test_height_probe_inside_and_in_holes(case_study):
     assert not found[in_hole].any() and np.all(np.isnan(z[in_hole]))
     assert found[~in_hole].all()
     np.testing.assert_allclose(z[~in_hole], p[~in_hole, 2], atol=1e-7)
-
-
-def two_faces():
-    """A selected bicubic bump next to a higher check plane."""
-    n = 7
-    x = np.linspace(0.0, 24.0, n)
-    y = np.linspace(0.0, 24.0, n)
-    pts = np.zeros((n, n, 3))
-    pts[..., 0], pts[..., 1] = np.meshgrid(x, y, indexing="ij")
-    pts[..., 2] = 0.8 * np.exp(-((pts[..., 0] - 12) ** 2 + (pts[..., 1] - 12) ** 2) / 60.0)
-    bump = NurbsSurface.from_surface(Surface(pts, knots="clamped"))
-    sel = Face(bump, rectangle(bump), holes=(circle(0.5, 0.5, 0.12, 300),), index=1)
-    check = plane(24.0, 32.0, 0.0, 24.0, 1.0)
-    return [sel, Face(check, rectangle(check), index=2, selected=False)]
 
 
 def test_check_face_is_never_gouged_and_never_cut():

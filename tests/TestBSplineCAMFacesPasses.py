@@ -9,8 +9,27 @@ import math
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import (
+    HOLE,
+    TOL,
+    D,
+    H,
+    R,
+    assert_above_drop,
+    bezier_net,
+    circle,
+    cylinder_quarter,
+    dome_faces,
+    fillet_ring,
+    gcode,
+    holed_plane,
+    plane,
+    plate_with_hole,
+    rectangle,
+    ridge_contact_slope,
+    ridge_z,
+)
 from conftest import ROOT
-from TestBSplineCAMFaceSet import circle, cylinder_quarter, gcode, holed_plane, plane, rectangle
 
 from BSplineCAM.core import Surface
 from BSplineCAM.core.errors import BSplineCAMError, ParameterError
@@ -22,27 +41,8 @@ from BSplineCAM.core.toolpath.faces_iso import generate_faces_iso
 from BSplineCAM.core.toolpath.faces_waterline import generate_faces_waterline
 from BSplineCAM.core.toolpath.faceset import FaceSet
 
-D, H, TOL = 6.0, 0.05, 0.01
-R = D / 2
 #: Largest gouge allowed anywhere on the model (mm).
 GOUGE = 1e-3
-#: Segments of the trim polygons of the holes (fewer than the helpers' default: every query
-#: near a hole tests the segments crossing its patch).
-HOLE = 120
-
-
-def dome_faces(amplitude: float = 8.0):
-    """A selected bicubic dome (slopes up to about 41 degrees) with a hole at its top, next to
-    a check plane standing higher than the dome's foot: 32 x 24 mm."""
-    n = 9
-    x = np.linspace(0.0, 24.0, n)
-    pts = np.zeros((n, n, 3))
-    pts[..., 0], pts[..., 1] = np.meshgrid(x, x, indexing="ij")
-    pts[..., 2] = amplitude * np.exp(-((pts[..., 0] - 12) ** 2 + (pts[..., 1] - 12) ** 2) / 40.0)
-    dome = NurbsSurface.from_surface(Surface(pts, knots="clamped"))
-    sel = Face(dome, rectangle(dome), holes=(circle(0.5, 0.5, 0.12, HOLE),), index=1)
-    check = plane(24.0, 32.0, 0.0, 24.0, 1.0)
-    return [sel, Face(check, rectangle(check), index=2, selected=False)]
 
 
 def stock_top(tp) -> float:
@@ -65,14 +65,6 @@ def simulated(fs: FaceSet, tp, box, cell: float = 0.1):
 def assert_no_gouge(sim, design, found):
     gouge = np.where(found, design - sim, -np.inf)
     assert gouge.max() <= GOUGE, gouge.max()
-
-
-def assert_above_drop(fs: FaceSet, tp):
-    """Every cutter location at or above the certified drop-cutter height over all faces."""
-    pts = np.concatenate(tp.passes + [lk for lk in tp.links if lk is not None])
-    drop = fs.drop_ball(pts[:, :2], R)[0]
-    ok = np.isfinite(drop)
-    assert np.all(pts[ok, 2] >= drop[ok] - 1e-7)
 
 
 def contacts_selected(fs: FaceSet, tp) -> float:
@@ -371,8 +363,6 @@ def ridge_face():
     """The ridge z = 14 - K (x - 20)^2 of the net tests (slope 45 degrees at |x - 20| = 12.5,
     58 at its long borders) as one trimmed face, machined by steep_shallow through the faces
     dispatch (threshold 45 degrees)."""
-    from TestBSplineCAMRest import bezier_net, ridge_z
-
     from BSplineCAM.core.toolpath import generate_faces
 
     ns = NurbsSurface.from_surface(Surface(bezier_net(ridge_z, 40.0), knots="clamped"))
@@ -384,8 +374,6 @@ def ridge_face():
 def test_faces_steep_shallow_split_matches_the_closed_form(ridge_face):
     """The contact slope on the faces' split grid (edge or surface contact of the certified
     drop-cutter) matches the closed form inside the face; the masks split at 45 degrees."""
-    from TestBSplineCAMRest import ridge_contact_slope
-
     _fs, tp, _z = ridge_face
     split = tp.extra["split"]
     assert split.threshold_deg == 45.0
@@ -568,9 +556,7 @@ def test_iso_leaves_a_fillet_the_ball_fits_and_says_so():
     circle once per curve, and on a real boss it lies on the wall's edge at the ball's rim,
     where the drop height jumps by the wall's height (over 15 minutes on a STEP boss).  The
     fillet is now left with a note naming it; a 5 mm ball, which does not fit, machines it."""
-    from TestBSplineCAMFacesRaster import _fillet_ring, _plate_with_hole
-
-    fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+    fs = FaceSet([plate_with_hole(), fillet_ring()])
     six = generate_faces_iso(fs, 6.0, 0.1, TOL)
     ring = six.extra["faces"]["Face2"]
     assert ring["passes"] == 0 and ring["chord_lift"]["collapsed"]

@@ -4,11 +4,10 @@ simulating the G-code text against the exact faces."""
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
-from TestBSplineCAMFaceSet import gcode, two_faces
+from bsplinecam_helpers import fillet_ring, gcode, plate_with_hole, two_faces
 
 from BSplineCAM.core.gcode import read_gcode
 from BSplineCAM.core.simulate import Grid, Tool, simulate_program
@@ -119,49 +118,6 @@ def test_modelled_midpoints_leave_the_passes_unchanged(monkeypatch):
     assert counts["model"] < 0.8 * counts["exact"], counts
 
 
-def revolved_face(profile, weights=None, centre=(0.0, 0.0), index=1, source="Revolved"):
-    """A face of revolution about the vertical axis through ``centre``: u the angle (a
-    rational quadratic full circle, its seam along +x), v the profile, a Bezier curve of
-    poles ``profile`` [(r, z), ...] and ``weights`` (degree len - 1)."""
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
-
-    c = math.sqrt(0.5)
-    square = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
-    wu = np.array([1, c, 1, c, 1, c, 1, c, 1])
-    wv = np.ones(len(profile)) if weights is None else np.asarray(weights, dtype=float)
-    poles = np.array([[[centre[0] + r * x, centre[1] + r * y, z] for r, z in profile]
-                      for x, y in square], dtype=float)
-    ku = [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]
-    q = len(profile) - 1
-    s = NurbsSurface(poles, ku, [0] * (q + 1) + [1] * (q + 1), 2, q,
-                     weights=wu[:, None] * wv[None, :], name=f"Face{index}")
-    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
-    return Face(s, loop, index=index, source=source)
-
-
-def _fillet_ring(centre=(20.0, 20.0), wall=12.0, rho=3.0, base=10.0):
-    """The concave fillet at the foot of a round boss (radius ``wall``) on a plate at ``base``:
-    the quarter circle of radius ``rho`` from (wall + rho, base) to (wall, base + rho) about
-    (wall + rho, base + rho), revolved about the boss's axis (rational quadratics both ways)."""
-    profile = [(wall + rho, base), (wall, base), (wall, base + rho)]  # (r, z), corner middle
-    return revolved_face(profile, [1.0, math.sqrt(0.5), 1.0], centre, 2, "Toroid")
-
-
-def _plate_with_hole(size=40.0, centre=(20.0, 20.0), hole=15.0, base=10.0):
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
-
-    poles = np.array([[[0, 0, base], [0, size, base]], [[size, 0, base], [size, size, base]]],
-                     dtype=float)
-    s = NurbsSurface(poles, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1, name="Face1")
-    t = np.linspace(0.0, 2 * np.pi, 241)
-    ring = np.column_stack([centre[0] + hole * np.cos(t), centre[1] + hole * np.sin(t)]) / size
-    ring[-1] = ring[0]
-    loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=float)
-    return Face(s, loop, (ring,), index=1, source="Plane")
-
-
 def test_a_ball_in_a_fillet_of_its_radius_is_dropped_in_bounded_work(monkeypatch):
     """A 6 mm ball centred over the axis circle of the 3 mm fillet round a boss's foot touches
     the whole quarter circle of its cross-section: the maximum is tied along it, no bound
@@ -173,7 +129,7 @@ def test_a_ball_in_a_fillet_of_its_radius_is_dropped_in_bounded_work(monkeypatch
     from BSplineCAM.core.toolpath import faceset as fsm
 
     def drop(r):
-        fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+        fs = FaceSet([plate_with_hole(), fillet_ring()])
         a = np.linspace(0.1, 1.4, 16)
         q = np.column_stack([20 + r * np.cos(a), 20 + r * np.sin(a)])
         res = fs.centre_heights(q, 3.0)
@@ -201,7 +157,7 @@ def test_a_fillet_the_ball_fits_bounds_no_stepover():
     from BSplineCAM.core.toolpath.faces_raster import _stepover_field
     from BSplineCAM.core.toolpath.raster import cross_section_stepover, scallop_line_offsets
 
-    fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+    fs = FaceSet([plate_with_hole(), fillet_ring()])
     along, across = np.array([1.0, 0.0]), np.array([0.0, 1.0])
     tool = ToolParameters.validate(6.0, 0.1, 0.002)
     b, allowed, _ = _stepover_field(fs, tool, along, across)

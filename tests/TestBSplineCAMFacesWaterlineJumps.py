@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from TestBSplineCAMFaceSet import cylinder_quarter, plane, rectangle
+from bsplinecam_helpers import cylinder_quarter, plane, rectangle
 
 from BSplineCAM.core.faces import Face
 from BSplineCAM.core.nurbs import NurbsSurface
@@ -240,7 +240,7 @@ def test_smoothly_pushed_vertices_are_not_taken_for_jumps():
     level; they are not beside a jump, so no chord is handled as one (no search for the free
     side, no dense sampling).  Every vertex stays at or above the certified drop height and no
     chord dips.  (They were taken for jumps: 322 chords, 2.5 times the drop-cutter queries.)"""
-    from TestBSplineCAMFacesPasses import TOL, D, H, assert_above_drop, dome_faces
+    from bsplinecam_helpers import TOL, D, H, assert_above_drop, dome_faces
 
     sel = dome_faces()[0]
     fs = FaceSet([Face(sel.surface, rectangle(sel.surface), index=1)])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from TestBSplineCAMFacesRaster import _fillet_ring, _plate_with_hole, revolved_face
+from bsplinecam_helpers import fillet_ring, plate_with_hole, revolved_face
 
 from BSplineCAM.core.toolpath.reach import opening, unreachable_corners
 
@@ -39,7 +39,7 @@ def test_the_corner_at_a_cone_foot_is_unreachable():
     side: centre 1.854 mm out from the foot, 3 mm up).  A 3 mm fillet there instead, which
     the 6 mm ball fits, leaves nothing."""
     R = 3.0
-    faces = [_plate_with_hole(hole=10.0), _frustum()]
+    faces = [plate_with_hole(hole=10.0), _frustum()]
     regions = unreachable_corners(faces, [True, True], (0.0, 40.0, 0.0, 40.0), R)
     assert len(regions) == 1, [str(r) for r in regions]
     ring = regions[0]
@@ -53,5 +53,5 @@ def test_the_corner_at_a_cone_foot_is_unreachable():
     for lo, hi in (ring.x_range, ring.y_range):
         assert 20.0 - rc - 0.5 < lo < 20.0 - 10.0 + 0.1 and 20.0 + 10.0 - 0.1 < hi < 20.0 + rc + 0.5
     assert "left over" in str(ring) and ring.as_dict()["depth_mm"] == ring.depth_mm
-    fillet = [_plate_with_hole(), _fillet_ring()]
+    fillet = [plate_with_hole(), fillet_ring()]
     assert unreachable_corners(fillet, [True, True], (0.0, 40.0, 0.0, 40.0), R) == []

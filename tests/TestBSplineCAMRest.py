@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import K_RIDGE, NET_SIZE, bezier_net, ridge_contact_slope, ridge_z
 
 from BSplineCAM.core import ParameterError, Surface
 from BSplineCAM.core.gcode import Segments
@@ -20,7 +21,7 @@ from BSplineCAM.core.simulate import Grid, Tool, simulate
 from BSplineCAM.core.toolpath import generate, to_moves
 from BSplineCAM.core.toolpath.rest import OffsetHeights, generate_rest, net_cl_height
 
-SIZE = 30.0
+SIZE = NET_SIZE
 D = 6.0
 R = D / 2
 ALLOWANCE = 0.3
@@ -38,20 +39,6 @@ CELL_ERROR = CELL * 0.25
 
 def part_z(x, y):
     return 4.0 + 0.12 * x + 0.05 * y - 0.003 * (x - 15.0) ** 2
-
-
-def bezier_net(fz, size: float = SIZE) -> np.ndarray:
-    """4x4 clamped net whose surface is exactly z = fz(x, y) (degree <= 2 in x, 1 in y):
-    x, y linear in the parameters, z by the cubic Bernstein coefficients of a quadratic."""
-    t = np.linspace(0.0, 1.0, 4)
-    x, y = np.meshgrid(t * size, t * size, indexing="ij")
-    net = np.stack([x, y, np.zeros_like(x)], axis=-1)
-    for j in range(4):
-        a, m, e = fz(0.0, y[0, j]), fz(0.5 * size, y[0, j]), fz(size, y[0, j])
-        c = 2 * (a + e - 2 * m)
-        b = e - a - c
-        net[:, j, 2] = [a, a + b / 3, a + 2 * b / 3 + c / 3, a + b + c]
-    return net
 
 
 def roughed_stock(grid: Grid, top: float) -> np.ndarray:
@@ -288,26 +275,6 @@ def test_simulation_input_progress_and_cancel():
 
 
 # -- steep / shallow split ----------------------------------------------------------------------
-K_RIDGE = 0.04  # z = 14 - K (x - 20)^2: slope atan(2 K |x - 20|), 45 degrees at |x - 20| = 12.5
-
-
-def ridge_z(x, y):
-    return 14.0 - K_RIDGE * (x - 20.0) ** 2 + 0.0 * y
-
-
-def ridge_contact_slope(x: np.ndarray) -> np.ndarray:
-    """Closed form: slope (degrees) at the contact of a ball of radius R whose tip is above
-    x on the ridge; the centre lies on the normal, R sin(alpha) further from the crest than
-    the contact, so |x - 20| = d + R sin(atan(2 K d)), solved for d by bisection."""
-    target = np.abs(x - 20.0)
-    lo, hi = np.zeros_like(target), target.copy()
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        f = mid + R * np.sin(np.arctan(2 * K_RIDGE * mid)) - target
-        lo, hi = np.where(f < 0, mid, lo), np.where(f < 0, hi, mid)
-    return np.degrees(np.arctan(2 * K_RIDGE * 0.5 * (lo + hi)))
-
-
 @pytest.fixture(scope="module")
 def ridge():
     from BSplineCAM.core.toolpath.rest import generate_steep_shallow

@@ -392,7 +392,7 @@ def test_a_wall_between_selected_faces_is_a_border():
 def _cone_ring(r0: float = 5.0, r1: float = 10.0, z0: float = 0.0, z1: float = 2.0):
     """A conical ring about the z axis, radius r0 at z0 to r1 at z1: u the angle (its seam
     along +x), v the profile."""
-    from TestBSplineCAMFacesRaster import revolved_face
+    from bsplinecam_helpers import revolved_face
 
     return revolved_face([(r0, z0), (r1, z1)], index=1, source="Cone")
 

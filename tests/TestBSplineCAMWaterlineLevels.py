@@ -10,14 +10,14 @@ import math
 
 import numpy as np
 import pytest
-from TestBSplineCAMFacesRaster import _fillet_ring, _plate_with_hole
+from bsplinecam_helpers import fillet_ring, plate_with_hole
 
 from BSplineCAM.core.toolpath import faces_waterline
 from BSplineCAM.core.toolpath.common import ToolParameters
 from BSplineCAM.core.toolpath.faceset import FaceSet
 from BSplineCAM.core.toolpath.waterline import level_steps, shallow_share
 
-RHO, WALL, BASE, HOLE, SIZE = 3.0, 12.0, 10.0, 15.0, 40.0  # mm, as _fillet_ring, _plate_with_hole
+RHO, WALL, BASE, HOLE, SIZE = 3.0, 12.0, 10.0, 15.0, 40.0  # mm, as fillet_ring, plate_with_hole
 TOP = 25.0  # mm, the boss's top
 
 
@@ -39,7 +39,7 @@ def _boss_top(height: float = TOP, centre=(20.0, 20.0)):
 def _levels(diameter: float) -> list[float]:
     """The levels of a boss's fillet and top on the plate (the boss's wall left out: only the
     selected faces' samples set them)."""
-    fs = FaceSet([_plate_with_hole(), _fillet_ring(), _boss_top()])
+    fs = FaceSet([plate_with_hole(), fillet_ring(), _boss_top()])
     tool = ToolParameters.validate(diameter, 0.1, 0.002)
     signs = faces_waterline._upward_signs(fs)
     slope = math.radians(30.0)
@@ -73,7 +73,7 @@ def test_share_too_flat_for_waterline_is_measured_and_said():
     point of the fillet at angle phi from its plate-side end has slope phi and lies at radius
     WALL + RHO - RHO sin(phi) from the boss's axis, so the torus strip up to phi has area
     2 pi RHO [(WALL + RHO) phi + RHO (cos phi - 1)]."""
-    fs = FaceSet([_plate_with_hole(), _fillet_ring()])
+    fs = FaceSet([plate_with_hole(), fillet_ring()])
     signs = faces_waterline._upward_signs(fs)
 
     def strip(phi):
