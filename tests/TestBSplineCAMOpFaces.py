@@ -41,6 +41,7 @@ from BSplineCAM.orchestration.cli import flush_all  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 import Part  # noqa: E402
+from bsplinecam_freecad import bspline_block  # noqa: E402
 
 V = FreeCAD.Vector
 TOOL = 6.0
@@ -72,20 +73,6 @@ def fillet_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     z = np.where(y >= FILLET, 10.0, 10.0 - FILLET + np.sqrt(FILLET ** 2 - r ** 2))
     inside = (x >= 0) & (x <= 30) & (y >= 0) & (y <= 20)
     return np.where(inside, z, np.nan)
-
-
-def bspline_block() -> Part.Shape:
-    """30 x 20 mm block, z from -5 to about 10, its top a degree (3, 2) B-spline face."""
-    nu, nv = 5, 4
-    x, y = np.meshgrid(np.linspace(-2, 32, nu), np.linspace(-2, 22, nv), indexing="ij")
-    z = 10 + 1.5 * np.sin(x / 7) * np.cos(y / 6)
-    poles = [[V(float(x[i, j]), float(y[i, j]), float(z[i, j])) for j in range(nv)]
-             for i in range(nu)]
-    surface = Part.BSplineSurface()
-    surface.buildFromPolesMultsKnots(poles, [4, 1, 4], [3, 1, 3], [0, 0.5, 1], [0, 0.5, 1],
-                                     False, False, 3, 2)
-    prism = Part.Face(surface).extrude(V(0, 0, -30))
-    return prism.common(Part.makeBox(30, 20, 30, V(0, 0, -5))).Solids[0]
 
 
 @contextlib.contextmanager

@@ -582,11 +582,11 @@ def test_post_toolpath_of_a_part(tmp_path):
         assert rs274.check(ngc, {1: 6.0}).ok
 
 
-#: A 30 x 20 mm block whose top is one trimmed B-spline face (TestBSplineCAMOpFaces), as STEP.
+#: A 30 x 20 mm block whose top is one trimmed B-spline face (bsplinecam_freecad), as STEP.
 BLOCK = """
 import sys
 sys.path[:0] = [{root!r}, {tests!r}]
-from TestBSplineCAMOpFaces import bspline_block
+from bsplinecam_freecad import bspline_block
 bspline_block().exportStep({step!r})
 """
 
