@@ -363,7 +363,7 @@ def test_greedy_runs_match_one_end_per_call(seed):
     for first in (2, 4):
         assert arcs._greedy(sizes, evaluate, first) == _greedy_one_end_per_call(
             sizes, evaluate, first)
-    # a sequence where nothing fits: one call per start before, a few calls now
+    # a sequence where nothing fits: a few calls in all, not one per start
     calls = []
     runs = arcs._greedy([1000], lambda jobs: calls.append(len(jobs)) or [None] * len(jobs), 4)
     assert runs == [[(s, s + 1, None) for s in range(999)]]

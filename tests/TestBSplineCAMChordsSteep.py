@@ -198,8 +198,8 @@ def test_chord_along_a_walls_rim_grows_by_a_bounded_number_of_samples(monkeypatc
     """A chord along the step's top edge, 1e-4 mm inside the ball's reach of it: the ball
     touches the edge with its rim all along, so the height is constant along the chord but
     its slope across is about 120 and every interval is too steep for the Hermite model.
-    Each round cut all of them into 16 pieces (a contour at a fillet's vertical end: 140 000
-    drop-cutter queries in one round); now at most ROUGH_PER_CHORD of them a round, and the
+    At most ROUGH_PER_CHORD of them are cut a round (all of them cut into 16 pieces cost a
+    contour at a fillet's vertical end 140 000 drop-cutter queries in one round), and the
     chord is still found level with the exact height."""
     x = R - 1e-4
     z = float(_drop(_profile("step"), np.array([x]))[0][0])

@@ -68,11 +68,12 @@ def test_footprint_shrinks_by_a_disk():
 @pytest.mark.parametrize("radius", [24.0 - 4e-15, 24.0, 24.0 + 4e-15, 7.0 - 1e-12, 23.5])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_dilation_at_a_radius_a_rounding_off_a_whole_number(radius, seed):
-    """6 mm over 0.25000000000000006 mm cells is 23.999999999999996 cells: the banded dilation
-    took every cell of the grid for within it (the cap of its row distances, 24^2, lay inside
-    r^2 + 1e-9), and Verify G-code in FreeCAD 0.20 found the part's footprint shrunk by the
-    tool empty.  Now it equals thresholding the exact distance, on an empty mask (only the
-    border counts, outside set) and on a sparse one."""
+    """6 mm over 0.25000000000000006 mm cells is 23.999999999999996 cells, and the cap of the
+    banded dilation's row distances, 24^2, lies inside r^2 + 1e-9: the dilation still equals
+    thresholding the exact distance, on an empty mask (only the border counts, outside set)
+    and on a sparse one, and takes no cell of the grid for within it that is not (taking every
+    cell empties the part's footprint shrunk by the tool, as Verify G-code in FreeCAD 0.20
+    showed)."""
     rng = np.random.default_rng(seed)
     mask = rng.random((90, 110)) < (0.0 if seed == 0 else 0.0005)
     got = dilate_disk(mask, radius, outside=True)

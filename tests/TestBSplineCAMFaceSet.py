@@ -434,8 +434,8 @@ def test_slopes_of_contacts_on_a_curved_wall_match_the_heights():
     """A wall (an unselected vertical face) is met by the 3-D chords of its trimmed border
     (faceset._Walls), which leave the cylinder of examples/part.step's boss by up to the trim
     tolerance: the height's slope (envelope theorem, FaceQuery.slopes) must come from the chord
-    point the height was measured at, not from the surface at the contact's (u, v) (off by
-    0.008 there before, so the chord checks along a link over the boss split down to 1e-5 mm:
+    point the height was measured at, not from the surface at the contact's (u, v) (0.008 off
+    there, enough to split the chord checks along a link over the boss down to 1e-5 mm:
     25 000 drop-cutter queries for one 2.5 mm link)."""
     pytest.importorskip("OCP")
     from BSplineCAM.core.toolpath.faces_raster import FaceQuery

@@ -479,9 +479,9 @@ def test_iso_curves_on_the_parts_fillet_ignore_rounding_of_the_trim():
 def test_iso_on_a_part_whose_walls_come_before_its_selected_faces():
     """A 30 x 20 x 10 mm box with a 4 mm fillet along one top edge (cadquery's OCCT): its
     vertical sides, unselected, precede the top and the fillet in the face list and enter the
-    drop-cutter by their borders only.  Iso looked a face's trim test up by its position among
-    the faces that are not walls, and failed with an IndexError on such a part.  Each selected
-    face now gets its own passes, inside its trim and never below the drop height."""
+    drop-cutter by their borders only.  Each selected face gets its own passes, inside its
+    trim and never below the drop height: its trim test is the face's own, not the one at its
+    position among the faces that are not walls (an IndexError on such a part)."""
     cq = pytest.importorskip("cadquery")
     from BSplineCAM.ocp import faces as ocp
 
@@ -514,9 +514,9 @@ def test_iso_on_a_part_whose_walls_come_before_its_selected_faces():
 def test_iso_on_a_spherical_dimple_whose_iso_curve_shrinks_to_its_pole(monkeypatch):
     """A 60 x 40 x 20 mm block with a spherical dimple of radius 15 mm (cadquery's OCCT, as
     a STEP file has it): OCCT's NURBS of the sphere has one side of its domain at the pole,
-    where the iso-curve is a point.  Its normal curvature there is 0/0, which allowed a step
-    of 1e-16 between iso-curves: the spacing crept by 1e-9 of the domain forever.  A curve
-    shrunk to a point now sets no step; the dimple gets a bounded number of passes, all on
+    where the iso-curve is a point.  Its normal curvature there is 0/0, which would allow a
+    step of 1e-16 between iso-curves (the spacing creeping by 1e-9 of the domain forever).  A
+    curve shrunk to a point sets no step; the dimple gets a bounded number of passes, all on
     its faces and never below the drop height."""
     cq = pytest.importorskip("cadquery")
     from BSplineCAM.core.toolpath import faces_iso
@@ -552,10 +552,10 @@ def test_iso_on_a_spherical_dimple_whose_iso_curve_shrinks_to_its_pole(monkeypat
 
 def test_iso_leaves_a_fillet_the_ball_fits_and_says_so():
     """The 3 mm fillet round a boss's foot on a plate: a 6 mm ball fits it across, so every
-    iso-curve's cutter locations (p + R n) fall on the fillet's axis circle.  Iso cut that
-    circle once per curve, and on a real boss it lies on the wall's edge at the ball's rim,
-    where the drop height jumps by the wall's height (over 15 minutes on a STEP boss).  The
-    fillet is now left with a note naming it; a 5 mm ball, which does not fit, machines it."""
+    iso-curve's cutter locations (p + R n) fall on the fillet's axis circle.  On a real boss
+    that circle lies on the wall's edge at the ball's rim, where the drop height jumps by the
+    wall's height: cutting it once per curve takes over 15 minutes on a STEP boss.  The
+    fillet is left with a note naming it; a 5 mm ball, which does not fit, machines it."""
     fs = FaceSet([plate_with_hole(), fillet_ring()])
     six = generate_faces_iso(fs, 6.0, 0.1, TOL)
     ring = six.extra["faces"]["Face2"]

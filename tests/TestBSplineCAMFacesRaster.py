@@ -121,9 +121,9 @@ def test_modelled_midpoints_leave_the_passes_unchanged(monkeypatch):
 def test_a_ball_in_a_fillet_of_its_radius_is_dropped_in_bounded_work(monkeypatch):
     """A 6 mm ball centred over the axis circle of the 3 mm fillet round a boss's foot touches
     the whole quarter circle of its cross-section: the maximum is tied along it, no bound
-    separates the sub-patches there, and the branch and bound kept MAX_OPEN of them open at
-    every level down to MAX_DEPTH (about 9 700 pairs a query; a boss's iso passes, which lie
-    on that circle, ran for over 15 minutes).  A query crowded for MAX_CROWDED levels is now
+    separates the sub-patches there, and a branch and bound keeping MAX_OPEN of them open at
+    every level down to MAX_DEPTH costs about 9 700 pairs a query (over 15 minutes for a
+    boss's iso passes, which lie on that circle).  A query crowded for MAX_CROWDED levels is
     given up with its gap reported; the height is the closed form's (the fillet's axis circle,
     13 mm) and queries off the circle stay certified."""
     from BSplineCAM.core.toolpath import faceset as fsm

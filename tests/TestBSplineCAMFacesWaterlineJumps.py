@@ -239,7 +239,7 @@ def test_smoothly_pushed_vertices_are_not_taken_for_jumps():
     shifts vertices downhill by their chords' excess, which leaves them a little below their
     level; they are not beside a jump, so no chord is handled as one (no search for the free
     side, no dense sampling).  Every vertex stays at or above the certified drop height and no
-    chord dips.  (They were taken for jumps: 322 chords, 2.5 times the drop-cutter queries.)"""
+    chord dips.  (Taken for jumps, 322 chords would be, at 2.5 times the drop-cutter queries.)"""
     from bsplinecam_helpers import TOL, D, H, assert_above_drop, dome_faces
 
     sel = dome_faces()[0]
@@ -288,9 +288,9 @@ def test_contour_at_a_fillets_vertical_end_is_checked_in_bounded_time(monkeypatc
     """A 30 x 20 x 10 mm box whose top edge along x is rounded by a 4 mm fillet (cadquery's
     OCCT, as the FreeCAD op test's part): one level's contour runs R beyond the side, where
     the ball touches the fillet's vertical end with its rim (height slope about 100).  Every
-    interval of its chords was too steep for the chord model, which cut them all into 16
-    pieces a round down to 1e-5 mm (140 000 queries in one round; over 15 minutes); they are
-    sampled as a jump's now.  The contours stay on the free side: no point along them has a
+    interval of its chords is too steep for the chord model; they are sampled as a jump's, in
+    bounded time (cut into 16 pieces a round down to 1e-5 mm they cost 140 000 queries in one
+    round, over 15 minutes).  The contours stay on the free side: no point along them has a
     drop height above its level."""
     cq = pytest.importorskip("cadquery")
     from BSplineCAM.ocp import faces as ocp

@@ -276,7 +276,8 @@ def raises_gcode(line: str, *patterns: str, tolerance: float | None = None) -> s
 
 @pytest.mark.parametrize("word", ["T", "M", "N", "S", "G", "X", "F", "R", "I", "P"])
 def test_gcode_word_with_400_digits(word):
-    """T/M overflowed int(); an axis became inf; F was reported as 'no feed rate set'."""
+    """400 digits after any word are refused on their line by MAX_DIGITS, not read: T/M would
+    overflow int(), an axis become inf, F be reported as 'no feed rate set'."""
     message = raises_gcode(f"G2 X2 Y0 I0.5 J0 {word}{'9' * 400}", "line 4",
                            f"MAX_DIGITS={gcode.MAX_DIGITS}")
     assert "feed" not in message
@@ -290,8 +291,9 @@ def test_gcode_word_with_400_digits(word):
     ("G2 X2 Y0 R1" + "0" * 90, "arc radius R1e+90"),
 ])
 def test_gcode_beyond_the_machines_reach(line, what):
-    """An axis that overflowed to inf reached verify.json as Infinity; R1e200 gave a NaN
-    centre; an arc of radius 1e12 mm was cut into 22 million pieces."""
+    """End points, arc centres and radii beyond MAX_COORDINATE_MM are refused on their line:
+    an axis overflowing to inf would reach verify.json as Infinity, R1e200 give a NaN centre,
+    an arc of radius 1e12 mm be cut into 22 million pieces."""
     raises_gcode(line, "line 4", what, "MAX_COORDINATE_MM=1e+06 mm")
 
 
@@ -323,7 +325,7 @@ def test_gcode_total_segment_limit(monkeypatch):
 
 
 @pytest.mark.parametrize("line", [
-    "G1 X" + "1" * 40_000 + "Q",       # the plain-move pattern was quadratic: over a minute
+    "G1 X" + "1" * 40_000 + "Q",       # over a minute for a plain-move pattern quadratic in it
     "(" + "x" * 40_000 + ")",
 ])
 def test_gcode_long_line(line):
@@ -356,8 +358,8 @@ def test_gcode_semicolon_inside_a_comment():
 
 
 def test_gcode_long_parameter_chain_is_an_unknown_value():
-    """``X####...#1`` is X set by a parameter of a parameter ...: unknown to the reader (the
-    masking was quadratic in the chain's length)."""
+    """``X####...#1`` is X set by a parameter of a parameter ...: unknown to the reader, and a
+    chain of 4000 is read in no time (a masking quadratic in the chain's length is not)."""
     program = read_gcode(f"{HEAD}G1 X{'#' * 4000}1\nG1 X5 Y1\nG1 X6\nM2\n")
     np.testing.assert_array_equal(program.end[:, 0], [1, 6])  # no move from the unknown X
     np.testing.assert_array_equal(program.start[-1], [5, 1, 0])

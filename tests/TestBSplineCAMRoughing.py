@@ -265,8 +265,8 @@ def test_flat_end_mill_hemisphere_boss():
     # entered by a straight descent on that floor and a lead-in cutting within the stepover
     # (check_common: no descent into material steeper than the ramp; the job simulation:
     # no move wider than 1.1 s, also where a lead-in joins a pass further along and runs
-    # back to its start), not by a ramp from the top: 28 ramps before (4 now), each 57 mm of
-    # feed at 3 mm and 3 degrees
+    # back to its start), not by a ramp from the top: at most 10 ramps (28 if such passes were
+    # ramped into), each 57 mm of feed at 3 mm and 3 degrees
     assert st["entries"]["lead_in"] >= 15 and st["entries"]["ramp"] <= 10, st["entries"]
     radial, collisions = _job_radial(rough, stock, tool, SIM_CELL)
     assert collisions == 0 and float(radial.max()) <= 1.1 * 3.0 + SIM_CELL
@@ -590,7 +590,8 @@ def test_a_feed_ending_just_outside_the_region_is_peeled():
     region, whose tip reaches a sliver of the band beyond the wall, y < 0).  The feed into it
     from the upper right cuts the sliver 2.6 mm wide at a 2 mm stepover; a peel must end
     where the feed ends, so its own steps may stand out of the region as far as the feed
-    does.  Before, the peel of such a feed never reached its end and the feed stayed.
+    does (a peel kept inside the region would never reach the feed's end, and the feed would
+    stay).
     Checked by the job simulation of the G-code text, from a block that holds the band."""
     from BSplineCAM.core.gcode import read_gcode
     from BSplineCAM.core.job_simulation import simulate_job
@@ -701,7 +702,7 @@ def test_engaged_width_takes_the_corner_height_from_the_depth_of_cut():
     (corner_height 0.03), so the ridge counts wherever the tool passes 0.01 mm under it: the
     profile's 0.05 mm, |y| < 3 + sqrt(rc^2 - (rc - 0.05)^2), measured from each cell's far
     corner.  From the highest material it passed over (the band's 0.3 mm, corner 0.15) the
-    width was 0, and a lead-in on the case study skimmed such toes 5.33 mm wide."""
+    width would be 0, and a lead-in on the case study would skim such toes 5.33 mm wide."""
     cell = 0.1
     rc = 2.0
     tool = Tool(10.0, "bullnose", rc)
@@ -1422,11 +1423,11 @@ def test_floor_rings_of_the_case_study_bend_by_their_own_radius():
 def test_fair_load_moves_still_over_are_peeled():
     """The case study at 8 + 4 mm with a 25 % stepover (10 mm flat, 2.5 mm): fronts still
     meet walls in notches the tool's size and close in on each other there after the levels
-    are bent and narrowed; 11 moves cut wider than 1.1 stepover plus a cell (the job
-    simulation at 0.1 mm), up to 3.79 mm, before such moves were peeled (:meth:`_Job.peel`),
-    then one at 2.95 mm, beside a ramp whose track the replay had taken as cut at the level
-    (0.29 mm); none since the replay measures the wedge a descent leaves (``uncut_level``),
-    with no rapid touching the stock."""
+    are bent and narrowed.  No move cuts wider than 1.1 stepover plus a cell (the job
+    simulation at 0.1 mm) and no rapid touches the stock: such moves are peeled
+    (:meth:`_Job.peel`; unpeeled, 11 moves cut up to 3.79 mm) and the replay measures the
+    wedge a descent leaves (``uncut_level``; a replay taking a ramp's track as cut at the
+    level, 0.29 mm, leaves one at 2.95 mm beside it)."""
     height, stock = case_study_part()
     tool = Tool(10.0, "flat")
     rough = generate_roughing(height, stock, tool, 8.0, 2.5, 0.3, 0.3, fine_stepdown=4.0)
@@ -1442,18 +1443,18 @@ def test_fair_load_moves_still_over_are_peeled():
 def test_bullnose_case_study_within_the_stepover(block, corner, s):
     """The case study at a 2 mm step-down with a 10 mm bull-nose of 2 mm (and 3 mm) corner
     radius at a 4 mm stepover: every move outside the entries within 1.1 stepover plus a cell
-    (the job simulation at 0.1 mm).  A lead-in skimmed the toes of fillets 0.1 mm deep across 5.33 mm
-    while the roughing took the corner's height from a fillet's crest it passed over but did
-    not cut.  From the block the command line's job makes (the face's bounding box in
-    FreeCAD grown by 2 mm, its top 1.5 µm higher) a move at the first level stayed 4.78 mm
-    wide: the peel had taken the level's material beside it in two steps, and what left the
-    feed to its end too wide was the fillets of the passes beside, which no step counted.
-    With a 3 mm corner a peel's step measured 3.71 mm where the simulation found 4.75: the
-    level's replay had marked a ramp as cut at the level, 0.28 mm under the fillets it
-    left beside it.  At a 2.5 mm stepover a move into a contour's corner stayed 3.04 mm
-    wide: what was left of its material was a sliver the tool reaches from the corner only,
-    which stood 0.03 mm outside the region the peel's steps kept to, and the steps that
-    reach the points from which a feed along the wall takes it thin were too wide."""
+    (the job simulation at 0.1 mm).  The cases this holds against: a lead-in skims the toes
+    of fillets 0.1 mm deep across 5.33 mm if the roughing takes the corner's height from a
+    fillet's crest it passed over but did not cut.  From the block the command line's job
+    makes (the face's bounding box in FreeCAD grown by 2 mm, its top 1.5 µm higher) a move at
+    the first level stays 4.78 mm wide if the peel, taking the level's material beside it in
+    two steps, counts no fillet of the passes beside.  With a 3 mm corner a peel's step
+    measures 3.71 mm where the simulation finds 4.75 if the level's replay marks a ramp as cut
+    at the level, 0.28 mm under the fillets it leaves beside it.  At a 2.5 mm stepover a move
+    into a contour's corner stays 3.04 mm wide if the sliver left of its material, which the
+    tool reaches from the corner only and which stands 0.03 mm outside the region the peel's
+    steps keep to, is taken by steps too wide to reach the points from which a feed along the
+    wall takes it thin."""
     height, stock = case_study_part()
     if block == "job":
         stock = Stock(-2.0, 102.0, -2.0, 102.0, 10.450933463525763, 35.17659478303636)
@@ -1469,10 +1470,10 @@ def test_bullnose_case_study_within_the_stepover(block, corner, s):
 def test_bullnose_moves_still_over_on_the_example_part_are_peeled():
     """examples/part.step (its faces by cadquery's OCCT) roughed at 6 + 3 mm with a 10 mm
     bull-nose of 2 mm corner radius at a 4 mm stepover from the block the command line's job
-    makes (2 mm round it and on top): its fine level at 28.8 mm, narrowed to 80 %, still had
-    a move 5.45 mm wide where fronts close in beside a wall, before moves of bull-noses were
-    peeled as flat end mills' are; none over 1.1 stepover plus a cell since (the job
-    simulation at 0.1 mm), no rapid touching the stock."""
+    makes (2 mm round it and on top): its fine level at 28.8 mm, narrowed to 80 %, has a move
+    5.45 mm wide where fronts close in beside a wall unless moves of bull-noses are peeled as
+    flat end mills' are; peeled, none is over 1.1 stepover plus a cell (the job simulation at
+    0.1 mm), and no rapid touches the stock."""
     import os
 
     if os.environ.get("BSPLINECAM_REQUIRE_ALL") != "1":
@@ -1538,8 +1539,8 @@ def test_ring_steps_match_ring_step():
 def test_stay_down_lead_ins_are_measured_by_their_whole_swath():
     """A stay-down lead-in into a pass is taken only where its whole swath is within the
     stepover, as the job simulation measures a move: on the bull-nose bowl with 0.3 / 0.2 mm
-    allowances one measured position by position cut 3.61 mm at a 3 mm stepover (2.83 mm
-    now, by the job simulation)."""
+    allowances one measured position by position cuts 3.61 mm at a 3 mm stepover (2.83 mm,
+    by the job simulation, when measured by its swath)."""
     stock = Stock(-20, 20, -20, 20, 0.0, 10.0)
     tool = Tool(8.0, "bullnose", 1.0)
     rough = generate_roughing(bowl, stock, tool, stepdown=2.0, stepover=3.0,

@@ -187,12 +187,12 @@ def test_dropcutter_tight_hollow_two_contacts():
 
 
 def test_dropcutter_tight_hollow_off_centre_reaches_the_maximum():
-    """Regression: at (15, 14.615), just off the hollow's centre, the ball rests on the near
-    wall, where f is far more curved across the wall than along it, with a saddle of f at
-    x = 15 between two maxima at x = 15 -+ 0.28.  The best seed's ascent crossed a region where
-    f is not concave; steepest ascent stalled there and the height came out 0.25 um low (seen in
-    the raster of test_unreachable_region_reported_and_not_gouged).  The exact point and its
-    mirror images, against the brute force."""
+    """At (15, 14.615), just off the hollow's centre, the ball rests on the near wall, where f
+    is far more curved across the wall than along it, with a saddle of f at x = 15 between two
+    maxima at x = 15 -+ 0.28.  The best seed's ascent crosses a region where f is not concave,
+    where steepest ascent stalls 0.25 um low (a point of the raster of
+    test_unreachable_region_reported_and_not_gouged).  The exact point and its mirror images
+    reach the maximum, against the brute force."""
     surface = tight_hollow()
     dc = DropCutter(surface, 3.0)
     xy = np.array([[15.0, 14.615], [15.0, 15.385], [14.615, 15.0], [15.385, 15.0]])

@@ -49,14 +49,14 @@ def _levels(diameter: float) -> list[float]:
 
 def test_a_fillet_the_ball_fits_sets_no_levels():
     """A 6 mm ball in the 3 mm fillet touches it only with its centre on the fillet's axis (a
-    single tip height, the plate's): no level in between finishes anything of it, and the
-    steps it bounded (0.02 of the flat one: a boss's foot gave 30 levels 0.04 mm apart, each
-    bisected round the boss's wall) are gone; the levels keep the flat stepover's vertical
+    single tip height, the plate's): no level in between finishes anything of it, so it
+    bounds no step (its 0.02 of the flat one would give a boss's foot 30 levels 0.04 mm apart,
+    each bisected round the boss's wall); the levels keep the flat stepover's vertical
     share.  A 5 mm ball (a 2.5 mm radius in the 3 mm hollow) still has its levels set by the
     fillet's curvature."""
     six = _levels(6.0)
     flat = ToolParameters.validate(6.0, 0.1, 0.002).flat_stepover
-    assert len(six) <= math.ceil((TOP - BASE) / flat), six  # 76 before
+    assert len(six) <= math.ceil((TOP - BASE) / flat), six  # 76 with the fillet's steps
     assert np.all(-np.diff(six) >= 0.999 * flat), np.diff(six)
     five = _levels(5.0)
     in_fillet = [z for z in five if z < BASE + 1.0]  # where the fillet (tips 10-10.5 mm) sets them
