@@ -239,7 +239,8 @@ def test_verify_options_refused(capsys, tmp_path, extra, fragments):
 
 
 def test_verify_warns_on_mm_numbers_under_g20(capsys, tmp_path):
-    """The issue's case: a G20 program whose numbers are mm gave coverage 0 without a word."""
+    """The issue's case: a G20 program whose numbers are mm is warned about, not verified to
+    coverage 0 without a word."""
     if os.environ.get("BSPLINECAM_REQUIRE_ALL") != "1":
         pytest.importorskip("matplotlib")  # the pictures (Debian's python3 has none)
     program = tmp_path / "p.ngc"

@@ -472,8 +472,8 @@ def test_ball_on_a_trimmed_edge_next_to_its_rim_is_certified():
     tip = z(20) + sqrt(R^2 - (R - eps)^2) - R.  There f's slope across the edge grows as
     R / sqrt(2 R eps), the sub-patches straddling the trim reach past it towards the ball,
     and the parametrisation's curvature, times that slope, defeats the local certificate:
-    bounded by their box, they stayed open down to MAX_DEPTH (hundreds of uncertified pairs
-    per query); bounded by the material's own distance, every height is certified."""
+    bounded by their box, they would stay open down to MAX_DEPTH (hundreds of uncertified
+    pairs per query); bounded by the material's own distance, every height is certified."""
     R, x_e = 3.0, 20.0
     xs = np.array([0.0, 5.0, 15.0, 30.0])
     poles = np.array([[[x, y, 1.0 + 0.2 * x] for y in (0.0, 20.0)] for x in xs])

@@ -190,8 +190,8 @@ def test_iso_seam_oblique_to_the_passes_keeps_the_scallop(direction):
 def test_iso_stops_where_the_face_turns_steeper_than_the_raster_reaches(direction):
     """A quarter cylinder from its top (0 degrees) down to its vertical side (90): the passes
     reach no further than STEEPEST_REACHED (75 degrees), as the raster's do; beyond it the
-    ball's contact nears its rim and the chord checks had to sample the height densely (on
-    examples/part.step's fillets iso took over 15 minutes).  Along the arc (u) each pass ends
+    ball's contact nears its rim and the chord checks would sample the height densely (over
+    15 minutes for iso on examples/part.step's fillets).  Along the arc (u) each pass ends
     on the 75 degree line itself."""
     from BSplineCAM.core.toolpath.faces_raster import STEEPEST_REACHED
 
@@ -450,9 +450,9 @@ def test_iso_partial_passes_ignore_rounding_of_the_trim():
 def test_iso_curves_on_the_parts_fillet_ignore_rounding_of_the_trim():
     """examples/part.step's fillet (Face3) machined alone, with every trim vertex of the model
     moved by rounding (2e-16 relative, as a FreeCAD document saved and reopened gives): the
-    iso-curves stay within 1e-6 mm.  (With a probe at each end of a curve, on the trim box's
-    sides, they moved by 4e-6 mm, and the part's program reopened in FreeCAD 1.1 had another
-    number of commands; 2e-8 mm since.)"""
+    iso-curves stay within 1e-6 mm (about 2e-8 mm; with a probe at each end of a curve, on
+    the trim box's sides, they would move by 4e-6 mm, enough for the part's program reopened
+    in FreeCAD 1.1 to have another number of commands)."""
     pytest.importorskip("OCP")
     import dataclasses
 

@@ -150,7 +150,7 @@ def test_a_fillet_the_ball_fits_bounds_no_stepover():
     """A plate and the 3 mm fillet round a boss's foot, machined with a 6 mm ball: the fillet's
     cross-sections along the passes are hollows the ball fits, whose contacts' centres all
     crowd at one point; they bound no stepover, so the lines lie about the flat stepover
-    apart (they were 0.05 mm apart across the whole plate: 50 times the path), and the
+    apart (bounded by the fillet, 0.05 mm apart across the whole plate: 50 times the path), and the
     lines that cross the fillet fill it.  A 5 mm ball (a 2.5 mm radius in a 3 mm hollow) keeps
     its bound there."""
     from BSplineCAM.core.toolpath.common import ToolParameters

@@ -147,8 +147,8 @@ def test_jump_down_to_a_floor_far_below_is_bisected():
     air end 22 mm under the level): regula falsi lands next to the air end step after step
     there, so a bracket steeper than JUMP_SLOPE is bisected.  Every edge settles as a jump
     within the step budget, on the air side (the ball on the floor, its closed form) at most
-    WIDTH mm from the plate's edge's offset.  (With the secant alone some edges did not
-    settle in FALSI_STEPS queries: their points were left at the grid edge's air end.)"""
+    WIDTH mm from the plate's edge's offset.  (With the secant alone some edges do not
+    settle in FALSI_STEPS queries, and their points stay at the grid edge's air end.)"""
     floor = plane(0.0, 40.0, 0.0, 20.0, TOP - FLOOR)
     ns = plane(0.0, EDGE, 0.0, 20.0, TOP)
     fs = FaceSet([Face(ns, rectangle(ns)), Face(floor, rectangle(floor))])

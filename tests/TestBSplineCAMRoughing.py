@@ -912,8 +912,8 @@ def test_tip_height_matches_brute_force():
 
 def test_replay_splits_descents_into_pieces_of_the_band():
     """The level's replay marks a descent in pieces each descending at most the band, so that
-    the surface estimate drops to each piece's own height: a 2 mm ramp over 38 mm in one
-    feed marked at the level had set the estimate 0.28 mm under the fillets it left.  The
+    the surface estimate drops to each piece's own height (a 2 mm ramp over 38 mm marked at
+    the level in one feed would set the estimate 0.28 mm under the fillets it left).  The
     feeds at the level and a plunge (no move across) stay whole; the points are on the
     feeds, the heights linear along them."""
     from BSplineCAM.core.toolpath.roughing import _split_descents
@@ -1079,8 +1079,8 @@ def _job_radial(rough, stock, tool, cell):
 def test_radial_engagement_bound_head_on_boss(fraction):
     """The fronts of the flat levels run head-on into the hemisphere's wall; the program's
     radial engagement outside entries, measured by the job simulation, stays within
-    1.1 stepover plus one simulation cell.  (At 30 % this failed, 5.0 mm against 2.84 mm,
-    while the fronts on the plate's level at T = z were cut into slivers; 2.2 mm since.)"""
+    1.1 stepover plus one simulation cell.  (At 30 %: about 2.2 mm against 2.84 mm; 5.0 mm
+    if the fronts on the plate's level at T = z are cut into slivers.)"""
     stock = Stock(-25, 25, -25, 25, 0.0, 17.0)
     tool = Tool(8.0, "flat")
     s = fraction * tool.diameter

@@ -507,8 +507,8 @@ class TestJobCommand(unittest.TestCase):
     def test_finish_past_the_stock_margin(self):
         """A part (a block with rounded top edges, as BREP) finished with a 6 mm ball down
         its rounded sides, where the ball's centre runs out to its radius beyond the part,
-        past a 1 mm stock margin: the rest passes clear what is left within the stock (they
-        were refused: the stock grid did not cover the passes) and the job verifies."""
+        past a 1 mm stock margin: the rest passes clear what is left within the stock (the
+        stock grid covers the passes, so none is refused) and the job verifies."""
         import Part
 
         from BSplineCAM.orchestration import cli
