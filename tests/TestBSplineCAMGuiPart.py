@@ -121,7 +121,7 @@ class TestPartJobWalk(CamTestCase):
         # the job: computed in one step, its output file set, nothing left touched
         panel.tool.setValue(TOOL)
         clear_report()
-        with message_boxes() as boxes:
+        with message_boxes() as boxes, self.bars_seen() as seen:
             accepted = panel.accept()
         if not accepted:
             self.fail(f"the job panel refused: {panel.message.text()} {boxes}")
@@ -129,6 +129,8 @@ class TestPartJobWalk(CamTestCase):
         job = next(o for o in self.doc.Objects if cam_commands.is_job(o))
         op = next(o for o in self.doc.Objects if cam_commands.is_finishing_op(o))
         self.assertEqual([n for _, subs in op.Base for n in subs], faces)
+        self.assertTrue(seen, "no progress shown while the toolpath computed")
+        self.assertEqual(max(seen), 0, "FreeCAD's progress bar showed beside ours")
         output = job.PostProcessorOutputFile
         self.assertTrue(os.path.isabs(output), output)  # an unsaved document: a named folder
         self.assertIn(str(output), report_text())
@@ -241,6 +243,33 @@ class TestPartJobWalk(CamTestCase):
         path = DOCS / "part_verify.png"
         self.assertTrue(QtGui.QApplication.primaryScreen().grabWindow(mw.winId())
                         .save(str(path), "PNG"))
+
+    def bars_seen(self):
+        """Every 10 ms while the workbench's progress bar runs: how many other progress bars
+        the status bar shows (yields the list)."""
+        import contextlib
+
+        from PySide import QtCore
+
+        from BSplineCAM.gui import progress_bar
+
+        @contextlib.contextmanager
+        def watching():
+            seen: list = []
+
+            def tick() -> None:
+                if progress_bar.ProgressBar.active is not None:
+                    seen.append(len(progress_bar.other_bars()))
+
+            timer = QtCore.QTimer()
+            timer.timeout.connect(tick)
+            timer.start(10)
+            try:
+                yield seen
+            finally:
+                timer.stop()
+
+        return watching()
 
     def modal_dialogs_accepted(self):
         """Accept any modal dialog (0.20's G-code editor) that a post opens meanwhile."""

@@ -155,6 +155,7 @@ class ProgressBar:
     def _process(self) -> None:
         if self.open:
             self.bar.setValue(int(round(self.fraction * STEPS)))
+            hide_other_bars()
         QtGui.QApplication.processEvents()
         self.events += 1
         self.last_events = self.last_call = time.monotonic()
@@ -208,6 +209,21 @@ class ProgressBar:
     def __del__(self):
         with contextlib.suppress(RuntimeError, AttributeError):  # Qt already gone at exit
             self.close()
+
+
+def other_bars() -> list:
+    """The status bar's visible progress bars other than ours (FreeCAD's "Recompute...")."""
+    ours = StatusWidgets.bar
+    status = FreeCADGui.getMainWindow().statusBar()
+    return [w for w in status.findChildren(QtGui.QProgressBar)
+            if w is not ours and w.isVisible()]
+
+
+def hide_other_bars() -> None:
+    """One progress bar while ours runs: FreeCAD's recompute bar says less (the document, not
+    the op's work) and cannot cancel it; its sequencer shows it again at its next start."""
+    for widget in other_bars():
+        widget.hide()
 
 
 def cancelled(obj) -> bool:
