@@ -31,8 +31,7 @@ if not FreeCAD.GuiUp:
     raise unittest.SkipTest("needs the FreeCAD GUI: run tools/run_gui_test.sh")
 
 import FreeCADGui  # noqa: E402
-from PySide import QtGui  # noqa: E402
-from TestBSplineCAMGui import (  # noqa: E402
+from bsplinecam_gui import (  # noqa: E402
     COARSE_SCALLOP,
     TOOL,
     CamTestCase,
@@ -42,6 +41,7 @@ from TestBSplineCAMGui import (  # noqa: E402
     process_events,
     report_text,
 )
+from PySide import QtGui  # noqa: E402
 
 PART = ROOT / "examples" / "part.step"
 
@@ -224,7 +224,7 @@ class TestPartJobWalk(CamTestCase):
     def picture(self, result) -> None:
         """part_verify.png: the bench with the simulated part coloured by deviation and the
         stock after roughing hidden; only the part's mesh is drawn (no selection colour)."""
-        from TestBSplineCAMGui import DOCS, bench_window, drawn_boxes, isometric_view, wait
+        from bsplinecam_gui import DOCS, bench_window, drawn_boxes, isometric_view, wait
 
         mw, mdi = bench_window()
         view = isometric_view(mdi)
