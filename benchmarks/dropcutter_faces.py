@@ -40,7 +40,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from BSplineCAM.core import faces as core_faces  # noqa: E402
+from BSplineCAM.core.geometry import faces as core_faces  # noqa: E402
 from BSplineCAM.core.toolpath import faceset as current  # noqa: E402
 
 

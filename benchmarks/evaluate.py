@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.core import matrix  # noqa: E402
+from BSplineCAM.core.geometry import matrix  # noqa: E402
 
 
 def best_of(fn, repeat: int) -> float:

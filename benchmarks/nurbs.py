@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from BSplineCAM import Surface  # noqa: E402
-from BSplineCAM.core.nurbs import NurbsSurface, expand_knots  # noqa: E402
+from BSplineCAM.core.geometry.nurbs import NurbsSurface, expand_knots  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from evaluate import best_interleaved  # noqa: E402

@@ -24,10 +24,10 @@ bottom at the part's), with the same 10 mm flat end mill, step-down 2 mm, stepov
 
 Each op is computed and posted (linuxcnc) alone, each in a child freecadcmd (one after the
 other) bounded by ``--timeout`` seconds: a hang or a crash is reported, not dropped.  Every program is then
-simulated from the block (:func:`BSplineCAM.core.verify.verify_job`) and measured: stock left
+simulated from the block (:func:`BSplineCAM.core.simulation.verify.verify_job`) and measured: stock left
 above the design over the part's footprint (snapshot after the tool minus design; a negative
 minimum is a gouge), radial and axial engagement outside entries, rapid collisions, machining
-time nominal and with acceleration (:mod:`BSplineCAM.core.machining_time`).
+time nominal and with acceleration (:mod:`BSplineCAM.core.simulation.machining_time`).
 
 Run with FreeCAD 0.20's interpreter (the peers need its Path workbench, the Surface op
 OpenCAMLib):
@@ -56,10 +56,10 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
-from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
-from BSplineCAM.core.machining_time import machining_time  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.verify import verify_job  # noqa: E402
+from BSplineCAM.core.program.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.machining_time import machining_time  # noqa: E402
+from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
+from BSplineCAM.core.simulation.verify import verify_job  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from toolpath import post_alone, timed_recompute  # noqa: E402  (benchmarks/toolpath.py)

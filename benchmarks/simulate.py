@@ -20,8 +20,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from BSplineCAM.core import simulate as sim  # noqa: E402
-from BSplineCAM.core.gcode import linearise, read_gcode  # noqa: E402
+from BSplineCAM.core.program.gcode import linearise, read_gcode  # noqa: E402
+from BSplineCAM.core.simulation import simulate as sim  # noqa: E402
 
 
 def raster_gcode(passes: int, per_pass: int) -> str:

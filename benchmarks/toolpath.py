@@ -6,7 +6,7 @@ Both ops sit in one job on the same model and tool (6 mm ball by default) and ai
 scallop height (0.01 mm by default): the raster by its curvature-aware stepover, the 3D
 Surface op by the flat stepover 2 sqrt(2Rh - h^2) (see :mod:`BSplineCAM.app.surface3d`).
 Each op's first recompute is timed; each is posted alone with linuxcnc, checked by rs274 and
-simulated from its G-code text with :func:`BSplineCAM.core.verify.verify`.
+simulated from its G-code text with :func:`BSplineCAM.core.simulation.verify.verify`.
 
 The flat stepover leaves a larger scallop than requested on steep walls, so with
 ``--match-scallop`` the 3D Surface op is recomputed at other StepOvers (a power-law secant on
@@ -19,7 +19,7 @@ machines the selected faces (default: every face a 3-axis tool reaches from abov
 ``bsplinecam part`` picks them), the 3D Surface op gets the same faces as its Base, and both
 programs are simulated against the part's exact faces (gouge over the whole model, scallop and
 coverage on the selected faces away from their borders, as ``bsplinecam verify PART PROGRAM
---faces ...``; see :func:`BSplineCAM.core.verify.verify_faces`).  Our op on parts is slow
+--faces ...``; see :func:`BSplineCAM.core.simulation.verify.verify_faces`).  Our op on parts is slow
 (drop-cutter queries at tangent joints): pass a scallop it finishes in (say 0.1 mm).
 
 Needs a FreeCAD with OpenCAMLib (0.20 with the PyPI wheel, 1.0 and 1.1 with Debian's
@@ -46,9 +46,9 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline, surface3d  # noqa: E402
-from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.verify import verify, verify_faces  # noqa: E402
+from BSplineCAM.core.program.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
+from BSplineCAM.core.simulation.verify import verify, verify_faces  # noqa: E402
 from BSplineCAM.orchestration import parts, rs274  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()

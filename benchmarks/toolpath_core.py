@@ -3,7 +3,7 @@
 
 Each toolpath's program is also counted with one-sided arcs (issue 14): moves and bytes of
 the same plain 4-decimal G-code without and with G2/G3.  With ``--verify`` both programs are
-simulated against the design (:func:`BSplineCAM.core.verify.verify`), reporting the largest
+simulated against the design (:func:`BSplineCAM.core.simulation.verify.verify`), reporting the largest
 gouge and scallop.
 
 Run with the project venv:  .venv/bin/python benchmarks/toolpath_core.py [--scallop 0.01]
@@ -21,11 +21,11 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from BSplineCAM.core import Surface  # noqa: E402
-from BSplineCAM.core.gcode import read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
+from BSplineCAM.core.program.gcode import read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
+from BSplineCAM.core.simulation.verify import verify  # noqa: E402
 from BSplineCAM.core.toolpath import generate, program_moves, to_moves  # noqa: E402
 from BSplineCAM.core.toolpath.arcs import counts, plain_gcode  # noqa: E402
-from BSplineCAM.core.verify import verify  # noqa: E402
 
 
 def gcode(toolpath, feed: float = 1000.0) -> str:

@@ -2,7 +2,7 @@
 """Verification at die size: a 64 x 64 net over 300 x 300 mm, 10 mm ball, 5 um scallop.
 
 Computes the raster finishing toolpath with the core, writes it as plain G-code, then times
-reading it and :func:`BSplineCAM.core.verify.verify` on 0.1 mm cells (9 million) (wall and
+reading it and :func:`BSplineCAM.core.simulation.verify.verify` on 0.1 mm cells (9 million) (wall and
 CPU seconds, and the load average: other work on the machine slows the wall time), and prints
 the peak resident memory of the process.  Target (issue 14): verification in <= 20 s and
 <= 1 GB on a 2-core machine.
@@ -30,10 +30,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from toolpath_core import gcode  # noqa: E402
 
 from BSplineCAM.core import Surface  # noqa: E402
-from BSplineCAM.core.gcode import read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
+from BSplineCAM.core.program.gcode import read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
+from BSplineCAM.core.simulation.verify import verify  # noqa: E402
 from BSplineCAM.core.toolpath import generate  # noqa: E402
-from BSplineCAM.core.verify import verify  # noqa: E402
 
 
 def die_net(n: int = 64, size: float = 300.0) -> np.ndarray:

@@ -12,7 +12,7 @@ from conftest import ROOT
 
 from BSplineCAM.core import Surface
 from BSplineCAM.core.errors import ParameterError
-from BSplineCAM.core.gcode import PLANE_AXES, MoveKind, linearise, read_gcode
+from BSplineCAM.core.program.gcode import PLANE_AXES, MoveKind, linearise, read_gcode
 from BSplineCAM.core.toolpath import Move, generate, program_moves, to_moves
 from BSplineCAM.core.toolpath.arcs import (
     Arc,
@@ -250,8 +250,8 @@ def test_feed_length_of_the_case_study_program_as_read(case_study):
 
 def test_case_study_simulated_from_text(case_study):
     """The arcs program simulated from its text: gouge <= 1 um, scallop <= h + tolerance."""
-    from BSplineCAM.core.simulate import Tool
-    from BSplineCAM.core.verify import verify
+    from BSplineCAM.core.simulation.simulate import Tool
+    from BSplineCAM.core.simulation.verify import verify
 
     surface, tp = case_study
     text = plain_gcode(program_moves(tp, arcs=True))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import CASE_STUDY
 
-from BSplineCAM.core.gcode import MoveKind, linearise, read_gcode
+from BSplineCAM.core.program.gcode import MoveKind, linearise, read_gcode
 from BSplineCAM.core.toolpath import Move, generate, to_moves
 from BSplineCAM.core.toolpath.arcs import (
     MAX_SWEEP_DEG,

@@ -23,8 +23,9 @@ import pytest
 from conftest import CASE_STUDY, ROOT, plane_net, run_main
 
 from BSplineCAM.core import ParameterError, Surface
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.simulate import MAX_ZMAP_CELLS, Tool, zmap_shape
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import MAX_ZMAP_CELLS, Tool, zmap_shape
+from BSplineCAM.core.simulation.verify import extent_warnings, verify
 from BSplineCAM.core.toolpath import (
     MAX_CUTTER_LOCATIONS,
     check_request,
@@ -32,7 +33,6 @@ from BSplineCAM.core.toolpath import (
     generate,
 )
 from BSplineCAM.core.toolpath.common import ToolParameters, flat_stepover
-from BSplineCAM.core.verify import extent_warnings, verify
 from BSplineCAM.orchestration import cli
 
 CASE = str(CASE_STUDY)

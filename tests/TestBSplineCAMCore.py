@@ -14,9 +14,14 @@ from hypothesis.extra.numpy import arrays
 from scipy.interpolate import BSpline, bisplev
 
 from BSplineCAM import Surface
-from BSplineCAM.core import matrix
-from BSplineCAM.core.basis import cox_de_boor, cox_de_boor_surface, knot_vector, unique_knots
 from BSplineCAM.core.errors import NetError, ParameterError
+from BSplineCAM.core.geometry import matrix
+from BSplineCAM.core.geometry.basis import (
+    cox_de_boor,
+    cox_de_boor_surface,
+    knot_vector,
+    unique_knots,
+)
 
 LAYOUTS = ["uniform", "clamped"]
 
@@ -307,7 +312,7 @@ def test_normals_on_an_edge_collapsed_to_a_point_follow_the_inside(edge):
     noise (1e-14 of the longest, pointing anywhere, even down): those normals count as
     degenerate and come from just inside, on the grid and at scattered points, for the
     cubic Surface and the general NurbsSurface alike.  The reference is the normal 1e-4 in."""
-    from BSplineCAM.core.nurbs import NurbsSurface
+    from BSplineCAM.core.geometry.nurbs import NurbsSurface
 
     x, y = np.meshgrid(np.linspace(0, 60, 6), np.linspace(0, 50, 5), indexing="ij")
     net = np.stack([x, y, 5 * np.sin(x / 20) + 3 * np.cos(y / 15)], -1)

@@ -154,7 +154,7 @@ def test_verify_and_rs274(request, runs, name, strategy):
     reaches), coverage reported, and LinuxCNC's interpreter accepting every block.  A known
     fault of the product on a part (the manifest's "known": strategy -> what is measured) is
     a strict expected failure: it fails the suite once it is mended, until the entry goes."""
-    from BSplineCAM.core import rs274
+    from BSplineCAM.core.program import rs274
 
     entry = ENTRIES[name]
     if strategy in entry.get("known", {}):

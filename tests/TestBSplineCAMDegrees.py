@@ -46,7 +46,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM.core.errors import NetError
-from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
 
 #: Bound on |error| in units of size * sum |R^(a,b)| (see the module docstring).
 LIMIT = 1e-12

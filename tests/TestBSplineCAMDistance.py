@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from BSplineCAM.core.distance import dilate_disk, squared_distance
+from BSplineCAM.core.geometry.distance import dilate_disk, squared_distance
 
 
 def brute_squared(mask: np.ndarray) -> np.ndarray:

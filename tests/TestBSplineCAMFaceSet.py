@@ -12,8 +12,8 @@ import pytest
 from bsplinecam_helpers import circle, cylinder_quarter, holed_plane, plane, rectangle, two_faces
 
 from BSplineCAM.core import Surface
-from BSplineCAM.core.faces import Face
-from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.geometry.faces import Face
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
 from BSplineCAM.core.toolpath.dropcutter import DropCutter, brute_force_heights
 from BSplineCAM.core.toolpath.faceset import CERTIFY, FaceSet
 
@@ -367,7 +367,7 @@ def test_height_probe_on_near_vertical_fillet_matches_faces_height():
     finds it there, as the Z-map heights of verification (core/faces_height.py, seeded from a
     dense raster) do, instead of the bottom face below."""
     pytest.importorskip("OCP")
-    from BSplineCAM.core.faces_height import FacesHeight
+    from BSplineCAM.core.geometry.faces_height import FacesHeight
     from BSplineCAM.ocp import faces as ocp
 
     faces = ocp.faces_from_shape(ocp.read_part(ROOT / "examples" / "part.step"), "up",

@@ -26,8 +26,8 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM.app import faces as app_faces  # noqa: E402
 from BSplineCAM.app.compat import ensure_freecad  # noqa: E402
-from BSplineCAM.core import faces as core_faces  # noqa: E402
-from BSplineCAM.core.faces import FaceError  # noqa: E402
+from BSplineCAM.core.geometry import faces as core_faces  # noqa: E402
+from BSplineCAM.core.geometry.faces import FaceError  # noqa: E402
 
 FreeCAD = ensure_freecad()
 import Part  # noqa: E402

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Core faces (BSplineCAM.core.faces): the trim test, plain data, validation, densification;
+"""Core faces (BSplineCAM.core.geometry.faces): the trim test, plain data, validation, densification;
 and the extraction in cadquery's OCCT (BSplineCAM.ocp.faces) against OCCT itself.
 
 References: matplotlib's point-in-polygon (``Path.contains_points``), the sagitta of a circle's
@@ -16,10 +16,10 @@ import re
 import numpy as np
 import pytest
 
-from BSplineCAM.core import face_import
-from BSplineCAM.core import faces as cf
-from BSplineCAM.core.faces import Face, FaceError
-from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.geometry import face_import
+from BSplineCAM.core.geometry import faces as cf
+from BSplineCAM.core.geometry.faces import Face, FaceError
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
 
 # --------------------------------------------------------------------------- helpers
 
@@ -422,7 +422,7 @@ def test_ocp_sphere_dimple_with_its_rim_filleted(ocp, tmp_path):
 
 
 def test_trim_points_just_outside_the_domain_go_onto_its_side():
-    from BSplineCAM.core.face_import import DOMAIN_SLACK, into_domain
+    from BSplineCAM.core.geometry.face_import import DOMAIN_SLACK, into_domain
 
     domain = ((0.0, 2.0), (-1.0, 1.0))
     loop = np.array([[-1e-4, -1.0 - 1e-7], [2.0, -1.0], [2.0 + 1e-5, 1.0], [0.0, 1.0],

@@ -33,10 +33,10 @@ from conftest import ROOT
 
 from BSplineCAM.core import Surface
 from BSplineCAM.core.errors import BSplineCAMError, ParameterError
-from BSplineCAM.core.faces import Face
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.nurbs import NurbsSurface
-from BSplineCAM.core.simulate import Grid, Tool, simulate_program
+from BSplineCAM.core.geometry.faces import Face
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate_program
 from BSplineCAM.core.toolpath.faces_iso import generate_faces_iso
 from BSplineCAM.core.toolpath.faces_waterline import generate_faces_waterline
 from BSplineCAM.core.toolpath.faceset import FaceSet

@@ -9,8 +9,8 @@ import time
 import numpy as np
 from bsplinecam_helpers import fillet_ring, gcode, plate_with_hole, two_faces
 
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.simulate import Grid, Tool, simulate_program
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate_program
 from BSplineCAM.core.toolpath.faces_raster import generate_faces_raster
 from BSplineCAM.core.toolpath.faceset import FaceSet
 

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 from bsplinecam_helpers import cylinder_quarter, plane, rectangle
 
-from BSplineCAM.core.faces import Face
-from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.geometry.faces import Face
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
 from BSplineCAM.core.toolpath import faces_waterline
 from BSplineCAM.core.toolpath.faces_waterline import (
     FALSI_STEPS,

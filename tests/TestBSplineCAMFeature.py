@@ -34,7 +34,7 @@ import BSplineCAM  # noqa: E402
 from BSplineCAM import NetError, Surface  # noqa: E402
 from BSplineCAM.app import importers  # noqa: E402
 from BSplineCAM.app import surface_feature as sf  # noqa: E402
-from BSplineCAM.core import netio  # noqa: E402
+from BSplineCAM.core.geometry import netio  # noqa: E402
 
 CASE_STUDY = ROOT / "examples" / "case-study.json"
 RELATIVE_TOLERANCE = 1e-9

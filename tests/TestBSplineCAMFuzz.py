@@ -25,9 +25,9 @@ from conftest import FUZZ, hang_guard
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM.core import netio
 from BSplineCAM.core.errors import BSplineCAMError
-from BSplineCAM.core.gcode import (
+from BSplineCAM.core.geometry import netio
+from BSplineCAM.core.program.gcode import (
     MoveKind,
     Program,
     linearise,

@@ -13,8 +13,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM.core import gcode, rs274
-from BSplineCAM.core.gcode import (
+from BSplineCAM.core.program import gcode, rs274
+from BSplineCAM.core.program.gcode import (
     GcodeError,
     MoveKind,
     linearise,

@@ -382,7 +382,7 @@ class TestCamCommands(CamTestCase):
         from pivy import coin
 
         from BSplineCAM.app import verify_feature as vf
-        from BSplineCAM.core import rs274
+        from BSplineCAM.core.program import rs274
         from BSplineCAM.gui import cam_commands, verify_view
 
         surface, job, op = self.make_job()
@@ -872,7 +872,7 @@ class TestReopenedDocument(CamTestCase):
     """Every command on a job document saved, closed and opened again (fresh proxies)."""
 
     def test_every_command_after_reopen(self) -> None:
-        from BSplineCAM.core import rs274
+        from BSplineCAM.core.program import rs274
         from BSplineCAM.gui import cam_commands, results_panel
 
         surface, job, op = self.reopen("job.FCStd", *self.make_job())
@@ -1012,7 +1012,7 @@ class TestRoughingCommand(CamTestCase):
         box's corners hold no material) and the view shows the cylinder with the paths
         (docs/rough_cylinder.png)."""
         from BSplineCAM.app import compat
-        from BSplineCAM.core.stock import CylinderStock
+        from BSplineCAM.core.simulation.stock import CylinderStock
 
         surface, job, op = self.make_job()
         op.RestLimit = 0

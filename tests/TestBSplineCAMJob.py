@@ -21,10 +21,10 @@ from bsplinecam_freecad import CASE_STUDY, ROOT, ROUNDING, TOOL, FreeCAD
 
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, compat, pipeline
-from BSplineCAM.core import rs274
-from BSplineCAM.core.gcode import MoveKind, read_gcode
-from BSplineCAM.core.simulate import Tool
-from BSplineCAM.core.verify import verify
+from BSplineCAM.core.program import rs274
+from BSplineCAM.core.program.gcode import MoveKind, read_gcode
+from BSplineCAM.core.simulation.simulate import Tool
+from BSplineCAM.core.simulation.verify import verify
 
 
 def case_study() -> Surface:

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from BSplineCAM.core.errors import ParameterError
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.job_simulation import check_stock_form, simulate_job
-from BSplineCAM.core.simulate import Grid, Tool, simulate_program
-from BSplineCAM.core.stock import CylinderStock, Stock
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.job_simulation import check_stock_form, simulate_job
+from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate_program
+from BSplineCAM.core.simulation.stock import CylinderStock, Stock
 
 CELL = 0.2
 FLAT10 = Tool(10.0, "flat")
@@ -168,7 +168,7 @@ def test_entry_is_the_path_of_the_descent_not_its_bounding_circle() -> None:
     text = program("T1 M6", "G0 X0 Y0 Z5", "G0 Z0.5", "G1 Z0 F300", "G1 X40 Z-2",
                    "G1 X20", "G1 Y8", "G1 X30", "G0 Z5")
     prog = read_gcode(text)
-    from BSplineCAM.core.job_simulation import entry_moves
+    from BSplineCAM.core.simulation.job_simulation import entry_moves
 
     marked = entry_moves(prog)
     feeds = np.flatnonzero(prog.kind != 0)
@@ -320,10 +320,10 @@ def test_verify_job_surface_and_faces() -> None:
     """verify_job measures the final Z-map as verify/verify_faces do: a ball raster at 1 mm
     stepover on a plane leaves scallops of R - sqrt(R^2 - (s/2)^2), no gouge; the per-tool
     volumes are the faced layer and the last millimetre less the scallops."""
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
-    from BSplineCAM.core.surface import Surface
-    from BSplineCAM.core.verify import verify_job
+    from BSplineCAM.core.geometry.faces import Face
+    from BSplineCAM.core.geometry.nurbs import NurbsSurface
+    from BSplineCAM.core.geometry.surface import Surface
+    from BSplineCAM.core.simulation.verify import verify_job
 
     x, y = np.meshgrid(np.linspace(0, 40, 5), np.linspace(0, 30, 4), indexing="ij")
     surface = Surface(np.stack([x, y, np.full_like(x, 10.0)], axis=-1), "clamped", "plane")
@@ -353,8 +353,8 @@ def test_verify_job_surface_and_faces() -> None:
 def test_verify_job_without_stock_matches_verify() -> None:
     """Without a stock block verify_job cuts the block verify does (the grid, top from
     stock_top), so a one-tool program gives the same height map and figures."""
-    from BSplineCAM.core.surface import Surface
-    from BSplineCAM.core.verify import verify, verify_job
+    from BSplineCAM.core.geometry.surface import Surface
+    from BSplineCAM.core.simulation.verify import verify, verify_job
 
     x, y = np.meshgrid(np.linspace(0, 40, 5), np.linspace(0, 30, 4), indexing="ij")
     surface = Surface(np.stack([x, y, np.full_like(x, 10.0)], axis=-1), "clamped", "plane")
@@ -388,7 +388,7 @@ def test_helix_closing_turn_is_part_of_the_entry() -> None:
         lines.append(f"G1 X{r * math.cos(a):.5f} Y{r * math.sin(a):.5f} Z-1")
     lines += ["G1 X12 Y0 Z-1", "G0 Z5"]
     prog = read_gcode(program(*lines))
-    from BSplineCAM.core.job_simulation import entry_moves
+    from BSplineCAM.core.simulation.job_simulation import entry_moves
 
     marked = entry_moves(prog)
     feeds = np.flatnonzero(prog.kind != 0)
@@ -415,7 +415,7 @@ def test_closing_lap_of_a_ramp_round_a_closed_pass_is_part_of_the_entry() -> Non
                    "G1 X40", "G1 Y40", "G1 X0", "G1 Y0", "G1 X10", "G1 X20",
                    "G1 Y10", "G0 Z5")
     prog = read_gcode(text)
-    from BSplineCAM.core.job_simulation import entry_moves
+    from BSplineCAM.core.simulation.job_simulation import entry_moves
 
     marked = entry_moves(prog)
     feeds = np.flatnonzero(prog.kind != 0)

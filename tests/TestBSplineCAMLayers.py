@@ -70,11 +70,11 @@ LAZY = {
     # command loads what it runs when it runs
     **{("gui.cam_commands", t): LOAD_ON_USE for t in (
         "app.cam", "app.finishing_op", "app.pipeline", "app.verify_feature",
-        "core.rs274", "core.toolpath.common")},
+        "core.program.rs274", "core.toolpath.common")},
     **{("gui.commands", t): LOAD_ON_USE for t in ("app.importers", "core", "gui.results_panel")},
     **{("gui.results_panel", t): LOAD_ON_USE for t in ("app.surface_feature", "app.verify_feature")},
     **{("gui.rough_panel", t): LOAD_ON_USE for t in (
-        "app.cam", "app.pipeline", "app.roughing_op", "core.simulate")},
+        "app.cam", "app.pipeline", "app.roughing_op", "core.simulation.simulate")},
     **{("gui.surface_view", t): LOAD_ON_USE for t in ("gui.net_panel", "gui.results_panel")},
     **{("gui.verify_view", t): LOAD_ON_USE for t in ("app.verify_feature", "gui.results_panel")},
 }

@@ -20,8 +20,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM.core.errors import BSplineCAMError, ParameterError
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.machining_time import (
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.machining_time import (
     ARC_NORMAL_RATIO,
     ARC_TANGENTIAL_RATIO,
     MachineLimits,

@@ -26,8 +26,8 @@ from bsplinecam_freecad import CASE_STUDY, ROOT, TOOL, FreeCAD
 
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, compat, pipeline
-from BSplineCAM.core import rs274
-from BSplineCAM.core.gcode import read_gcode
+from BSplineCAM.core.program import rs274
+from BSplineCAM.core.program.gcode import read_gcode
 
 CUTTING = cam.Cutting(horizontal_feed=1100.0, vertical_feed=350.0, spindle_speed=11000.0)
 PARAMS = pipeline.FinishingParameters(tool_diameter=TOOL, scallop=0.08, strategy="raster", angle=30.0)

@@ -13,8 +13,8 @@ import pytest
 from conftest import CASE_STUDY, ROOT, random_net
 
 from BSplineCAM import Surface
-from BSplineCAM.core import netio
 from BSplineCAM.core.errors import NetError
+from BSplineCAM.core.geometry import netio
 from BSplineCAM.orchestration.cli import main as cli_main
 
 

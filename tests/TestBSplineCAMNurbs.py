@@ -15,10 +15,10 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM import Surface
-from BSplineCAM.core import matrix
-from BSplineCAM.core.basis import cox_de_boor, knot_vector
 from BSplineCAM.core.errors import BSplineCAMError, NetError, ParameterError
-from BSplineCAM.core.nurbs import NurbsSurface, expand_knots, patch_bounds, span_matrices
+from BSplineCAM.core.geometry import matrix
+from BSplineCAM.core.geometry.basis import cox_de_boor, knot_vector
+from BSplineCAM.core.geometry.nurbs import NurbsSurface, expand_knots, patch_bounds, span_matrices
 
 SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])

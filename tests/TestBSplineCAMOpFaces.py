@@ -31,10 +31,10 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM.app import cam, compat, finishing_op, pipeline  # noqa: E402
 from BSplineCAM.app import faces as app_faces  # noqa: E402
-from BSplineCAM.core import rs274  # noqa: E402
 from BSplineCAM.core import toolpath as core_toolpath  # noqa: E402
-from BSplineCAM.core.gcode import MoveKind, read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Grid, Tool, simulate_program  # noqa: E402
+from BSplineCAM.core.program import rs274  # noqa: E402
+from BSplineCAM.core.program.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate_program  # noqa: E402
 from BSplineCAM.core.toolpath.common import ToolpathCancelled  # noqa: E402
 from BSplineCAM.core.toolpath.faceset import FaceSet  # noqa: E402
 from BSplineCAM.orchestration.cli import flush_all  # noqa: E402

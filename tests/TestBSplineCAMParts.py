@@ -24,8 +24,8 @@ import pytest
 from conftest import CASE_STUDY, ROOT, run_main
 
 from BSplineCAM.app import runtime
-from BSplineCAM.core.faces import Face, FaceError, sample_points, to_dict
-from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.geometry.faces import Face, FaceError, sample_points, to_dict
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
 from BSplineCAM.orchestration import cli_toolpath, parts
 
 EXAMPLE = ROOT / "examples" / "part.step"
@@ -554,8 +554,8 @@ def test_post_toolpath_of_a_part(tmp_path):
     job's stock (the part's exact top 29.824 mm, not OCCT's box of its poles at 41.6 mm, + 1 mm
     of stock + CAM's SafeHeightOffset of 3 mm), the feeds and spindle are those given, and
     LinuxCNC's rs274 accepts it."""
-    from BSplineCAM.core import rs274
-    from BSplineCAM.core.gcode import MoveKind, read_gcode
+    from BSplineCAM.core.program import rs274
+    from BSplineCAM.core.program.gcode import MoveKind, read_gcode
 
     ngc, doc = tmp_path / "part.ngc", tmp_path / "part-job.FCStd"
     script = tmp_path / "post.py"
@@ -598,9 +598,9 @@ def test_toolpath_part_strategy(tmp_path, strategy):
     """``toolpath PART --strategy isoparametric`` on a block with a B-spline top: the program
     passes rs274 and, simulated from its text, never cuts below the exact faces (FaceSet.height
     of every face of the part) by more than 1 um, and leaves the scallop inside the top."""
-    from BSplineCAM.core import rs274
-    from BSplineCAM.core.gcode import MoveKind, read_gcode
-    from BSplineCAM.core.simulate import Grid, Tool, simulate_program
+    from BSplineCAM.core.program import rs274
+    from BSplineCAM.core.program.gcode import MoveKind, read_gcode
+    from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate_program
     from BSplineCAM.core.toolpath.faceset import FaceSet
 
     step = tmp_path / "block.step"

@@ -8,7 +8,7 @@ import threading
 
 import pytest
 
-from BSplineCAM.core.verify import run_reporting
+from BSplineCAM.core.simulation.verify import run_reporting
 
 
 class Stop(Exception):

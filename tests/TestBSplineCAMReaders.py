@@ -16,9 +16,16 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from BSplineCAM.core import gcode, netio
 from BSplineCAM.core.errors import BSplineCAMError, NetError
-from BSplineCAM.core.gcode import GcodeError, MoveKind, linearise, read_gcode, read_gcode_file
+from BSplineCAM.core.geometry import netio
+from BSplineCAM.core.program import gcode
+from BSplineCAM.core.program.gcode import (
+    GcodeError,
+    MoveKind,
+    linearise,
+    read_gcode,
+    read_gcode_file,
+)
 from BSplineCAM.orchestration.cli import main as cli_main
 
 GRID = np.arange(48.0).reshape(4, 4, 3)

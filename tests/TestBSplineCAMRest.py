@@ -16,8 +16,8 @@ import pytest
 from bsplinecam_helpers import K_RIDGE, NET_SIZE, bezier_net, ridge_contact_slope, ridge_z
 
 from BSplineCAM.core import ParameterError, Surface
-from BSplineCAM.core.gcode import Segments
-from BSplineCAM.core.simulate import Grid, Tool, simulate
+from BSplineCAM.core.program.gcode import Segments
+from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate
 from BSplineCAM.core.toolpath import generate, to_moves
 from BSplineCAM.core.toolpath.rest import OffsetHeights, generate_rest, net_cl_height
 
@@ -226,8 +226,8 @@ def test_bad_arguments(kwargs, name):
 def test_faceset_plane_matches_closed_form():
     """The same passes from a trimmed face (FaceSet drop-cutter): vertices on the closed-form
     offset CL of the inclined plane."""
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
+    from BSplineCAM.core.geometry.faces import Face
+    from BSplineCAM.core.geometry.nurbs import NurbsSurface
     from BSplineCAM.core.toolpath.faceset import FaceSet
     from BSplineCAM.core.toolpath.rest import faceset_cl_height
 
@@ -255,7 +255,7 @@ def test_faceset_plane_matches_closed_form():
 
 def test_simulation_input_progress_and_cancel():
     """A core Simulation is accepted as the stock; progress rises to 1; cancel stops."""
-    from BSplineCAM.core.simulate import Simulation
+    from BSplineCAM.core.simulation.simulate import Simulation
     from BSplineCAM.core.toolpath import ToolpathCancelled
 
     grid = Grid.covering(0.0, 20.0, 0.0, 20.0, 0.1)

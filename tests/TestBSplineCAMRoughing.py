@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from BSplineCAM.core.errors import ParameterError
-from BSplineCAM.core.simulate import Grid, Tool, _cut, _windows
-from BSplineCAM.core.stock import CylinderStock
+from BSplineCAM.core.simulation.simulate import Grid, Tool, _cut, _windows
+from BSplineCAM.core.simulation.stock import CylinderStock
 from BSplineCAM.core.toolpath.common import ToolpathCancelled
 from BSplineCAM.core.toolpath.roughing import (
     RAMP_ANGLE_DEG,
@@ -461,8 +461,8 @@ def test_fine_stepdown_terraces_and_order(shape):
 def case_study_part():
     """The case study's height function (NaN off the surface) and its block: the part's box
     grown by 2 mm on every side."""
-    from BSplineCAM.core.footprint import surface_height
-    from BSplineCAM.core.surface import Surface
+    from BSplineCAM.core.geometry.footprint import surface_height
+    from BSplineCAM.core.geometry.surface import Surface
 
     surf = Surface.from_json(str(EXAMPLES / "case-study.json"))
     P = surf.evaluate_grid(np.linspace(0, 1, 101), np.linspace(0, 1, 101)).reshape(-1, 3)
@@ -544,8 +544,8 @@ def test_a_feed_wider_than_the_stepover_is_peeled_within_it():
     each within the stepover.  Checked by the job simulation of the G-code text: the whole
     feed measures 4 mm, each of the peel's within 1.1 stepovers plus a cell, and after them
     the material within the feed's reach is gone as after the feed itself."""
-    from BSplineCAM.core.gcode import read_gcode
-    from BSplineCAM.core.job_simulation import simulate_job
+    from BSplineCAM.core.program.gcode import read_gcode
+    from BSplineCAM.core.simulation.job_simulation import simulate_job
 
     cell, s, z = 0.25, 2.0, 5.0
     tool = Tool(8.0, "flat")
@@ -593,8 +593,8 @@ def test_a_feed_ending_just_outside_the_region_is_peeled():
     does (a peel kept inside the region would never reach the feed's end, and the feed would
     stay).
     Checked by the job simulation of the G-code text, from a block that holds the band."""
-    from BSplineCAM.core.gcode import read_gcode
-    from BSplineCAM.core.job_simulation import simulate_job
+    from BSplineCAM.core.program.gcode import read_gcode
+    from BSplineCAM.core.simulation.job_simulation import simulate_job
 
     cell, s, z = 0.25, 2.0, 5.0
     tool = Tool(8.0, "flat")
@@ -1059,8 +1059,8 @@ def test_bad_input(kwargs, word):
 def _job_radial(rough, stock, tool, cell):
     """Per-move radial engagement (mm) outside entries, by core.job_simulation cutting the
     program written as G-code out of the block, and the number of colliding rapids."""
-    from BSplineCAM.core.gcode import read_gcode
-    from BSplineCAM.core.job_simulation import simulate_job
+    from BSplineCAM.core.program.gcode import read_gcode
+    from BSplineCAM.core.simulation.job_simulation import simulate_job
 
     lines = ["G21 G90 G17", "T1 M6"]
     for m in rough.moves:
@@ -1190,8 +1190,8 @@ def boss_in_cylinder(xs, ys):
 def simulate_text(rough, stock, tool, cell=SIM_CELL):
     """The roughing written as G-code text, read back and cut out of ``stock`` by
     core.job_simulation on the stock's bounding box."""
-    from BSplineCAM.core.gcode import read_gcode
-    from BSplineCAM.core.job_simulation import simulate_job
+    from BSplineCAM.core.program.gcode import read_gcode
+    from BSplineCAM.core.simulation.job_simulation import simulate_job
 
     lines = ["G21 G90 G17", "T1 M6"]
     for m in rough.moves:
@@ -1478,7 +1478,7 @@ def test_bullnose_moves_still_over_on_the_example_part_are_peeled():
 
     if os.environ.get("BSPLINECAM_REQUIRE_ALL") != "1":
         pytest.importorskip("OCP", reason="cadquery's OCP lives in the project venv")
-    from BSplineCAM.core.faces_height import FacesHeight
+    from BSplineCAM.core.geometry.faces_height import FacesHeight
     from BSplineCAM.ocp import faces as ocp_faces
 
     faces = ocp_faces.faces_from_shape(ocp_faces.read_part(EXAMPLES / "part.step"), "up")

@@ -22,10 +22,10 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline  # noqa: E402
-from BSplineCAM.core import rs274  # noqa: E402
-from BSplineCAM.core.gcode import read_gcode  # noqa: E402
-from BSplineCAM.core.simulate import Tool  # noqa: E402
-from BSplineCAM.core.verify import verify_job  # noqa: E402
+from BSplineCAM.core.program import rs274  # noqa: E402
+from BSplineCAM.core.program.gcode import read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
+from BSplineCAM.core.simulation.verify import verify_job  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 ROUGH = pipeline.RoughingParameters(shape="flat", diameter=8.0, stepdown=2.0,
@@ -380,7 +380,7 @@ class TestCylinderStock(unittest.TestCase):
         FreeCAD.closeDocument(cls.doc.Name)
 
     def test_the_ops_stock_is_the_cylinder(self):
-        from BSplineCAM.core.stock import CylinderStock
+        from BSplineCAM.core.simulation.stock import CylinderStock
 
         self.assertEqual(compat.cam_stock_type(self.job.Stock), "CreateCylinder")
         stock = self.rough.Proxy.stock_block(self.rough)
@@ -395,8 +395,8 @@ class TestCylinderStock(unittest.TestCase):
         self.assertEqual(job_stock(self.job), stock)
 
     def test_roughs_within_the_cylinder(self):
-        from BSplineCAM.core.job_simulation import simulate_job
-        from BSplineCAM.core.simulate import Grid
+        from BSplineCAM.core.simulation.job_simulation import simulate_job
+        from BSplineCAM.core.simulation.simulate import Grid
 
         report = json.loads(self.rough.Report)
         self.assertNotIn("error", report)

@@ -13,8 +13,8 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM.core.errors import ParameterError
-from BSplineCAM.core.gcode import Segments, read_canonical, read_gcode
-from BSplineCAM.core.simulate import RIM_MM, Grid, Tool, simulate, simulate_program
+from BSplineCAM.core.program.gcode import Segments, read_canonical, read_gcode
+from BSplineCAM.core.simulation.simulate import RIM_MM, Grid, Tool, simulate, simulate_program
 
 RS274 = shutil.which("rs274")
 TOP = 10.0

@@ -24,8 +24,8 @@ from bsplinecam_freecad import CASE_STUDY, ROUNDING, TOOL, FreeCAD
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, compat, surface3d
 from BSplineCAM.app.surface_feature import make_surface
-from BSplineCAM.core import rs274
-from BSplineCAM.core.gcode import MoveKind, read_gcode
+from BSplineCAM.core.program import rs274
+from BSplineCAM.core.program.gcode import MoveKind, read_gcode
 
 #: Coarse enough for a quick test: stepover 2 sqrt(2 R h - h^2) = 3.3 mm (55 % of the tool).
 SCALLOP = 0.5

@@ -15,17 +15,17 @@ from conftest import FUZZ, hang_guard, plane_net, run_main
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM.core import rs274
 from BSplineCAM.core.errors import BSplineCAMError, ParameterError
-from BSplineCAM.core.gcode import read_canonical, read_gcode
-from BSplineCAM.core.simulate import Tool, ToolShape
-from BSplineCAM.core.tooltable import (
+from BSplineCAM.core.program import rs274
+from BSplineCAM.core.program.gcode import read_canonical, read_gcode
+from BSplineCAM.core.program.tooltable import (
     MAX_TABLE_BYTES,
     ToolTableError,
     check_program_tools,
     parse_tools_option,
     read_tool_table,
 )
+from BSplineCAM.core.simulation.simulate import Tool, ToolShape
 
 # -- --tools -----------------------------------------------------------------------------------
 

@@ -17,10 +17,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from BSplineCAM.core import ParameterError, Surface
-from BSplineCAM.core.footprint import surface_height
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.simulate import Tool
-from BSplineCAM.core.verify import verify
+from BSplineCAM.core.geometry.footprint import surface_height
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import Tool
+from BSplineCAM.core.simulation.verify import verify
 
 
 def plane_surface(z: float = 10.0, width: float = 60.0, depth: float = 40.0) -> Surface:

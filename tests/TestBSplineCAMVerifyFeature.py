@@ -19,9 +19,9 @@ from bsplinecam_freecad import CASE_STUDY, TOOL, FreeCAD
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, pipeline
 from BSplineCAM.app import verify_feature as vf
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.simulate import Tool
-from BSplineCAM.core.verify import verify
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import Tool
+from BSplineCAM.core.simulation.verify import verify
 
 CELL = 0.5
 

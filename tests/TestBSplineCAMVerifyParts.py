@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from BSplineCAM.core.faces import face_from_dict
-from BSplineCAM.core.faces_height import FacesHeight
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.simulate import Tool
-from BSplineCAM.core.verify import verify_faces
+from BSplineCAM.core.geometry.faces import face_from_dict
+from BSplineCAM.core.geometry.faces_height import FacesHeight
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import Tool
+from BSplineCAM.core.simulation.verify import verify_faces
 
 BIN = ROOT / "bin" / "bsplinecam"
 VENV_PYTHON = ROOT / ".venv" / "bin" / "python"
@@ -38,7 +38,7 @@ MAKE = """
 import json, sys
 sys.path.insert(0, {root!r})
 import cadquery as cq
-from BSplineCAM.core.faces import to_dict
+from BSplineCAM.core.geometry.faces import to_dict
 from BSplineCAM.ocp.faces import faces_from_shape, read_part
 L, W, H, F, (hx, hy, hr) = {L}, {W}, {H}, {F}, {HOLE}
 block = cq.Workplane().box(L, W, H, centered=False)
@@ -274,8 +274,8 @@ def test_trimmed_windows_lose_nothing(monkeypatch, shape, corner, seed):
     diagonal, and one that turns) with random slopes: the simulation with each move's window
     cut to where it can be the lowest equals the one with every move's whole reach, and both
     equal a dense sampling of tool positions along the path (an independent reference)."""
-    from BSplineCAM.core import simulate as sim_mod
-    from BSplineCAM.core.gcode import linearise
+    from BSplineCAM.core.program.gcode import linearise
+    from BSplineCAM.core.simulation import simulate as sim_mod
 
     rng = np.random.default_rng(seed)
     lines = ["G21 G90", "G0 X0 Y0 Z20"]
@@ -327,7 +327,7 @@ def test_direct_dilation_equals_distance_transform(radius):
     """The banded dilation of ``distance.dilate_disk`` against thresholding the exact
     distance transform (itself tested against brute force in TestBSplineCAMDistance), on
     footprints with holes and islands, with and without the grid's outside set."""
-    from BSplineCAM.core import distance
+    from BSplineCAM.core.geometry import distance
 
     rng = np.random.default_rng(int(radius * 10))
     yy, xx = np.mgrid[:160, :230]
@@ -349,8 +349,8 @@ def test_direct_dilation_equals_distance_transform(radius):
 # -- a wall between two selected faces -----------------------------------------------------------
 def _plane_face(x0: float, x1: float, z: float, index: int):
     """A selected horizontal face over [x0, x1] x [0, 10] at height z (degree-1 NURBS)."""
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
+    from BSplineCAM.core.geometry.faces import Face
+    from BSplineCAM.core.geometry.nurbs import NurbsSurface
 
     poles = np.array([[[x0, 0, z], [x0, 10, z]], [[x1, 0, z], [x1, 10, z]]], dtype=float)
     surface = NurbsSurface(poles, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1, name=f"Face{index}")

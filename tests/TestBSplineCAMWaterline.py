@@ -12,11 +12,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from BSplineCAM.core import Surface, rs274
-from BSplineCAM.core.gcode import read_gcode
-from BSplineCAM.core.simulate import Tool
+from BSplineCAM.core import Surface
+from BSplineCAM.core.program import rs274
+from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.simulation.simulate import Tool
+from BSplineCAM.core.simulation.verify import GOUGE_TOLERANCE_MM, verify
 from BSplineCAM.core.toolpath import DropCutter, generate, to_moves
-from BSplineCAM.core.verify import GOUGE_TOLERANCE_MM, verify
 
 TOOL, SCALLOP, TOLERANCE, MIN_SLOPE = 6.0, 0.02, 0.002, 30.0
 #: Coordinates are written with 4 decimals: up to 0.05 µm of rounding per axis.

@@ -23,8 +23,8 @@ TOP = 25.0  # mm, the boss's top
 
 def _boss_top(height: float = TOP, centre=(20.0, 20.0)):
     """The boss's flat top: a plane at ``height`` trimmed to the disc of radius WALL."""
-    from BSplineCAM.core.faces import Face
-    from BSplineCAM.core.nurbs import NurbsSurface
+    from BSplineCAM.core.geometry.faces import Face
+    from BSplineCAM.core.geometry.nurbs import NurbsSurface
 
     lo, hi = np.subtract(centre, WALL), np.add(centre, WALL)
     poles = np.array([[[lo[0], lo[1], height], [lo[0], hi[1], height]],

@@ -30,7 +30,7 @@ from bsplinecam_freecad import CASE_STUDY, ROUNDING, TOOL, FreeCAD
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, compat, finishing_op, pipeline, surface_feature
 from BSplineCAM.app import verify_feature as vf
-from BSplineCAM.core import rs274
+from BSplineCAM.core.program import rs274
 
 
 def hill() -> Surface:

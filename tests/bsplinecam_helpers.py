@@ -15,8 +15,8 @@ import math
 import numpy as np
 
 from BSplineCAM.core import Surface
-from BSplineCAM.core.faces import Face
-from BSplineCAM.core.nurbs import NurbsSurface
+from BSplineCAM.core.geometry.faces import Face
+from BSplineCAM.core.geometry.nurbs import NurbsSurface
 from BSplineCAM.core.toolpath import to_moves
 from BSplineCAM.core.toolpath.faceset import FaceSet
 

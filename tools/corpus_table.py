@@ -78,7 +78,7 @@ def run(args: list[str], timeout: float = 900.0) -> dict:
 
 def measure(entry: dict, shared: Path, tool: float, work: Path) -> dict:
     """Every command of the table on one part."""
-    from BSplineCAM.core import rs274
+    from BSplineCAM.core.program import rs274
 
     path = part_path(entry, shared)
     result: dict = {"file": entry["file"], "cad": entry["cad"], "origin": entry["origin"]}

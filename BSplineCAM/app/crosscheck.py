@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from ..core import Surface
-from ..core.basis import cox_de_boor_surface
+from ..core.geometry.basis import cox_de_boor_surface
 from . import runtime
 from .compat import freecad_version
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Faces as FreeCAD holds them, into the core's plain NURBS faces (BSplineCAM.core.faces).
+"""Faces as FreeCAD holds them, into the core's plain NURBS faces (BSplineCAM.core.geometry.faces).
 
-The reader is :mod:`BSplineCAM.core.part_reader`; this module is its adapter to FreeCAD's
+The reader is :mod:`BSplineCAM.core.geometry.part_reader`; this module is its adapter to FreeCAD's
 Part API (:class:`FreeCADPart`) and reads part files (:func:`read_part`).
 
 B-spline and Bézier faces give their poles, weights, knots and multiplicities directly; any
@@ -12,14 +12,14 @@ projection, then its evaluation at the projected parameters).  Periodic or uncla
 vectors are made clamped by OCCT's exact knot insertion (``Geom_BSplineSurface::Segment``),
 which keeps the parameterisation; the trim's parameter curves (pcurves, or the 3-D edge
 projected onto the surface where the face stores none) are discretised by
-:func:`BSplineCAM.core.faces.densify_edge` within a 3-D chord tolerance.
+:func:`BSplineCAM.core.geometry.faces.densify_edge` within a 3-D chord tolerance.
 
 A face is accepted when its NURBS, as the core evaluates it, lies within 1 % of the
 machining's chordal tolerance from OCCT's original surface (``core.face_import``).
 
 "up" (:func:`reaches_from_above`): OCCT's outward normals (``Face.normalAt``) at the sampled
 points of the trimmed domain (a grid inside the trim and the trim's own points) go to the
-core's rule (:func:`BSplineCAM.core.faces.reach`): a face whose normal points down only as far
+core's rule (:func:`BSplineCAM.core.geometry.faces.reach`): a face whose normal points down only as far
 as the model's own tolerance at the face (the largest tolerance of the face, its edges and
 vertices) can tell -- the foot of a blend tangent to a wall -- is reached from above; an
 undercut face and a vertical wall are not.
@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core import faces as core_faces
-from ..core import part_reader
 from ..core.errors import BSplineCAMError
-from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE
-from ..core.faces import DEFAULT_TOLERANCE, UP_TOLERANCE, Face, FaceError
+from ..core.geometry import faces as core_faces
+from ..core.geometry import part_reader
+from ..core.geometry.face_import import DEFAULT_CHORDAL_TOLERANCE
+from ..core.geometry.faces import DEFAULT_TOLERANCE, UP_TOLERANCE, Face, FaceError
 from ..core.typing import FloatArray
 from .compat import ensure_freecad
 
@@ -142,7 +142,7 @@ def _xy(point) -> tuple[float, float]:
 
 
 class FreeCADPart:
-    """:class:`BSplineCAM.core.part_reader.PartAdapter` in FreeCAD's Part API: Part.Shape,
+    """:class:`BSplineCAM.core.geometry.part_reader.PartAdapter` in FreeCAD's Part API: Part.Shape,
     Part.Face, Part.Wire, Part.Edge and Part's surfaces."""
 
     # -- shape
@@ -246,7 +246,7 @@ class FreeCADPart:
         return poles, np.array(surface.getWeights(), dtype=float)
 
 
-#: The adapter :mod:`BSplineCAM.core.part_reader` reads FreeCAD's shapes with.
+#: The adapter :mod:`BSplineCAM.core.geometry.part_reader` reads FreeCAD's shapes with.
 ADAPTER = FreeCADPart()
 
 

@@ -27,11 +27,11 @@ import re
 import numpy as np
 
 from ..core import Surface
-from ..core import faces as core_faces
 from ..core import toolpath as core_toolpath
 from ..core.errors import BSplineCAMError
-from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE
-from ..core.faces import FaceError
+from ..core.geometry import faces as core_faces
+from ..core.geometry.face_import import DEFAULT_CHORDAL_TOLERANCE
+from ..core.geometry.faces import FaceError
 from ..core.toolpath import common as toolpath_common
 from ..core.toolpath.arcs import feed_length
 from ..core.toolpath.common import RAPID_RANGE, CuttingParameters, ToolParameters

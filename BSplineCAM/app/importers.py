@@ -12,7 +12,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..core import BSplineCAMError, Surface, netio
+from ..core import BSplineCAMError, Surface
+from ..core.geometry import netio
 from . import part
 from .compat import ensure_freecad
 from .surface_feature import make_surface, surface_of, surfaces_in

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core import Surface
-from ..core.netio import atomic_write
+from ..core.geometry.netio import atomic_write
 from ..core.typing import FloatArray
 from .compat import ensure_freecad
 

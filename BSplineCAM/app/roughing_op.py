@@ -17,9 +17,9 @@ import json
 import numpy as np
 
 from ..core.errors import ParameterError
-from ..core.faces_height import FacesHeight
-from ..core.footprint import surface_height
-from ..core.simulate import Tool
+from ..core.geometry.faces_height import FacesHeight
+from ..core.geometry.footprint import surface_height
+from ..core.simulation.simulate import Tool
 from ..core.toolpath.arcs import feed_length, fit_arcs
 from ..core.toolpath.common import RAPID_RANGE, CuttingParameters
 from ..core.toolpath.roughing import (

@@ -2,20 +2,20 @@
 """The stock an op starts from: the job's stock cut by earlier ops (issue 12).
 
 The job's stock is read as core data (:func:`job_stock`): CAM's cylinder stock
-("CreateCylinder") with a vertical axis as a :class:`BSplineCAM.core.stock.CylinderStock`,
+("CreateCylinder") with a vertical axis as a :class:`BSplineCAM.core.simulation.stock.CylinderStock`,
 every other stock as the block of its shape's box.  The earlier ops' Path commands, each
 after a tool change to its controller's number, are read as one program
-(:func:`BSplineCAM.core.gcode.read_gcode`) and simulated from that stock with each
-controller's tool (:func:`BSplineCAM.core.job_simulation.simulate_job`), the same simulation
+(:func:`BSplineCAM.core.program.gcode.read_gcode`) and simulated from that stock with each
+controller's tool (:func:`BSplineCAM.core.simulation.job_simulation.simulate_job`), the same simulation
 ``verify`` runs on the posted program.
 """
 
 from __future__ import annotations
 
-from ..core.gcode import read_gcode
-from ..core.job_simulation import simulate_job
-from ..core.simulate import Grid, Tool
-from ..core.stock import CylinderStock, Stock
+from ..core.program.gcode import read_gcode
+from ..core.simulation.job_simulation import simulate_job
+from ..core.simulation.simulate import Grid, Tool
+from ..core.simulation.stock import CylinderStock, Stock
 from . import compat
 
 FreeCAD = compat.ensure_freecad()
@@ -52,10 +52,10 @@ VERTICAL_AXIS_TOLERANCE = 1e-9
 
 
 def job_stock(job):
-    """The job's stock as a core :class:`~BSplineCAM.core.stock.CylinderStock` when it is
+    """The job's stock as a core :class:`~BSplineCAM.core.simulation.stock.CylinderStock` when it is
     CAM's cylinder stock with its axis along Z (centre and height from its shape, which
     carries the Placement, radius from its Radius property), else as the
-    :class:`~BSplineCAM.core.stock.Stock` block of its shape's box (mm, job coordinates).
+    :class:`~BSplineCAM.core.simulation.stock.Stock` block of its shape's box (mm, job coordinates).
     ValueError naming the job when it has no stock."""
     stock = getattr(job, "Stock", None)
     if stock is None or stock.Shape.isNull():

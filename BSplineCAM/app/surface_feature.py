@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core import Surface
-from ..core.basis import KnotLayout
 from ..core.errors import NetError
+from ..core.geometry.basis import KnotLayout
 from . import part
 from .compat import ensure_freecad
 from .crosscheck import crosscheck

@@ -2,7 +2,7 @@
 """The "simulated part" document object: a verification's Z-map as a mesh, with its deviation.
 
 :func:`make_verification` reads G-code *text* (what a controller would run), simulates it on a
-Z-map against the exact design (:func:`BSplineCAM.core.verify.verify`) and stores the result
+Z-map against the exact design (:func:`BSplineCAM.core.simulation.verify.verify`) and stores the result
 as a ``Mesh::FeaturePython``: the machined top surface triangulated at every ``Stride``-th
 cell centre, closed by walls and a base into a block, plus per top vertex the deviation
 (machined - design, mm) in ``Deviation`` and the metrics (JSON) in ``Metrics``.  The object is
@@ -26,11 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from ..core import Surface
-from ..core.footprint import footprint_bounds
-from ..core.gcode import read_gcode
-from ..core.simulate import Simulation, Tool
-from ..core.verify import Verification, verify, verify_faces
-from ..core.verify import verify_job as verify_job_program
+from ..core.geometry.footprint import footprint_bounds
+from ..core.program.gcode import read_gcode
+from ..core.simulation.simulate import Simulation, Tool
+from ..core.simulation.verify import Verification, verify, verify_faces
+from ..core.simulation.verify import verify_job as verify_job_program
 from . import cam, compat
 from .finishing_op import ObjectSurfaceFinish, find_surface_object
 from .progress import StatusProgress
@@ -198,11 +198,11 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
 
     ``surface_obj`` is the design object (a BSplineCAM surface object, or the part whose faces
     are machined); ``surface`` overrides its geometry: a core Surface (e.g. in job
-    coordinates) or a part's core faces (:func:`BSplineCAM.core.verify.verify_faces`: gouge on
+    coordinates) or a part's core faces (:func:`BSplineCAM.core.simulation.verify.verify_faces`: gouge on
     the whole model, scallop and coverage on the selected faces); ``tool_diameter`` is the ball end's (mm); ``cell``
     the Z-map cell (mm, default: :func:`default_cell`).  With ``tools`` ({number: core Tool})
     the program's tool changes are followed from the block ``stock`` (x0, x1, y0, y1, z0, z1
-    mm, a core Stock, or a core CylinderStock; :func:`BSplineCAM.core.verify.verify_job`), the per-tool figures join the metrics and
+    mm, a core Stock, or a core CylinderStock; :func:`BSplineCAM.core.simulation.verify.verify_job`), the per-tool figures join the metrics and
     the stock after each tool but the last becomes a mesh of its own (``StockAfter``).
     ``progress(fraction)`` is told of each stage (default: FreeCAD's progress bar when the
     GUI is up) and may raise to cancel; the document is touched only after the simulation.

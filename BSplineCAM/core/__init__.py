@@ -3,11 +3,11 @@
 
 from __future__ import annotations
 
-from .basis import KnotLayout, cox_de_boor, knot_vector
 from .errors import BSplineCAMError, NetError, ParameterError
-from .matrix import MB
-from .netio import ControlNet, read_dat, read_net, write_dat
-from .surface import Derivatives, Surface
+from .geometry.basis import KnotLayout, cox_de_boor, knot_vector
+from .geometry.matrix import MB
+from .geometry.netio import ControlNet, read_dat, read_net, write_dat
+from .geometry.surface import Derivatives, Surface
 
 __all__ = [
     "MB", "BSplineCAMError", "ControlNet", "Derivatives", "KnotLayout", "NetError",

@@ -2,7 +2,7 @@
 """Checks of user-given numbers and names: each returns the clean value or raises
 ParameterError naming the argument, its unit and what was expected.
 
-Shared by the stock models (:mod:`BSplineCAM.core.stock`) and the toolpath parameters
+Shared by the stock models (:mod:`BSplineCAM.core.simulation.stock`) and the toolpath parameters
 (:mod:`BSplineCAM.core.toolpath.common`, which re-exports them), so neither imports the other.
 """
 

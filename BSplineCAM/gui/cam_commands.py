@@ -619,7 +619,7 @@ class PostProcess(BaseCommand):
         return selected_job() is not None
 
     def run(self) -> None:
-        from ..core import rs274
+        from ..core.program import rs274
 
         job = selected_job()
         available = set(compat.available_posts())

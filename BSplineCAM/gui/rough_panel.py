@@ -221,7 +221,7 @@ class RoughPanel(PanelBase):
     def parameters(self) -> tuple:
         """(RoughingParameters, Cutting) from the form; ValueError names a bad field."""
         from ..app.pipeline import RoughingParameters
-        from ..core.simulate import Tool
+        from ..core.simulation.simulate import Tool
 
         shape = self.shape.currentText()
         corner = self.corner.value() if shape == "bullnose" else 0.0

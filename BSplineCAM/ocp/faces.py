@@ -2,7 +2,7 @@
 """The face extraction of :mod:`BSplineCAM.app.faces`, in cadquery's OCCT (OCP).
 
 Run on the same STEP part, the two OCCT builds must give the same NURBS faces (poles, knots,
-weights, trims): one confirms the other.  The reader is :mod:`BSplineCAM.core.part_reader`;
+weights, trims): one confirms the other.  The reader is :mod:`BSplineCAM.core.geometry.part_reader`;
 this module is its adapter to OCP (:class:`OCPPart`) and reads STEP and BREP files
 (:func:`read_part`).  B-spline and Bézier faces are read directly, any other surface through
 BRepBuilderAPI_NurbsConvert measured against the original (GeomAPI_ProjectPointOnSurf),
@@ -45,10 +45,10 @@ from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedMapOfShape
 
-from ..core import faces as core_faces
-from ..core import part_reader
-from ..core.face_import import DEFAULT_CHORDAL_TOLERANCE
-from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
+from ..core.geometry import faces as core_faces
+from ..core.geometry import part_reader
+from ..core.geometry.face_import import DEFAULT_CHORDAL_TOLERANCE
+from ..core.geometry.faces import DEFAULT_TOLERANCE, Face, FaceError
 from ..core.typing import FloatArray
 
 
@@ -127,7 +127,7 @@ def _tolerances(shape, kind, cast):
 
 
 class OCPPart:
-    """:class:`BSplineCAM.core.part_reader.PartAdapter` in cadquery's OCP: TopoDS shapes and
+    """:class:`BSplineCAM.core.geometry.part_reader.PartAdapter` in cadquery's OCP: TopoDS shapes and
     Geom surfaces."""
 
     # -- shape
@@ -249,7 +249,7 @@ class OCPPart:
         return poles, weights
 
 
-#: The adapter :mod:`BSplineCAM.core.part_reader` reads OCP's shapes with.
+#: The adapter :mod:`BSplineCAM.core.geometry.part_reader` reads OCP's shapes with.
 ADAPTER = OCPPart()
 
 

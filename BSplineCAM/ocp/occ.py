@@ -21,7 +21,7 @@ from OCP.TColgp import TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
 from ..core import Surface
-from ..core.basis import unique_knots
+from ..core.geometry.basis import unique_knots
 from ..core.typing import FloatArray
 
 
@@ -99,7 +99,7 @@ def export(surface: Surface, path: str | os.PathLike) -> None:
 # -- general NURBS surfaces (core.nurbs.NurbsSurface's constructor arguments) -----------------
 def nurbs_geom(poles, knots_u, knots_v, degree_u: int, degree_v: int, weights=None,
                periodic_u: bool = False, periodic_v: bool = False) -> Geom_BSplineSurface:
-    """Geom_BSplineSurface from the arguments of :class:`~BSplineCAM.core.nurbs.NurbsSurface`
+    """Geom_BSplineSurface from the arguments of :class:`~BSplineCAM.core.geometry.nurbs.NurbsSurface`
     (full flat knot vectors, periodic directions in OCCT's own form)."""
     poles = np.asarray(poles, dtype=float)
     rows, cols = poles.shape[:2]

@@ -20,7 +20,7 @@ from ..app import runtime
 from ..app.crosscheck import crosscheck
 from ..core import Surface
 from ..core.errors import ParameterError
-from ..core.netio import write_dat
+from ..core.geometry.netio import write_dat
 from . import parts
 from .cli_common import (  # noqa: F401  (re-exported: the command line's helpers, for callers of cli)
     DAT_SAMPLES,

@@ -20,9 +20,12 @@ import sys
 import time
 from pathlib import Path
 
-from ..core import BSplineCAMError, Surface, rs274
+from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
-from ..core.gcode import read_gcode_file
+from ..core.program import rs274
+from ..core.program.gcode import read_gcode_file
+from ..core.program.tooltable import MAX_LINE_CHARS, parse_tool_spec
+from ..core.simulation.verify import verify_job
 from ..core.toolpath import check_request
 from ..core.toolpath.common import Strategy, ToolParameters, check_angle, check_range
 from ..core.toolpath.roughing import (
@@ -31,8 +34,6 @@ from ..core.toolpath.roughing import (
     check_fine_stepdown,
     check_ramp_angle,
 )
-from ..core.tooltable import MAX_LINE_CHARS, parse_tool_spec
-from ..core.verify import verify_job
 from . import parts
 from . import report as pictures
 from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output

@@ -12,8 +12,9 @@ import argparse
 import importlib.util
 from pathlib import Path
 
-from ..core import BSplineCAMError, Surface, rs274
+from ..core import BSplineCAMError, Surface
 from ..core.errors import ParameterError
+from ..core.program import rs274
 from ..core.toolpath import check_request
 from ..core.toolpath.common import (
     CuttingParameters,

@@ -21,27 +21,20 @@ from pathlib import Path
 
 from ..core import Surface
 from ..core.errors import ParameterError
-from ..core.faces_height import FacesHeight
-from ..core.footprint import footprint_bounds
-from ..core.gcode import read_gcode_file
-from ..core.machining_time import (
+from ..core.geometry.faces_height import FacesHeight
+from ..core.geometry.footprint import footprint_bounds
+from ..core.geometry.netio import MAX_COORDINATE_MM
+from ..core.program.gcode import read_gcode_file
+from ..core.program.tooltable import check_program_tools, parse_tools_option, read_tool_table
+from ..core.simulation.machining_time import (
     DEFAULT_ACCELERATION,
     DEFAULT_JUNCTION_DEVIATION,
     MachineLimits,
     machining_time,
     parse_axis_values,
 )
-from ..core.netio import MAX_COORDINATE_MM
-from ..core.simulate import Tool, ToolShape, zmap_shape
-from ..core.toolpath.common import (
-    MAX_TOOL_DIAMETER,
-    MIN_TOOL_DIAMETER,
-    RAPID_RANGE,
-    check_range,
-    check_tool_fits,
-)
-from ..core.tooltable import check_program_tools, parse_tools_option, read_tool_table
-from ..core.verify import (
+from ..core.simulation.simulate import Tool, ToolShape, zmap_shape
+from ..core.simulation.verify import (
     DEFAULT_COVERAGE_TOLERANCE,
     DEFAULT_RAPID_RATE,
     DEFAULT_STOCK_MARGIN,
@@ -49,6 +42,13 @@ from ..core.verify import (
     verify,
     verify_faces,
     verify_job,
+)
+from ..core.toolpath.common import (
+    MAX_TOOL_DIAMETER,
+    MIN_TOOL_DIAMETER,
+    RAPID_RANGE,
+    check_range,
+    check_tool_fits,
 )
 from . import parts, report
 from .cli_common import check_interrupted, check_output, emit, json_text, staged_output

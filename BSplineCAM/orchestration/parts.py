@@ -2,10 +2,10 @@
 """Parts (STEP, BREP, FreeCAD documents) as core faces for the command line.
 
 :func:`load_faces` reads a part with FreeCAD's OCCT (:mod:`BSplineCAM.app.faces`) and returns
-its faces as core :class:`~BSplineCAM.core.faces.Face` objects, the selected ones marked.
+its faces as core :class:`~BSplineCAM.core.geometry.faces.Face` objects, the selected ones marked.
 :func:`check_part` is ``bsplinecam check PART``: every selected face's conversion, and the
 core's matrix evaluator against FreeCAD's OCCT and cadquery's OCCT at the same parameters
-inside the trim.  Faces cross between processes as :func:`~BSplineCAM.core.faces.to_dict` JSON.
+inside the trim.  Faces cross between processes as :func:`~BSplineCAM.core.geometry.faces.to_dict` JSON.
 
 A part file is always read, and its faces converted, in a FreeCAD worker (FreeCAD's own
 Python, :func:`runtime.freecad_python`), also when FreeCAD is loaded here: a damaged file can
@@ -33,12 +33,12 @@ from typing import TYPE_CHECKING, Any, Union
 import numpy as np
 
 from ..app import compat, runtime
-from ..core import faces as core_faces
-from ..core import rs274
-from ..core.basis import cox_de_boor
 from ..core.errors import BSplineCAMError, ParameterError
-from ..core.face_import import ACCEPT_SHARE, DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
-from ..core.faces import DEFAULT_TOLERANCE, Face, FaceError
+from ..core.geometry import faces as core_faces
+from ..core.geometry.basis import cox_de_boor
+from ..core.geometry.face_import import ACCEPT_SHARE, DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
+from ..core.geometry.faces import DEFAULT_TOLERANCE, Face, FaceError
+from ..core.program import rs274
 from ..core.toolpath import faces_program_moves, generate_faces, program_moves
 from ..core.toolpath.faceset import FaceSet
 from .cli_common import (
@@ -146,7 +146,7 @@ def load_faces(path: str | os.PathLike, faces: str | None = None,
     file and the face.  With ``allow_all``, "all" marks every face selected (verification
     measures every face seen from above).  A face whose NURBS is farther from OCCT's than
     1 % of ``chordal_tolerance`` (mm, the machining's) is refused
-    (:mod:`BSplineCAM.core.face_import`).
+    (:mod:`BSplineCAM.core.geometry.face_import`).
     """
     selection = parse_faces(faces, option, allow_all=allow_all)
     if selection == "all":
@@ -373,7 +373,7 @@ def check_part(path: str, faces: str | None, samples: int = PART_SAMPLES,
 
     Every face is reported, a face that cannot be built with its error.  A face is
     ``machinable`` when the conversion and FreeCAD's evaluation are within
-    :func:`~BSplineCAM.core.face_import.acceptance_limit` of ``chordal_tolerance`` (the rule
+    :func:`~BSplineCAM.core.geometry.face_import.acceptance_limit` of ``chordal_tolerance`` (the rule
     that refuses faces for toolpaths); ``ok`` is the strict limit: every distance at most
     :data:`RELATIVE_TOLERANCE` of the face's size.  ``over_strict_limit`` names the faces that
     are not ``ok``."""

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from ..app import compat
 from ..core.errors import ParameterError
-from ..core.gcode import MoveKind, read_gcode
+from ..core.program.gcode import MoveKind, read_gcode
 from ..core.toolpath.common import CuttingParameters
 from .cli_common import captured_console, check_interrupted
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.verify import Verification
+from ..core.simulation.verify import Verification
 
 
 def _pyplot():

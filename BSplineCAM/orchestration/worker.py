@@ -28,7 +28,7 @@ import numpy as np
 
 from ..app.compat import freecad_version
 from ..core import Surface
-from ..core.netio import net_from_dict
+from ..core.geometry.netio import net_from_dict
 
 #: Request kinds of :mod:`BSplineCAM.orchestration.parts` (kept here so that a net request
 #: never imports it).

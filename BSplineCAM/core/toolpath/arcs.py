@@ -56,7 +56,7 @@ from typing import NamedTuple, Union
 import numpy as np
 
 from ..errors import ParameterError
-from ..gcode import PLANE_AXES
+from ..program.gcode import PLANE_AXES
 from ..typing import FloatArray
 from .common import Move, check_positive
 
@@ -923,7 +923,7 @@ def counts(moves: Sequence[AnyMove]) -> dict:
 def feed_length(moves: Sequence[AnyMove]) -> float:
     """Length (mm) of the feed moves (lines and arcs) of ``moves``, each from the end of the
     move before it (a feed with none before it has no length): the cutting length a program
-    made of them has, as :mod:`BSplineCAM.core.gcode` measures its text.  An arc sweeps from
+    made of them has, as :mod:`BSplineCAM.core.program.gcode` measures its text.  An arc sweeps from
     its start to its end round its centre in its plane, the way its kind turns seen from the
     plane's normal axis (an end on its start: no sweep), and a helix adds its travel along
     that axis.  Lines are summed at once."""

@@ -16,7 +16,7 @@ from typing import Any, Callable, NamedTuple, Optional
 import numpy as np
 
 from ..errors import BSplineCAMError, ParameterError
-from ..footprint import footprint_bounds
+from ..geometry.footprint import footprint_bounds
 from ..typing import FloatArray
 from ..validation import (  # noqa: F401  (re-exported: the toolpath modules take them from here)
     check_finite,

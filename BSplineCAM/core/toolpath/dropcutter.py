@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import matrix
+from ..geometry import matrix
 from ..numeric import THREADS
 from ..typing import FloatArray
 from .primitives import Jet, upward_sign

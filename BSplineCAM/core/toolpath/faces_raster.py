@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from ..faces import sample_points
+from ..geometry.faces import sample_points
 from ..typing import FloatArray
 from .common import (
     Jet,

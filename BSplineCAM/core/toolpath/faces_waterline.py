@@ -47,7 +47,7 @@ import time
 import numpy as np
 
 from ..errors import ParameterError
-from ..faces import grid_points, inside, sample_points
+from ..geometry.faces import grid_points, inside, sample_points
 from ..typing import FloatArray
 from .common import (
     Jet,

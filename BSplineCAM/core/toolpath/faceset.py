@@ -73,7 +73,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BSplineCAMError, ParameterError
-from ..faces import Face
+from ..geometry.faces import Face
 from ..typing import FloatArray
 from .faceset_bezier import _bernstein as _bernstein
 from .faceset_bezier import _bernstein_grid as _bernstein_grid

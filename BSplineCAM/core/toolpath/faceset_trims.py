@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..faces import Face
+from ..geometry.faces import Face
 from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_bezier import _bernstein_grid

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..faces import Face
+from ..geometry.faces import Face
 from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_params import TOUCH

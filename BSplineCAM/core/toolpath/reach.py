@@ -12,7 +12,7 @@ hemisphere), and the lowest any ball reaches at p is
 Analysis and Mathematical Morphology", 1982, ch. XII; the "inverse offset" of CAM).  Where
 reach(p) - z(p) is large the material stays, whatever the passes: an inside corner between
 faces (a dome standing on a plate), or a hollow tighter than the ball.  Both are computed on
-a grid of the faces' design heights (:class:`~BSplineCAM.core.faces_height.FacesHeight`),
+a grid of the faces' design heights (:class:`~BSplineCAM.core.geometry.faces_height.FacesHeight`),
 every face of the model counting (check faces bear the ball too), and the cells of the
 selected faces left deeper than a threshold are grouped into regions, which the faces
 toolpaths report as ``unreachable`` (the net's own report lists hollows tighter than the
@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..faces_height import FacesHeight
+from ..geometry.faces_height import FacesHeight
 from ..typing import FloatArray
 from .common import label_regions
 

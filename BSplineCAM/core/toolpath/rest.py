@@ -30,9 +30,9 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import ParameterError
-from ..footprint import footprint_bounds
-from ..gcode import Segments
-from ..simulate import Grid, Tool, simulate
+from ..geometry.footprint import footprint_bounds
+from ..program.gcode import Segments
+from ..simulation.simulate import Grid, Tool, simulate
 from ..typing import FloatArray
 from .chords import ChordSamples, lift_chords, sample_chords
 from .common import (

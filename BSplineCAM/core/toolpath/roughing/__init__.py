@@ -118,8 +118,8 @@ from typing import Callable
 import numpy as np
 
 from ...errors import ParameterError
-from ...simulate import Grid, Tool
-from ...stock import CylinderStock, Stock, StockShape
+from ...simulation.simulate import Grid, Tool
+from ...simulation.stock import CylinderStock, Stock, StockShape
 from ...typing import FloatArray
 from ..common import (
     CancelFn,
@@ -252,8 +252,8 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
                       ramp_angle: float = RAMP_ANGLE_DEG,
                       progress: ProgressFn = None, cancel: CancelFn = None) -> Roughing:
     """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``, a
-    :class:`~BSplineCAM.core.stock.Stock` block or a vertical
-    :class:`~BSplineCAM.core.stock.CylinderStock` (material only inside its circle).
+    :class:`~BSplineCAM.core.simulation.stock.Stock` block or a vertical
+    :class:`~BSplineCAM.core.simulation.stock.CylinderStock` (material only inside its circle).
 
     ``stepdown`` (mm) between levels, ``stepover`` (mm, at most the diameter) the largest
     radial width of cut, allowances (mm) left on the walls and floors, ``cell`` (mm) the

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ...simulate import ToolShape, corner_height
+from ...simulation.simulate import ToolShape, corner_height
 from ...typing import FloatArray
 from .constants import CELL_HALF_DIAGONAL, FILLET_MM
 

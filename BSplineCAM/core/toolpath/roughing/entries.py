@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ...distance import squared_distance
+from ...geometry.distance import squared_distance
 from ...typing import FloatArray
 from .constants import (
     _EPS,

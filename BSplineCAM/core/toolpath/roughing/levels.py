@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from ...distance import squared_distance
-from ...simulate import ToolShape
+from ...geometry.distance import squared_distance
+from ...simulation.simulate import ToolShape
 from ..common import label_regions
 from .constants import (
     _EPS,

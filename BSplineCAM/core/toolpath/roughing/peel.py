@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ...simulate import ToolShape
+from ...simulation.simulate import ToolShape
 from ...typing import FloatArray
 from ..common import Move
 from .constants import PEEL_APPROACHES, PEEL_LATTICE, PEEL_SLACK_MM, PEEL_STEPS, PEEL_WIDTH

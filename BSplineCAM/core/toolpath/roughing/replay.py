@@ -9,7 +9,7 @@ from typing import Callable
 
 import numpy as np
 
-from ...simulate import ToolShape
+from ...simulation.simulate import ToolShape
 from ...typing import FloatArray
 from ..common import Move
 from .constants import DESCENT_BAND_MM, ENTRY_TRACK_MM

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...distance import squared_distance
+from ...geometry.distance import squared_distance
 from ...typing import FloatArray
 from .constants import FRONT_SMOOTH_RADII, MIN_FRONT_STEP
 

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from ...simulate import Tool
+from ...simulation.simulate import Tool
 from ...typing import FloatArray
 from .constants import GRID_GROWTH_CELLS
 

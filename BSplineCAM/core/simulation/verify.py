@@ -29,19 +29,19 @@ from typing import TypeVar
 
 import numpy as np
 
-from .distance import dilate_disk
-from .errors import ParameterError
-from .faces import Face
-from .faces_height import FacesHeight
-from .footprint import footprint_bounds, surface_height
-from .gcode import MoveKind, Program, linearise, simulation_chord_tolerance
+from ..errors import ParameterError
+from ..geometry.distance import dilate_disk
+from ..geometry.faces import Face
+from ..geometry.faces_height import FacesHeight
+from ..geometry.footprint import footprint_bounds, surface_height
+from ..geometry.surface import Surface
+from ..program.gcode import MoveKind, Program, linearise, simulation_chord_tolerance
+from ..program.tooltable import check_program_tools
+from ..toolpath.common import check_tool_fits
+from ..typing import FloatArray
 from .job_simulation import JobSimulation, check_stock_form, simulate_job
 from .simulate import Grid, Simulation, Tool, simulate
 from .stock import CylinderStock
-from .surface import Surface
-from .toolpath.common import check_tool_fits
-from .tooltable import check_program_tools
-from .typing import FloatArray
 
 T = TypeVar("T")
 

@@ -14,10 +14,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from ..numeric import THREADS
+from ..typing import ArrayLike, FloatArray
 from .matrix import evaluate_patch_orders
-from .numeric import THREADS
 from .surface import Surface
-from .typing import ArrayLike, FloatArray
 
 #: A point is on the footprint when Newton lands within this distance of it (mm).
 INSIDE_TOLERANCE_MM = 1e-7

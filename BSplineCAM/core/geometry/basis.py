@@ -13,8 +13,8 @@ from enum import Enum
 
 import numpy as np
 
-from .errors import NetError
-from .typing import ArrayLike, FloatArray
+from ..errors import NetError
+from ..typing import ArrayLike, FloatArray
 
 DEGREE = 3
 

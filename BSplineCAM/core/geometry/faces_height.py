@@ -29,11 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import BSplineCAMError
+from ..errors import BSplineCAMError
+from ..numeric import THREADS
+from ..typing import FloatArray
 from .faces import Face
 from .footprint import fill_empty_cells
-from .numeric import THREADS
-from .typing import FloatArray
 
 #: A point is on a face when Newton lands within this distance of it (mm), or within
 #: 1e-10 of the model's size when that is larger.

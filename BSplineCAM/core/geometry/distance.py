@@ -14,8 +14,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from .numeric import THREADS
-from .typing import FloatArray
+from ..numeric import THREADS
+from ..typing import FloatArray
 
 
 def _row_distances(mask: np.ndarray) -> FloatArray:

@@ -28,9 +28,9 @@ from typing import Union
 
 import numpy as np
 
-from .errors import BSplineCAMError
+from ..errors import BSplineCAMError
+from ..typing import ArrayLike, FloatArray
 from .nurbs import NurbsSurface
-from .typing import ArrayLike, FloatArray
 
 #: Name and version written into every face's plain-data form.
 FORMAT = "bsplinecam-face"
@@ -477,7 +477,7 @@ def surface_to_dict(surface) -> dict:
 
 def make_surface(poles, knots_u, knots_v, degree_u, degree_v, weights=None,
                  periodic_u=False, periodic_v=False, name="face"):
-    """The core NurbsSurface (BSplineCAM.core.nurbs) from plain arrays."""
+    """The core NurbsSurface (BSplineCAM.core.geometry.nurbs) from plain arrays."""
     return NurbsSurface(poles, knots_u, knots_v, degree_u, degree_v, weights=weights,
                         periodic_u=periodic_u, periodic_v=periodic_v, name=name)
 

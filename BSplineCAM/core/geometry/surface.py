@@ -13,11 +13,11 @@ from functools import cached_property
 
 import numpy as np
 
+from ..errors import ParameterError
+from ..typing import ArrayLike, FloatArray
 from . import matrix, netio
 from .basis import DEGREE, KnotLayout, knot_vector, unique_knots
-from .errors import ParameterError
 from .matrix import DEGENERATE_NORMAL
-from .typing import ArrayLike, FloatArray
 
 #: Partial derivatives (du, dw) in the order of :class:`Derivatives`' fields.
 SECOND_ORDER = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))

@@ -56,9 +56,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ParameterError
-from .gcode import Program, Segments, linearise, simulation_chord_tolerance
-from .netio import MAX_COORDINATE_MM
+from ..errors import ParameterError
+from ..geometry.netio import MAX_COORDINATE_MM
+from ..program.gcode import Program, Segments, linearise, simulation_chord_tolerance
+from ..program.tooltable import check_program_tools
+from ..typing import FloatArray
 from .simulate import (
     BATCH_CELLS,
     COLLISION_TOLERANCE_MM,
@@ -72,8 +74,6 @@ from .simulate import (
     corner_height,
 )
 from .stock import CylinderStock, Stock
-from .tooltable import check_program_tools
-from .typing import FloatArray
 
 #: A program move that descends more than this (mm) is an entry (plunge, ramp, helix).
 ENTRY_DESCENT_MM = 1e-3

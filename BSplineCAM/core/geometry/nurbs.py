@@ -49,9 +49,10 @@ from math import comb
 
 import numpy as np
 
-from .errors import NetError, ParameterError
+from ..errors import NetError, ParameterError
+from ..numeric import clamp
+from ..typing import ArrayLike, FloatArray
 from .matrix import DEGENERATE_NORMAL
-from .numeric import clamp
 from .nurbs_spans import (  # noqa: F401  (re-exported: the knot and span functions' home)
     Direction,
     _validate_knots,
@@ -64,7 +65,6 @@ from .nurbs_spans import (  # noqa: F401  (re-exported: the knot and span functi
     unperiodize,
 )
 from .surface import Derivatives, unit_normals
-from .typing import ArrayLike, FloatArray
 
 #: Degrees accepted in each direction: every degree OCCT allows (Geom_BSplineSurface's
 #: MaxDegree() is 25; a sphere's fillet is 10, a corner blend or a loft 14).
@@ -119,7 +119,7 @@ class NurbsSurface:
     expanded, :func:`expand_knots`), ``weights`` (n, m) > 0 or None.  Periodic directions take
     OCCT's form (see the module docstring).  Parameters are those of the knot vectors
     (``domain``), not normalised.  The second parameter is called ``w`` in the methods, as in
-    :class:`~BSplineCAM.core.surface.Surface`.
+    :class:`~BSplineCAM.core.geometry.surface.Surface`.
     """
 
     def __init__(
@@ -203,7 +203,7 @@ class NurbsSurface:
     # -- construction ------------------------------------------------------------------------
     @classmethod
     def from_surface(cls, surface) -> NurbsSurface:
-        """The same surface as a cubic :class:`~BSplineCAM.core.surface.Surface` (its uniform
+        """The same surface as a cubic :class:`~BSplineCAM.core.geometry.surface.Surface` (its uniform
         or clamped layout as full knot vectors over the normalised domain [0, 1])."""
         ku, kw = surface.knot_vectors()
         return cls(np.array(surface.control_points), ku, kw, surface.degree, surface.degree,
@@ -350,7 +350,7 @@ class NurbsSurface:
         return self._evaluate_orders(u, w, ((_order(du, "du"), _order(dw, "dw")),))[0]
 
     def derivatives(self, u: ArrayLike, w: ArrayLike, grid: bool = False):
-        """Point, Su, Sw, Suu, Suw, Sww as a :class:`~BSplineCAM.core.surface.Derivatives`."""
+        """Point, Su, Sw, Suu, Suw, Sww as a :class:`~BSplineCAM.core.geometry.surface.Derivatives`."""
         if grid:
             return Derivatives(*self._grid_orders(u, w, SECOND_ORDER))
         return Derivatives(*self._evaluate_orders(u, w, SECOND_ORDER))

@@ -9,12 +9,12 @@ logic once and never touches either API:
 
 * :func:`extract` -- one face: a B-spline or Bézier surface as it is, any other through
   OCCT's NURBS conversion (BRepBuilderAPI_NurbsConvert); the trim's parameter curves
-  densified into loops (:func:`loops`, :func:`BSplineCAM.core.faces.densify_edge`); the
+  densified into loops (:func:`loops`, :func:`BSplineCAM.core.geometry.faces.densify_edge`); the
   surface's arrays with periodic or unclamped knots segmented to clamped ones
   (:func:`nurbs_arrays`); the result checked against OCCT's surfaces
-  (:func:`BSplineCAM.core.face_import.checked_face` with :func:`measure`);
+  (:func:`BSplineCAM.core.geometry.face_import.checked_face` with :func:`measure`);
 * :func:`reaches_from_above` -- OCCT's outward normals at the sampled points of the trimmed
-  domain, given to :func:`BSplineCAM.core.faces.reach` with the model's tolerance at the face;
+  domain, given to :func:`BSplineCAM.core.geometry.faces.reach` with the model's tolerance at the face;
 * :func:`faces_from_shape`, :func:`faces_and_reach` -- every face of a shape, with the
   selection ("up" or face numbers) applied.
 
@@ -29,10 +29,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..typing import FloatArray
 from . import faces as core_faces
 from .face_import import DEFAULT_CHORDAL_TOLERANCE, checked_face, segment_box
 from .faces import DEFAULT_TOLERANCE, REACH_SAMPLES, Face, FaceError
-from .typing import FloatArray
 
 #: Surface types (FreeCAD's Part class names) whose arrays are read as they are.
 NURBS_KINDS = ("BSplineSurface", "BezierSurface")
@@ -264,7 +264,7 @@ def measure(adapter: PartAdapter, face: Face, source: Any, work: Any) -> float:
 
 def reaches_from_above(adapter: PartAdapter, face: Face, work: Any) -> tuple[bool, str]:
     """Whether a 3-axis tool reaches the face from above, and why not
-    (:func:`BSplineCAM.core.faces.reach`).
+    (:func:`BSplineCAM.core.geometry.faces.reach`).
 
     ``work`` is the OCCT B-spline face the core face was taken from (OCCT's normals, which
     follow the face's orientation, and the model's tolerance there).

@@ -26,8 +26,8 @@ from math import comb
 
 import numpy as np
 
+from ..typing import ArrayLike, FloatArray, IntArray
 from .basis import DEGREE, KnotLayout, cox_de_boor, knot_vector
-from .typing import ArrayLike, FloatArray, IntArray
 
 #: The paper's uniform cubic B-spline basis matrix, appendix A (A.2).
 MB: FloatArray = np.array(
@@ -378,7 +378,7 @@ def evaluate_points(
     """Points (or partial derivatives) at scattered parameter pairs: shape broadcast(u, w) + (3,).
 
     Per point [U] · A_ij · [W]^T with the patch's power-basis coefficients
-    (:func:`patch_form`); a :class:`~BSplineCAM.core.surface.Surface` caches those, so prefer
+    (:func:`patch_form`); a :class:`~BSplineCAM.core.geometry.surface.Surface` caches those, so prefer
     its ``evaluate`` when evaluating one net repeatedly.
     """
     return evaluate_patches(patch_form(net, layout), u, w, du, dw)

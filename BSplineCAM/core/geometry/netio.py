@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import NetError
+from ..typing import FloatArray
 from .basis import DEGREE, KnotLayout
-from .errors import NetError
-from .typing import FloatArray
 
 MIN_POINTS = DEGREE + 1
 

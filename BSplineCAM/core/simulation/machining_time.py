@@ -45,10 +45,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError
-from .gcode import PLANE_AXES, MoveKind, Program
-from .toolpath.common import RAPID_RANGE, check_range
-from .typing import FloatArray
+from ..errors import ParameterError
+from ..program.gcode import PLANE_AXES, MoveKind, Program
+from ..toolpath.common import RAPID_RANGE, check_range
+from ..typing import FloatArray
 
 #: Default acceleration of every axis (mm/s^2): a hobby or light machining-centre value.
 DEFAULT_ACCELERATION = 500.0

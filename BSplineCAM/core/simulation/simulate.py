@@ -28,10 +28,10 @@ from enum import Enum
 
 import numpy as np
 
-from .errors import ParameterError
-from .gcode import Program, Segments, linearise, simulation_chord_tolerance
-from .numeric import THREADS
-from .typing import FloatArray
+from ..errors import ParameterError
+from ..numeric import THREADS
+from ..program.gcode import Program, Segments, linearise, simulation_chord_tolerance
+from ..typing import FloatArray
 
 #: Cells evaluated per batch: (K, H, W) temporaries stay in the processor's cache.
 BATCH_CELLS = 1 << 17

@@ -18,9 +18,9 @@ from math import factorial
 
 import numpy as np
 
-from .errors import NetError
-from .numeric import clamp
-from .typing import ArrayLike, FloatArray, IntArray
+from ..errors import NetError
+from ..numeric import clamp
+from ..typing import ArrayLike, FloatArray, IntArray
 
 
 # -- knot vectors -----------------------------------------------------------------------------

@@ -24,11 +24,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from ..errors import BSplineCAMError
+from ..numeric import clamp
+from ..typing import FloatArray
 from . import faces as core_faces
-from .errors import BSplineCAMError
 from .faces import Face, FaceError
-from .numeric import clamp
-from .typing import FloatArray
 
 #: Largest distance of a face's NURBS (as the core evaluates it) from OCCT's original
 #: surface, as a share of the chordal tolerance the face is machined to.

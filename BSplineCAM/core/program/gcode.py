@@ -37,9 +37,9 @@ from enum import IntEnum
 
 import numpy as np
 
-from .errors import BSplineCAMError
-from .netio import MAX_COORDINATE_MM, MAX_DIGITS, MAX_NESTING, read_text
-from .typing import FloatArray, IntArray
+from ..errors import BSplineCAMError
+from ..geometry.netio import MAX_COORDINATE_MM, MAX_DIGITS, MAX_NESTING, read_text
+from ..typing import FloatArray, IntArray
 
 MM_PER_INCH = 25.4
 

@@ -22,11 +22,11 @@ import re
 
 import numpy as np
 
-from .errors import ParameterError
+from ..errors import ParameterError
+from ..geometry.netio import MAX_COORDINATE_MM, MAX_DIGITS, read_text
+from ..simulation.simulate import Tool, ToolShape
+from ..toolpath.common import MAX_TOOL_DIAMETER, MIN_TOOL_DIAMETER
 from .gcode import MoveKind, Program
-from .netio import MAX_COORDINATE_MM, MAX_DIGITS, read_text
-from .simulate import Tool, ToolShape
-from .toolpath.common import MAX_TOOL_DIAMETER, MIN_TOOL_DIAMETER
 
 #: Bytes in one tool-table file (1 MiB).
 MAX_TABLE_BYTES = 2**20

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ParameterError
-from .typing import FloatArray
-from .validation import check_finite
+from ..errors import ParameterError
+from ..typing import FloatArray
+from ..validation import check_finite
 
 
 def _finite(value: Any, argument: str) -> float:
