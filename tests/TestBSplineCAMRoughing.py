@@ -426,6 +426,7 @@ def _bands(levels, top, stepdown):
     return out
 
 
+@pytest.mark.venv_only  # a whole case-study roughing: run once, in the venv
 @pytest.mark.parametrize("shape", ["flat", "bullnose"])
 def test_fine_stepdown_terraces_and_order(shape):
     """Step-down 9 mm with a fine step-down of 3 mm: the levels every 9 mm are cut top-down and
@@ -475,6 +476,7 @@ def case_study_part():
     return height, stock
 
 
+@pytest.mark.venv_only  # a whole case-study roughing: run once, in the venv
 def test_fine_stepdown_no_rapid_into_a_terrace_case_study():
     """The case study roughed at an 8 mm step-down with a 2 mm fine step: the job simulation of
     the program's text finds no rapid touching the stock.  (A rapid descent into a band
@@ -1137,6 +1139,7 @@ def test_fronts_bent_towards_the_walls_cut_narrower_than_head_on(monkeypatch):
     assert over < over_plain
 
 
+@pytest.mark.venv_only  # a whole case-study roughing: run once, in the venv
 def test_levels_still_over_when_bent_are_cut_at_a_smaller_stepover(monkeypatch):
     """Bent fronts alone (no move peeled) leave cuts wider than 1.1 s beside the boss near
     the block's corner (where they bend and close in on each other); with the levels still
@@ -1420,6 +1423,7 @@ def test_floor_rings_of_the_case_study_bend_by_their_own_radius():
     assert float(radial.max()) <= 5.0 and over.sum() <= 15, (radial.max(), over.sum())
 
 
+@pytest.mark.venv_only  # a whole case-study roughing: run once, in the venv
 def test_fair_load_moves_still_over_are_peeled():
     """The case study at 8 + 4 mm with a 25 % stepover (10 mm flat, 2.5 mm): fronts still
     meet walls in notches the tool's size and close in on each other there after the levels
@@ -1438,6 +1442,7 @@ def test_fair_load_moves_still_over_are_peeled():
     assert not over.any(), (radial.max(), over.sum())
 
 
+@pytest.mark.venv_only  # a whole case-study roughing: run once, in the venv
 @pytest.mark.parametrize("block, corner, s", [("sampled", 2.0, 4.0), ("job", 2.0, 4.0),
                                               ("job", 3.0, 4.0), ("job", 2.0, 2.5)])
 def test_bullnose_case_study_within_the_stepover(block, corner, s):
