@@ -366,7 +366,7 @@ class TestTwoOCCTs(unittest.TestCase):
             ours = app_faces.faces_from_shape(app_faces.read_part(step), "up", tolerance=0.01)
             code = (
                 "import json, sys; sys.path.insert(0, sys.argv[1]);"
-                "from BSplineCAM.ocp import faces as f; from BSplineCAM.core import faces as c;"
+                "from BSplineCAM.ocp import faces as f; from BSplineCAM.core.geometry import faces as c;"
                 "fs = f.faces_from_shape(f.read_part(sys.argv[2]), 'up', tolerance=0.01);"
                 "print(json.dumps([c.to_dict(x) for x in fs]))"
             )
