@@ -15,15 +15,17 @@ from typing import Any
 from .errors import ParameterError
 
 
-def parse_enum(enum: type[Enum], value: Any, argument: str) -> Any:
-    """Enum member from itself or its string; ParameterError naming ``argument`` otherwise."""
+def parse_enum(enum: type[Enum], value: Any, argument: str,
+               error: type[Exception] = ParameterError) -> Any:
+    """Enum member from itself or its string; ``error`` (ParameterError by default) naming
+    ``argument`` and the valid values otherwise."""
     if isinstance(value, enum):
         return value
     try:
         return enum(str(value).strip().lower())
     except ValueError:
         valid = ", ".join(repr(m.value) for m in enum)
-        raise ParameterError(f"unknown {argument} {value!r}: expected one of {valid}") from None
+        raise error(f"unknown {argument} {value!r}: expected one of {valid}") from None
 
 
 def check_positive(value: Any, argument: str, unit: str = "mm") -> float:

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import NetError
 from ..typing import ArrayLike, FloatArray
+from ..validation import parse_enum
 
 DEGREE = 3
 
@@ -33,13 +34,7 @@ class KnotLayout(str, Enum):
     @classmethod
     def parse(cls, value: str | KnotLayout) -> KnotLayout:
         """Accept an enum or its string; raise a NetError naming the valid layouts."""
-        if isinstance(value, KnotLayout):
-            return value
-        try:
-            return cls(str(value).strip().lower())
-        except ValueError:
-            valid = ", ".join(repr(m.value) for m in cls)
-            raise NetError(f"unknown knot layout {value!r}: expected one of {valid}") from None
+        return parse_enum(cls, value, "knot layout", NetError)
 
 
 def knot_vector(count: int, layout: str | KnotLayout, degree: int = DEGREE) -> FloatArray:
