@@ -187,6 +187,12 @@ class TestPartJobWalk(CamTestCase):
         self.assertEqual(executed, [])  # no toolpath computed again
         self.assertTrue(Path(output).is_file(), (output, boxes, report_text()))
         self.assertIn("G1", Path(output).read_text())
+        from BSplineCAM.core.program import rs274
+
+        if rs274.available() or os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
+            tools = {int(tc.ToolNumber): float(tc.Tool.Diameter) for tc in job.Tools.Group}
+            check = rs274.check(output, tools)
+            self.assertTrue(check.ok, check.message)  # the program a controller would run
         self.assertEqual(set(os.listdir(os.getcwd())) - cwd_before, set())
         Path(output).unlink()
 
