@@ -26,6 +26,7 @@ from BSplineCAM.core.program.tooltable import (
     read_tool_table,
 )
 from BSplineCAM.core.simulation.simulate import Tool, ToolShape
+from BSplineCAM.orchestration.cli_common import EXIT_CHECK_FAILED
 
 # -- --tools -----------------------------------------------------------------------------------
 
@@ -335,7 +336,9 @@ def test_cli_verify_one_tool_with_stock(capsys, tmp_path: Path) -> None:
     status, _, err = run_main(capsys, "verify", str(plane_net(tmp_path)), str(program),
                               "--tool-diameter", "6", "--stock=-5,65,-5,45,0,14",
                               "--cell", "0.5", "--out", str(out))
-    assert status == 0, err
+    # the 6 mm ball faces the block 3 mm deep: over a ball's default axial limit (1.5 mm)
+    assert status == EXIT_CHECK_FAILED, err
+    assert "check failed: T1 (ball 6 mm) line 7: axial engagement " in err
     report = json.loads((out / "verify.json").read_text())
     assert set(report["tools"]) == {"1"}
     assert report["grid_cells"][0] * 0.5 >= 50 and report["grid_cells"][1] * 0.5 >= 70

@@ -25,6 +25,13 @@ from ..core.errors import ParameterError
 from ..core.program import rs274
 from ..core.program.gcode import read_gcode_file
 from ..core.program.tooltable import MAX_LINE_CHARS, parse_tool_spec
+from ..core.simulation.load_limits import (
+    ENGAGEMENT_RATIO,
+    LoadLimits,
+    job_limits,
+    parse_limit_fields,
+    with_fields,
+)
 from ..core.simulation.verify import verify_job
 from ..core.toolpath import check_request
 from ..core.toolpath.common import Strategy, ToolParameters, check_angle, check_range
@@ -86,6 +93,9 @@ def register(sub) -> None:
                    help="vertical stock to leave (mm, default --allowance)")
     p.add_argument("--no-flat-levels", action="store_true",
                    help="no extra roughing levels at the part's flat areas")
+    p.add_argument("--centre-cutting", action="store_true",
+                   help="the roughing end mill cuts at its centre: closed pockets too narrow "
+                        "for a helix are entered by a straight plunge")
     p.add_argument("--finish", default="ball:6", help="finishing tool ball:DIAMETER (mm)")
     p.add_argument("--rest-limit", type=float, default=1.0,
                    help="rest passes take the roughing's terraces down to this much above the "
@@ -108,6 +118,14 @@ def register(sub) -> None:
                    help="rapid rate for the time estimates (mm/min)")
     p.add_argument("--cell", type=float, default=0.1,
                    help="Z-map cell of the verification (mm, default 0.1)")
+    p.add_argument("--rough-limits", default=None,
+                   help="load limits of the roughing tool T1, overriding the job's: "
+                        "axial=MM,radial=MM,rate=MM3_PER_MIN, any of them, none lifts one "
+                        "(default: axial the step-down, radial 1.1 x the stepover)")
+    p.add_argument("--finish-limits", default=None,
+                   help="load limits of the finishing ball T2, overriding the job's (same "
+                        "syntax; default: axial allowance + scallop + rest limit, radial the "
+                        "ball's width at that depth)")
     p.add_argument("--no-rs274", action="store_true", help="do not check with LinuxCNC's rs274")
     p.add_argument("--out", required=True, help="output folder")
     add_machine_options(p)
@@ -142,7 +160,7 @@ def roughing_parameters(args: argparse.Namespace):
         corner_radius=tool.corner_radius if tool.shape.value == "bullnose" else 0.0,
         stepdown=stepdown, stepover_percent=int(round(stepover)), radial_allowance=radial,
         axial_allowance=axial, stock_margin=margin, flat_levels=not args.no_flat_levels,
-        fine_stepdown=fine, ramp_angle=ramp)
+        fine_stepdown=fine, ramp_angle=ramp, centre_cutting=bool(args.centre_cutting))
 
 
 def cmd_job(args: argparse.Namespace) -> int:
@@ -156,6 +174,10 @@ def cmd_job(args: argparse.Namespace) -> int:
                              "(ball:DIAMETER)")
     check_range(args.cell, "--cell", "mm", 0.01, 5.0)
     rest_limit = check_range(args.rest_limit, "--rest-limit", "mm", 0.0, 50.0)
+    for option, text in (("--rough-limits", args.rough_limits),
+                         ("--finish-limits", args.finish_limits)):
+        if text is not None:
+            parse_limit_fields(text, option)
     check_machine_limits(args)
     posts = [p.strip() for p in args.post.split(",")]
     if not all(posts) or len(set(posts)) != len(posts):
@@ -182,6 +204,7 @@ def cmd_job(args: argparse.Namespace) -> int:
                                               args.scallop, args.tolerance, args.angle, names)
         name = _safe_name(model.name)
         target, faces = model, None
+    loads = load_limits_of(args, rough_tool, finish_tool, roughing, rest_limit, tool.scallop)
     from ..app import pipeline
 
     roughing = pipeline.RoughingParameters(**roughing)
@@ -215,7 +238,8 @@ def cmd_job(args: argparse.Namespace) -> int:
                                           f"rejects the program: {check.message}")
             report["rs274"] = checks[posts[0]]
             report["rs274_by_post"] = checks
-        verified = verify_program(args, model, program, tools, report["stock_mm"], stage)
+        verified = verify_program(args, model, program, tools, report["stock_mm"], stage,
+                                  loads)
         report["verify"] = {k: verified[k] for k in SUMMARY if k in verified}
         report["elapsed_s"] = round(time.perf_counter() - started, 3)
         (stage / "verify.json").write_text(json_text(verified))
@@ -227,7 +251,11 @@ def cmd_job(args: argparse.Namespace) -> int:
     emit({"out": str(Path(args.out).resolve()), **report["verify"],
           "notes": report.get("roughing", {}).get("notes", []),
           "rs274": report.get("rs274", {}).get("ok")})
+    for line in verified.get("load_messages", []):
+        print(f"bsplinecam job: check failed: {line}", file=sys.stderr)
     for name, check in verified.get("checks", {}).items():
+        if name == "load_limits":
+            continue
         if not check["ok"]:
             hint = ""
             if name == "scallop_max_mm" and args.strategy == Strategy.WATERLINE.value:
@@ -246,10 +274,25 @@ SUMMARY = ("ok", "checks", "targets", "gouge_max_mm", "scallop_max_mm", "scallop
            "tools")
 
 
-#: Largest gouge (mm) the job accepts, and the radial engagement over the stepover (ratio)
-#: it aims at (reported as a target: fronts that meet a wall head-on exceed it).
+#: Largest gouge (mm) the job accepts.
 GOUGE_LIMIT_MM = 0.001
-ENGAGEMENT_RATIO = 1.1
+
+
+def load_limits_of(args: argparse.Namespace, rough, finish, roughing: dict,
+                   rest_limit: float, scallop: float) -> dict[int, LoadLimits]:
+    """The job's load limits ({1: T1, 2: T2}, :func:`core.simulation.load_limits.job_limits`)
+    with --rough-limits and --finish-limits over them; errors name the option and unit."""
+    limits = job_limits(
+        rough, finish, stepdown=roughing["stepdown"],
+        stepover=0.01 * roughing["stepover_percent"] * rough.diameter,
+        axial_allowance=roughing["axial_allowance"],
+        radial_allowance=roughing["radial_allowance"], scallop=scallop,
+        rest_limit=rest_limit, cell=args.cell)
+    for number, option, text in ((1, "--rough-limits", args.rough_limits),
+                                 (2, "--finish-limits", args.finish_limits)):
+        if text is not None:
+            limits[number] = with_fields(limits[number], parse_limit_fields(text, option))
+    return limits
 
 
 def engagement_targets(rough: dict, stepover: float, cell: float) -> dict:
@@ -277,15 +320,19 @@ def engagement_warnings(targets: dict, rough: dict, stepover: float, cell: float
             "the stepover sets"]
 
 
-def verify_program(args, model, program_path, tools, stock, stage) -> dict:
+def verify_program(args, model, program_path, tools, stock, stage,
+                   loads: dict[int, LoadLimits] | None = None) -> dict:
     """The whole program simulated from the stock block and measured against the model (a
-    core Surface, or a part's core faces);
+    core Surface, or a part's core faces), each tool's moves checked against ``loads`` (its
+    defaults where not given);
     writes the stock pictures and the deviation map into ``stage``; returns verify.json with
-    ``checks`` (gouge, scallop, rapid collisions: each limit, its value and whether it holds;
-    ``ok`` when all hold), and ``targets`` (the roughing's engagement, reported)."""
+    ``checks`` (gouge, scallop, rapid collisions, load limits (the number of overloaded
+    moves): each limit, its value and whether it holds; ``ok`` when all hold), ``targets``
+    (the roughing's engagement, reported), ``loads`` (the overloads and their regions) and
+    ``load_messages`` (one line per region)."""
     program = read_gcode_file(str(program_path))
     result = verify_job(model, program, tools, stock=tuple(stock), cell=args.cell,
-                        rapid_rate=args.rapid)
+                        rapid_rate=args.rapid, load_limits=loads)
     metrics = {"model": str(Path(args.net)), "program": Path(program_path).name,
                **result.metrics, **machine_time_metrics(args, program)}
     rough = metrics["tools"]["1"]
@@ -297,7 +344,9 @@ def verify_program(args, model, program_path, tools, stock, stage) -> dict:
                            metrics["scallop_max_mm"] <= args.scallop + args.tolerance],
         "rapid_collisions": [len(metrics["rapid_collisions"]), 0,
                              not metrics["rapid_collisions"]],
+        "load_limits": [result.loads.overloaded_moves, 0, result.loads.ok],
     }
+    metrics["load_messages"] = result.loads.messages(tools)
     targets = engagement_targets(rough, stepover, args.cell)
     metrics["checks"] = {k: {"value": v, "limit": lim, "ok": bool(ok)}
                          for k, (v, lim, ok) in checks.items()}

@@ -26,6 +26,13 @@ from ..core.geometry.footprint import footprint_bounds
 from ..core.geometry.netio import MAX_COORDINATE_MM
 from ..core.program.gcode import read_gcode_file
 from ..core.program.tooltable import check_program_tools, parse_tools_option, read_tool_table
+from ..core.simulation.load_limits import (
+    LoadLimits,
+    default_limits,
+    parse_limit_fields,
+    parse_load_limits,
+    with_fields,
+)
 from ..core.simulation.machining_time import (
     DEFAULT_ACCELERATION,
     DEFAULT_JUNCTION_DEVIATION,
@@ -51,7 +58,14 @@ from ..core.toolpath.common import (
     check_tool_fits,
 )
 from . import parts, report
-from .cli_common import check_interrupted, check_output, emit, json_text, staged_output
+from .cli_common import (
+    EXIT_CHECK_FAILED,
+    check_interrupted,
+    check_output,
+    emit,
+    json_text,
+    staged_output,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -78,6 +92,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tool-table", default=None,
                    help="LinuxCNC tool table giving the tools by number (D in mm; the comment "
                         "names the shape: ball, bullnose r1.5, else flat)")
+    p.add_argument("--load-limit", action="append", default=None, metavar="N:LIMITS",
+                   help="load limits of tool N: N:axial=MM,radial=MM,rate=MM3_PER_MIN, any of "
+                        "them (the others keep the tool's defaults, none lifts one); "
+                        "repeatable; a move over one fails the check (exit 1).  Simulates the "
+                        "whole program (as --stock)")
     p.add_argument("--stock", default=None,
                    help="stock block x0,x1,y0,y1,z0,z1 (mm) to simulate from (default: the "
                         "grid's extent, top from --stock-top)")
@@ -150,6 +169,7 @@ def check_options(args: argparse.Namespace) -> Tool | None:
                 *COVERAGE_TOLERANCE_RANGE, low_open=True)
     if getattr(args, "stock", None) is not None:
         parse_stock(args.stock)
+    load_limit_fields(args)
     if given:
         return None
     d = check_range(args.tool_diameter, "--tool-diameter", "mm", MIN_TOOL_DIAMETER,
@@ -185,10 +205,34 @@ def parse_stock(text: str) -> tuple[float, float, float, float, float, float]:
     return tuple(values)
 
 
+def load_limit_fields(args: argparse.Namespace) -> dict[int, dict]:
+    """--load-limit N:axial=..,radial=..,rate=.. (repeatable) as {N: the LoadLimits fields
+    given}; ParameterError naming --load-limit and the unit."""
+    out: dict[int, dict] = {}
+    for text in getattr(args, "load_limit", None) or []:
+        number, _ = parse_load_limits(text, "--load-limit")
+        if number in out:
+            raise ParameterError(f"--load-limit {text}: T{number} is given twice")
+        out[number] = parse_limit_fields(text.partition(":")[2], "--load-limit")
+    return out
+
+
+def load_limits_for(args: argparse.Namespace, tools: dict[int, Tool]) -> dict[int, LoadLimits]:
+    """Each tool's default load limits with --load-limit's fields over them; a tool number
+    the program's tools lack is a ParameterError naming --load-limit."""
+    given = load_limit_fields(args)
+    for number in given:
+        if number not in tools:
+            raise ParameterError(f"--load-limit: T{number} is not among the program's tools "
+                                 f"(T{', T'.join(str(n) for n in sorted(tools))})")
+    return {n: with_fields(default_limits(t), given.get(n, {})) for n, t in tools.items()}
+
+
 def job_tools(args: argparse.Namespace, tool: Tool | None, program) -> dict[int, Tool] | None:
     """Tools by number for the program: from --tools / --tool-table, or --tool-diameter's tool
     for every tool of a program with at most one (None then, unless --stock asks for the
-    whole-program simulation); a program changing between tools needs --tools/--tool-table."""
+    whole-program simulation, or --load-limit); a program changing between tools needs
+    --tools/--tool-table."""
     if args.tools is not None:
         tools = parse_tools_option(args.tools)
     elif args.tool_table is not None:
@@ -200,7 +244,7 @@ def job_tools(args: argparse.Namespace, tool: Tool | None, program) -> dict[int,
                 f"{program.source} changes tools ({', '.join(f'T{n}' for n in used)}): give "
                 "them with --tools T1=flat:10,T2=ball:6 or --tool-table FILE instead of "
                 "--tool-diameter")
-        if args.stock is None:
+        if args.stock is None and not getattr(args, "load_limit", None):
             return None
         tools = {n: tool for n in [0, *used]}
     check_program_tools(program, tools)
@@ -238,7 +282,8 @@ def cmd_verify(args: argparse.Namespace) -> int:
         result = verify_job(surface, program, tools, stock, cell=args.cell,
                             stock_top=args.stock_top, stock_margin=args.stock_margin,
                             rapid_rate=args.rapid_rate,
-                            coverage_tolerance=args.coverage_tolerance)
+                            coverage_tolerance=args.coverage_tolerance,
+                            load_limits=load_limits_for(args, tools))
     check_interrupted()
     metrics = {"net": str(Path(args.net)), "program": str(Path(args.program)), **result.metrics,
                **machine_time_metrics(args, program),
@@ -283,7 +328,9 @@ SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "edge_scallop_max
 
 def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple = ()) -> int:
     """--out/verify.json, deviation.png and simulated.png (all or nothing), the warnings on
-    stderr and the summary (``SUMMARY`` + ``extra``) on stdout; exit status 0."""
+    stderr and the summary (``SUMMARY`` + ``extra``) on stdout; exit status 0, or
+    EXIT_CHECK_FAILED with one "check failed" line per region of moves over their tool's load
+    limits (a whole-program simulation)."""
     with staged_output(Path(args.out)) as stage:
         report.plot_deviation(result, stage / "deviation.png")
         report.plot_simulated(result, stage / "simulated.png")
@@ -292,8 +339,18 @@ def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple 
         print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
     summary = {k: metrics[k] for k in SUMMARY + tuple(extra)}
     summary.update(_job_summary(metrics))
+    loads = getattr(result, "loads", None)
+    if loads is not None:
+        summary["loads_ok"] = loads.ok
+        summary["overloaded_moves"] = loads.overloaded_moves
     emit({"out": str(Path(args.out).resolve()), **summary,
           "warnings": metrics.get("warnings", [])})
+    if loads is not None and not loads.ok:
+        tools = {n: figures.tool for n, figures in result.job.tools.items()}
+        for line in loads.messages(tools):
+            print(f"bsplinecam verify: check failed: {line}; see "
+                  f"{Path(args.out) / 'verify.json'}", file=sys.stderr)
+        return EXIT_CHECK_FAILED
     return 0
 
 
@@ -311,7 +368,8 @@ def verify_faces_checked(args: argparse.Namespace, faces, program, tool: Tool | 
         return verify_job(faces, program, tools, stock, cell=args.cell,
                           stock_top=args.stock_top, stock_margin=args.stock_margin,
                           rapid_rate=args.rapid_rate,
-                          coverage_tolerance=args.coverage_tolerance)
+                          coverage_tolerance=args.coverage_tolerance,
+                          load_limits=load_limits_for(args, tools))
     return verify_faces(faces, program, tool, cell=args.cell, stock_top=args.stock_top,
                         stock_margin=args.stock_margin, rapid_rate=args.rapid_rate,
                         coverage_tolerance=args.coverage_tolerance)

@@ -94,34 +94,76 @@ def plot_simulated(result: Verification, path: str | os.PathLike) -> None:
     _save(fig, path)
 
 
+#: Cells of a stock picture higher than the part's top plus this (mm) are drawn apart, as stock
+#: standing above the part (uncut stock, plugs), so that they do not set the colour scale.
+PART_TOP_MARGIN_MM = 1.0
+#: Colour of that stock.
+ABOVE_PART_COLOUR = (0.85, 0.35, 0.75)
+
+
 def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> None:
     """The stock after the last move of tool ``number`` (a whole-program verification):
     hill-shaded height, coloured by the material left above the design (mm), with the
-    tool's figures in the title."""
+    tool's figures in the title.
+
+    The colour scale spans the material left on the model where the stock lies at most
+    PART_TOP_MARGIN_MM above the part's top (the design's highest point); off the model the
+    colour is the height above the block's bottom, clipped to that scale.  Cells higher than
+    the part's top plus the margin (stock no tool took down to the part: a plug in a hole, the
+    block's top) are drawn in one flat colour, labelled with their height.  The moves of the
+    tool over its load limits (``result.loads``) are drawn in red, each region of them framed
+    with the thickness of stock it met.
+    """
     from matplotlib.colors import LightSource
+    from matplotlib.patches import Patch, Rectangle
 
     plt = _pyplot()
     job = result.job
     grid = job.grid
     height = np.asarray(job.snapshots[number], dtype=float)
-    left = np.where(np.isfinite(result.design), height - result.design, np.nan)
-    top = float(np.nanmax(left)) if np.isfinite(left).any() else 1.0
+    design = result.design
+    on_model = np.isfinite(design)
+    part_top = float(np.nanmax(design)) if on_model.any() else float(job.stock[5])
+    bottom = float(job.stock[4]) if np.isfinite(job.stock[4]) else float(np.nanmin(
+        np.where(np.isfinite(height), height, np.nan)))
+    material = job.in_stock & np.isfinite(height)
+    left = np.where(on_model, height - np.where(on_model, design, 0.0), height - bottom)
+    left = np.where(material, left, 0.0)
+    above = material & (height > part_top + PART_TOP_MARGIN_MM)
+    scaled = on_model & ~above
+    top = float(np.max(left[scaled])) if scaled.any() else 1.0
+    top = max(top, 1e-3)
     cmap = plt.get_cmap("viridis")
     light = LightSource(azdeg=315, altdeg=35)
-    colour = np.nan_to_num(np.clip(left, 0.0, max(top, 1e-3)) / max(top, 1e-3), nan=0.0)
-    rgb = cmap(colour)[..., :3]
-    shaded = light.shade_rgb(rgb, height, vert_exag=3.0, dx=grid.cell, dy=grid.cell,
+    rgb = cmap(np.clip(left, 0.0, top) / top)[..., :3]
+    rgb[above] = ABOVE_PART_COLOUR
+    shade_height = np.where(np.isfinite(height), height, bottom)
+    shaded = light.shade_rgb(rgb, shade_height, vert_exag=3.0, dx=grid.cell, dy=grid.cell,
                              blend_mode="overlay")
     fig, ax = plt.subplots(figsize=(7.5, 6.4), dpi=110)
-    ax.imshow(shaded, origin="lower", extent=_extent(result), interpolation="nearest")
-    mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, max(top, 1e-3)))
-    fig.colorbar(mappable, ax=ax).set_label("material left above the design (mm)")
+    extent = _extent(result)
+    ax.imshow(shaded, origin="lower", extent=extent, interpolation="nearest")
+    mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, top))
+    fig.colorbar(mappable, ax=ax, extend="max").set_label(
+        "material left above the design (mm)")
+    handles = []
+    if above.any():
+        handles.append(Patch(color=ABOVE_PART_COLOUR, label=(
+            f"stock above the part's top (z {part_top:.2f} mm): up to z "
+            f"{float(height[above].max()):.2f} mm, {float(height[above].max()) - part_top:.2f}"
+            " mm above it")))
+    handles += _draw_overloads(ax, result, number, Rectangle)
+    if handles:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09),
+                  fontsize=8, frameon=False)
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     t = result.metrics["tools"][str(number)]
     tool = t["tool"]
-    inside = np.isfinite(left)
-    low = float(np.min(left[inside])) if inside.any() else float("nan")
+    low = float(np.min(left[scaled])) if scaled.any() else float("nan")
+
     def mm(value) -> str:
         return "-" if value is None else f"{value:.2f}"
 
@@ -133,6 +175,40 @@ def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> No
     ax.set_aspect("equal")
     fig.tight_layout()
     _save(fig, path)
+
+
+def _draw_overloads(ax, result: Verification, number: int, rectangle) -> list:
+    """The XY segments of tool ``number``'s moves over its load limits in red, and a frame
+    round each region with the stock it met; the legend's handles."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+
+    loads = getattr(result, "loads", None)
+    if loads is None:
+        return []
+    moves = {o.move for o in loads.overloads if o.tool == number}
+    if not moves:
+        return []
+    seg = result.job.segments
+    mine = (result.job.tool == number) & np.isin(seg.move, list(moves)) & ~np.asarray(
+        seg.rapid, bool)
+    lines = np.stack([seg.start[mine, :2], seg.end[mine, :2]], axis=1)
+    ax.add_collection(LineCollection(lines, colors="red", linewidths=1.4, zorder=3))
+    points = np.array([(o.x, o.y) for o in loads.overloads if o.tool == number])
+    ax.plot(points[:, 0], points[:, 1], "r.", ms=3, zorder=3)
+    pad = result.job.grid.cell
+    for region in (r for r in loads.regions if r.tool == number):
+        ax.add_patch(rectangle((region.x0 - pad, region.y0 - pad),
+                               region.x1 - region.x0 + 2 * pad, region.y1 - region.y0 + 2 * pad,
+                               fill=False, edgecolor="red", linestyle="--", linewidth=0.9,
+                               zorder=3))
+        ax.annotate(f"{region.stock_mm:.1f} mm", (region.x1 + pad, region.y1 + pad),
+                    color="red", fontsize=7, zorder=4)
+    return [Line2D([], [], color="red", lw=1.4, label=(
+        f"{len(moves)} moves over T{number}'s load limits (lines "
+        f"{min(o.line for o in loads.overloads if o.tool == number)}.."
+        f"{max(o.line for o in loads.overloads if o.tool == number)}); framed: the stock "
+        "they meet"))]
 
 
 def _save(fig, path: str | os.PathLike) -> None:

@@ -195,7 +195,10 @@ class JobSimulation:
     bounding box, ``in_stock`` the cells inside the block's XY (the cylinder's circle),
     ``snapshots[n]`` the Z-map after the last
     move of tool n.  Per linearised move (``segments``): ``tool`` number, ``volume`` removed
-    (mm^3), ``axial`` and ``radial`` engagement (mm) and ``entry``.
+    (mm^3), ``axial`` and ``radial`` engagement (mm), ``entry``, and ``rate``, the largest
+    material removal rate (mm^3/min) of the windows ending in it (NaN for a move that cuts
+    nothing; see the module docstring), and ``deepest`` (n, 2), the XY (mm) of the cell centre
+    where a cutting feed move cut deepest (NaN for the others).
     """
 
     grid: Grid
@@ -214,6 +217,8 @@ class JobSimulation:
     unsimulated_rapids: int = 0
     threshold_mm: float = field(default=ENGAGEMENT_DEPTH_MM)
     cylinder: CylinderStock | None = None
+    rate: FloatArray | None = field(default=None, compare=False)
+    deepest: FloatArray | None = field(default=None, compare=False)
 
     def removed_volume(self) -> float:
         """Volume cut from the block (mm^3), all tools."""
@@ -331,6 +336,7 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     live = known & (low < z1)
     pieces = _pieces(seg, radius, grid, live)
     state.piece_volume = np.zeros(len(pieces.segment))
+    state.deepest = np.full((n, 2), np.nan)
     last_report = time.monotonic()
     order = np.arange(n)
     # runs of one tool, cut in chunks of about BATCH_CELLS window cells
@@ -353,16 +359,19 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     if feed_default is not None:
         feed = np.where(np.isfinite(feed) & (feed > 0), feed, feed_default)
     reports = {}
+    rates = np.full(n, np.nan)
     for t in sorted(set(number.tolist()) & set(tools)):
-        reports[t] = _report(t, tools[t], number == t, seg, rapid, entry, lengths, feed, volume,
-                             axial, radial, thr, [c for _, tt, c in hit if tt == t],
-                             pieces, state.piece_volume)
+        cutting = (number == t) & ~rapid & (axial > thr)
+        _removal_rates(cutting, pieces, feed, state.piece_volume, tools[t].radius, rates)
+        reports[t] = _report(t, tools[t], number == t, seg, rapid, entry, lengths, volume,
+                             axial, radial, thr, [c for _, tt, c in hit if tt == t], rates)
     collisions = _merge([c for _, _, c in hit])
     return JobSimulation(
         grid=grid, stock=(x0, x1, y0, y1, z0, z1), height=height.astype(float),
         in_stock=in_stock, tools=reports, snapshots=snapshots, segments=seg, tool=number,
         volume=volume, axial=axial, radial=radial, entry=entry, collisions=collisions,
-        unsimulated_rapids=int(np.sum(rapid & ~known)), threshold_mm=thr, cylinder=cylinder)
+        unsimulated_rapids=int(np.sum(rapid & ~known)), threshold_mm=thr, cylinder=cylinder,
+        rate=rates, deepest=state.deepest)
 
 
 @dataclass
@@ -444,6 +453,7 @@ class _Cutter:
         self.z0 = np.float32(z0) if math.isfinite(z0) else None
         self.threshold = np.float32(threshold)
         self.piece_volume = np.zeros(0)
+        self.deepest = np.zeros((0, 2))
 
     def envelopes(self, index: np.ndarray, pieces: _Pieces, tool: Tool) -> dict[int, FloatArray]:
         """Envelope (H, W) of each piece in ``index``, batched by window shape."""
@@ -486,16 +496,18 @@ class _Cutter:
             if self.z0 is not None:
                 np.maximum(new, self.z0, out=new)
             drops.append((view, new, view - new, x, y))
-        deepest = max(float(d.max()) for _, _, d, _, _ in drops)
+        at = [int(np.argmax(d)) for _, _, d, _, _ in drops]
+        k_max = max(range(len(drops)), key=lambda k: float(drops[k][2].flat[at[k]]))
+        _, _, d, x, y = drops[k_max]
+        deepest = float(d.flat[at[k_max]])
+        cy, cx = divmod(at[k_max], d.shape[1])
+        px, py = grid.x0 + (x + cx + 0.5) * grid.cell, grid.y0 + (y + cy + 0.5) * grid.cell
         axial[s] = deepest
         if deepest > self.threshold and not is_rapid:
             radial[s] = self._radial(drops, seg.start[s], seg.end[s], tool, deepest)
+            self.deepest[s] = (px, py)
         if is_rapid and deepest > COLLISION_TOLERANCE_MM:
-            view, new, d, x, y = max(drops, key=lambda item: float(item[2].max()))
-            cy, cx = divmod(int(np.argmax(d)), d.shape[1])
-            hit.append((s, number, Collision(int(seg.line[s]), deepest,
-                                             grid.x0 + (x + cx + 0.5) * grid.cell,
-                                             grid.y0 + (y + cy + 0.5) * grid.cell)))
+            hit.append((s, number, Collision(int(seg.line[s]), deepest, px, py)))
         area = grid.cell ** 2
         if len(drops) == 1:
             view, new, d, _, _ = drops[0]
@@ -545,10 +557,9 @@ class _Cutter:
 
 
 def _report(number: int, tool: Tool, mine: np.ndarray, seg: Segments, rapid: np.ndarray,
-            entry: np.ndarray, lengths: FloatArray, feed: FloatArray, volume: FloatArray,
+            entry: np.ndarray, lengths: FloatArray, volume: FloatArray,
             axial: FloatArray, radial: FloatArray, threshold: float,
-            collisions: list[Collision], pieces: _Pieces,
-            piece_volume: FloatArray) -> ToolReport:
+            collisions: list[Collision], rates: FloatArray) -> ToolReport:
     feeds = mine & ~rapid
     cutting = feeds & (axial > threshold)
     normal = cutting & ~entry
@@ -574,8 +585,8 @@ def _report(number: int, tool: Tool, mine: np.ndarray, seg: Segments, rapid: np.
         axial_engagement_mean_mm=mean(axial),
         max_radial_line=None if at is None else int(seg.line[at]),
         max_radial_move=None if at is None else int(seg.move[at]),
-        material_removal_rate_max_mm3_per_min=_max_removal_rate(
-            cutting, pieces, feed, piece_volume, tool.radius),
+        material_removal_rate_max_mm3_per_min=float(np.nanmax(rates[cutting]))
+        if np.any(cutting & np.isfinite(rates)) else math.nan,
         entries=int(len(np.unique(seg.move[entries]))),
         entry_radial_engagement_max_mm=float(radial[entries].max()) if np.any(entries) else 0.0,
         entry_axial_engagement_max_mm=float(axial[entries].max()) if np.any(entries) else 0.0,
@@ -583,14 +594,16 @@ def _report(number: int, tool: Tool, mine: np.ndarray, seg: Segments, rapid: np.
     )
 
 
-def _max_removal_rate(cutting: np.ndarray, pieces: _Pieces, feed: FloatArray,
-                      piece_volume: FloatArray, radius: float) -> float:
-    """Largest removed volume / feed time (mm^3/min) over windows of consecutive pieces of
-    cutting segments at least ``radius`` long (a shorter run: the whole run).  A piece's
-    volume is what it removed beyond the pieces before it, so long moves are resolved too."""
+def _removal_rates(cutting: np.ndarray, pieces: _Pieces, feed: FloatArray,
+                   piece_volume: FloatArray, radius: float, out: FloatArray) -> None:
+    """Into ``out`` (per segment): the largest removed volume / feed time (mm^3/min) over the
+    windows that end in one of the segment's pieces, windows of consecutive pieces of
+    ``cutting`` segments at least ``radius`` long (a run shorter than that: one window, the
+    whole run, which ends in its last piece).  A piece's volume is what it removed beyond the
+    pieces before it, so long moves are resolved too."""
     idx = np.flatnonzero(cutting[pieces.segment])
     if not len(idx):
-        return 0.0
+        return
     owner = pieces.segment[idx]
     # runs: consecutive pieces of the same or consecutive segments
     new_run = np.ones(len(idx), bool)
@@ -614,5 +627,5 @@ def _max_removal_rate(cutting: np.ndarray, pieces: _Pieces, feed: FloatArray,
     use = full | whole
     with np.errstate(divide="ignore", invalid="ignore"):
         rate = (c_vol[end] - c_vol[start]) / (c_min[end] - c_min[start])
-    rate = rate[use & np.isfinite(rate)]
-    return float(rate.max()) if len(rate) else math.nan
+    use &= np.isfinite(rate)
+    np.fmax.at(out, owner[use], rate[use])

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import TypeVar
 
@@ -40,6 +40,7 @@ from ..program.tooltable import check_program_tools
 from ..toolpath.common import check_tool_fits
 from ..typing import FloatArray
 from .job_simulation import JobSimulation, check_stock_form, simulate_job
+from .load_limits import LoadCheck, LoadLimits, check_loads, default_limits
 from .simulate import Grid, Simulation, Tool, simulate
 from .stock import CylinderStock
 
@@ -83,6 +84,8 @@ class Verification:
     metrics: dict
     #: The whole-program simulation of :func:`verify_job` (None for one tool).
     job: JobSimulation | None = field(default=None, compare=False)
+    #: Its moves checked against each tool's load limits (:func:`verify_job`; else None).
+    loads: LoadCheck | None = field(default=None, compare=False)
 
     @property
     def deviation(self) -> FloatArray:
@@ -234,7 +237,8 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
                rapid_rate: float = DEFAULT_RAPID_RATE,
                coverage_tolerance: float = DEFAULT_COVERAGE_TOLERANCE,
                chord_tolerance: float | None = None, feed_default: float | None = None,
-               progress: Callable[[float], None] | None = None) -> Verification:
+               progress: Callable[[float], None] | None = None,
+               load_limits: dict[int, LoadLimits] | None = None) -> Verification:
     """Simulate a program with tool changes (:func:`.job_simulation.simulate_job`) from the
     block ``stock`` = (x0, x1, y0, y1, z0, z1) mm (or a vertical
     :class:`.stock.CylinderStock`) and measure the result as :func:`verify` (``model`` a
@@ -246,6 +250,11 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
     band's width, ``tool`` in the metrics); ``metrics["tools"]`` holds the per-tool figures
     (:meth:`.job_simulation.JobSimulation.metrics`), keyed by tool number, and
     ``removed_volume_mm3`` the volume cut from the block.
+
+    Every tool's moves are checked against its load limits (:mod:`.load_limits`):
+    ``load_limits[n]`` for tool n, :func:`.load_limits.default_limits` for a tool the dict
+    lacks; ``metrics["loads"]`` holds the check (:meth:`.load_limits.LoadCheck.to_dict`) and
+    ``verification.loads`` the :class:`.load_limits.LoadCheck`.
     """
     if len(program) == 0:
         raise ParameterError("the program has no moves")
@@ -267,13 +276,23 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
                            progress=report, chord_tolerance=chord_tolerance)
         return job.simulation(), len(job.segments), job
 
+    limits = dict(load_limits or {})
+    for n in limits:
+        if n not in tools:
+            raise ParameterError(f"load limits given for T{n}, which the tools lack "
+                                 f"(T{', T'.join(str(k) for k in sorted(tools))})")
+    limits = {n: limits.get(n) or default_limits(t) for n, t in sorted(tools.items())}
     xy = None if block is None else tuple(
         block.bounds if isinstance(block, CylinderStock) else block)[:4]
     if isinstance(model, Surface):
-        return _verify_surface(model, program, finishing, cell, stock_top, stock_margin,
+        result = _verify_surface(model, program, finishing, cell, stock_top, stock_margin,
+                                 rapid_rate, coverage_tolerance, progress, run, xy)
+    else:
+        result = _verify_faces(model, program, finishing, cell, stock_top, stock_margin,
                                rapid_rate, coverage_tolerance, progress, run, xy)
-    return _verify_faces(model, program, finishing, cell, stock_top, stock_margin, rapid_rate,
-                         coverage_tolerance, progress, run, xy)
+    loads = check_loads(result.job, limits, result.design)
+    result.metrics["loads"] = loads.to_dict()
+    return replace(result, loads=loads)
 
 
 def _covering(bounds: tuple[float, float, float, float], stock_xy: tuple | None,
