@@ -94,11 +94,13 @@ def plot_simulated(result: Verification, path: str | os.PathLike) -> None:
     _save(fig, path)
 
 
-#: Cells of a stock picture higher than the part's top plus this (mm) are drawn apart, as stock
-#: standing above the part (uncut stock, plugs), so that they do not set the colour scale.
+#: Stock higher than the part's top plus this (mm), or off the part higher than the block's
+#: bottom plus this, is drawn apart in a stock picture (uncut stock, plugs in holes), so that it
+#: does not set the colour scale.
 PART_TOP_MARGIN_MM = 1.0
-#: Colour of that stock.
+#: Colours of the stock above the part's top, and of the stock off the part.
 ABOVE_PART_COLOUR = (0.85, 0.35, 0.75)
+OFF_PART_COLOUR = (0.95, 0.55, 0.15)
 
 
 def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> None:
@@ -106,13 +108,13 @@ def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> No
     hill-shaded height, coloured by the material left above the design (mm), with the
     tool's figures in the title.
 
-    The colour scale spans the material left on the model where the stock lies at most
-    PART_TOP_MARGIN_MM above the part's top (the design's highest point); off the model the
-    colour is the height above the block's bottom, clipped to that scale.  Cells higher than
-    the part's top plus the margin (stock no tool took down to the part: a plug in a hole, the
-    block's top) are drawn in one flat colour, labelled with their height.  The moves of the
-    tool over its load limits (``result.loads``) are drawn in red, each region of them framed
-    with the thickness of stock it met.
+    The colour scale spans the material left on the model where the stock stands at most
+    PART_TOP_MARGIN_MM above the part's top (the design's highest point).  Stock higher than
+    that, and stock off the model (in a hole, beside the part's walls, the block's margin)
+    standing more than the margin above the block's bottom, are drawn in two flat colours,
+    each labelled with its height.  The moves of the tool over its load limits
+    (``result.loads``) are drawn in red, each region of them framed with the thickness of
+    stock it met.
     """
     from matplotlib.colors import LightSource
     from matplotlib.patches import Patch, Rectangle
@@ -124,12 +126,13 @@ def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> No
     design = result.design
     on_model = np.isfinite(design)
     part_top = float(np.nanmax(design)) if on_model.any() else float(job.stock[5])
-    bottom = float(job.stock[4]) if np.isfinite(job.stock[4]) else float(np.nanmin(
-        np.where(np.isfinite(height), height, np.nan)))
     material = job.in_stock & np.isfinite(height)
+    bottom = float(job.stock[4]) if np.isfinite(job.stock[4]) else (
+        float(height[material].min()) if material.any() else 0.0)
     left = np.where(on_model, height - np.where(on_model, design, 0.0), height - bottom)
     left = np.where(material, left, 0.0)
     above = material & (height > part_top + PART_TOP_MARGIN_MM)
+    off = material & ~on_model & ~above & (height > bottom + PART_TOP_MARGIN_MM)
     scaled = on_model & ~above
     top = float(np.max(left[scaled])) if scaled.any() else 1.0
     top = max(top, 1e-3)
@@ -137,10 +140,11 @@ def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> No
     light = LightSource(azdeg=315, altdeg=35)
     rgb = cmap(np.clip(left, 0.0, top) / top)[..., :3]
     rgb[above] = ABOVE_PART_COLOUR
+    rgb[off] = OFF_PART_COLOUR
     shade_height = np.where(np.isfinite(height), height, bottom)
     shaded = light.shade_rgb(rgb, shade_height, vert_exag=3.0, dx=grid.cell, dy=grid.cell,
                              blend_mode="overlay")
-    fig, ax = plt.subplots(figsize=(7.5, 6.4), dpi=110)
+    fig, ax = plt.subplots(figsize=(7.5, 6.8), dpi=110)
     extent = _extent(result)
     ax.imshow(shaded, origin="lower", extent=extent, interpolation="nearest")
     mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0.0, top))
@@ -148,10 +152,15 @@ def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> No
         "material left above the design (mm)")
     handles = []
     if above.any():
+        high = float(height[above].max())
         handles.append(Patch(color=ABOVE_PART_COLOUR, label=(
-            f"stock above the part's top (z {part_top:.2f} mm): up to z "
-            f"{float(height[above].max()):.2f} mm, {float(height[above].max()) - part_top:.2f}"
-            " mm above it")))
+            f"stock above the part's top (z {part_top:.2f} mm): up to z {high:.2f} mm, "
+            f"{high - part_top:.2f} mm above it")))
+    if off.any():
+        high = float(height[off].max())
+        handles.append(Patch(color=OFF_PART_COLOUR, label=(
+            f"stock off the part (holes, beside its walls): up to z {high:.2f} mm, "
+            f"{high - bottom:.2f} mm above the block's bottom")))
     handles += _draw_overloads(ax, result, number, Rectangle)
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09),
