@@ -9,8 +9,12 @@ interpolated between cells and simplified, comes closer to the part than the all
 the inverse tool offset of a Z-map (Choi & Jerard, "Sculptured Surface Machining", 1998, ch. 5).
 
 Each level z clears the allowed centres {T <= z} by distance fronts: Q_0 is air (centres whose
-tool disk lies outside the stock) or a helical entry, and Q_{k+1} = (Q_k dilated by the stepover
-s) intersected with {T <= z}.  The part of each front's boundary where it grew is a pass, so the
+tool disk lies outside the stock) or an entry into a component not reaching air (a closed
+pocket): a helix where one fits, else a zig-zag ramp along the component's longest straight
+chord where that is at least a tool diameter long, else, for an end mill that cuts at its
+centre, a straight plunge at the point farthest from the walls (:meth:`_Job.enter`); a
+component none of these enters is left, and named in a note.  Q_{k+1} = (Q_k dilated by the
+stepover s) intersected with {T <= z}.  The part of each front's boundary where it grew is a pass, so the
 width of cut stays within s.  In a component entered by a helix the fronts are rings round it,
 and an outward ring at the full stepover meets the material over a wider arc of the tool's edge
 than a straight pass does: a ring grows by :func:`ring_step` of its radius instead, by half the
@@ -249,7 +253,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
                       axial_allowance: float = 0.0, cell: float | None = None,
                       clearance_height: float | None = None, flat_levels: bool = True,
                       fine_stepdown: float | None = None,
-                      ramp_angle: float = RAMP_ANGLE_DEG,
+                      ramp_angle: float = RAMP_ANGLE_DEG, centre_cutting: bool = False,
                       progress: ProgressFn = None, cancel: CancelFn = None) -> Roughing:
     """Z-level roughing of the part ``height`` (mm, NaN where no part) out of ``stock``, a
     :class:`~BSplineCAM.core.simulation.stock.Stock` block or a vertical
@@ -262,7 +266,10 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     With ``fine_stepdown`` (mm, in (0, stepdown]) the band above each level gets levels that
     far apart, cut bottom-up after it (:func:`_cutting_order`); ``levels`` of the result are
     in cutting order.  Helical and ramped entries descend at ``ramp_angle`` (degrees, in
-    (0, MAX_RAMP_ANGLE_DEG]).
+    (0, MAX_RAMP_ANGLE_DEG]).  ``centre_cutting`` says that the end mill cuts at its centre,
+    so that it may plunge: a closed pocket that neither a helix nor a zig-zag ramp enters is
+    then entered by a straight plunge at its point farthest from the walls (counted in the
+    stats' ``entries`` as ``plunge``); without it such a pocket is left and named in a note.
     Moves are tool-tip positions; see the module docstring for the method.
     """
     started = time.perf_counter()
@@ -273,6 +280,9 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     fine = None if fine_stepdown is None else check_range(
         fine_stepdown, "fine_stepdown", "mm", 0.0, stepdown, low_open=True)
     ramp_angle = check_ramp_angle(ramp_angle, "ramp_angle")
+    if not isinstance(centre_cutting, (bool, np.bool_)):
+        raise ParameterError(f"centre_cutting must be True or False (whether the end mill "
+                             f"cuts at its centre), got {centre_cutting!r}")
     if fine is not None and fine >= stepdown - 1e-9:
         fine = None  # no level between two of the step-down
     notes: list[str] = []
@@ -328,6 +338,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     job.ramp_slope = math.tan(math.radians(ramp_angle))
     job.engagement_limit, job.stepover_scales = ENGAGEMENT_LIMIT, STEPOVER_SCALES
     job.peel_over = PEEL_OVER
+    job.centre_cutting = bool(centre_cutting)
     for li, (z, z_above, up) in enumerate(order):
         job.level_best(z, z_above, in_stock, air, li, len(order), step_up=up)
     levels = [z for z, _, _ in order]
@@ -347,7 +358,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
         "passes": job.passes,
         "cutting_length_mm": cut,
         "entries": {"helical": job.helical, "outside": job.outside, "ramp": job.ramps,
-                    "lead_in": job.lead_ins},
+                    "lead_in": job.lead_ins, "zigzag": job.zigzags, "plunge": job.plunges},
         "bent_levels": job.bent_levels,
         "narrowed_levels": job.narrowed_levels,
         "peeled_moves": job.peeled_moves,
@@ -362,7 +373,7 @@ def generate_roughing(height: HeightFn, stock: StockShape, tool: Tool, stepdown:
     monitor(1.0)
     params = {"stepdown": stepdown, "stepover": s, "radial_allowance": ar,
               "axial_allowance": aa, "cell": cell, "flat_levels": bool(flat_levels),
-              "ramp_angle": ramp_angle,
+              "ramp_angle": ramp_angle, "centre_cutting": bool(centre_cutting),
               "tool": {"diameter": tool.diameter, "shape": tool.shape.value,
                        "corner_radius": tool.corner_radius}}
     return Roughing(moves, [float(z) for z in levels], float(clearance), stats,

@@ -8,8 +8,18 @@ import math
 
 #: Default angle (degrees) at which helical and ramped entries descend.
 RAMP_ANGLE_DEG = 3.0
-#: Steepest ramp angle accepted (degrees): steeper is a plunge, which roughing never makes.
+#: Steepest ramp angle accepted (degrees): steeper is a plunge, which roughing makes only into
+#: a closed pocket no helix or zig-zag ramp enters, with an end mill that cuts at its centre.
 MAX_RAMP_ANGLE_DEG = 30.0
+#: A closed pocket no helix enters is entered by a zig-zag ramp along its longest straight
+#: chord (of CHORD_DIRECTIONS tried through its point farthest from the walls) when the
+#: chord is at least this many tool diameters long: each sweep then carries the whole bottom
+#: of the tool past where it started, so every point under it at a sweep's end has been
+#: passed over by the outer cutting edges on the way down (the uncut core at the middle of an
+#: end mill that does not cut at its centre never meets a column left standing), and the
+#: drop per sweep (chord x tan(ramp angle)) is a ramp's, not a plunge's.
+ZIGZAG_MIN_DIAMETERS = 1.0
+CHORD_DIRECTIONS = 36
 #: A wall piece a front reaches is cut right after it when the material left beside it
 #: reaches deeper than this share of the stepover into the tool's disk; thinner slivers wait
 #: for the level's last pass along the wall.

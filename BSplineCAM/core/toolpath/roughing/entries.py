@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """How a pass is reached and entered: stay-down links and lead-ins, straight descents where the
-tool's disk is clear, ramps along the pass and helical entries into pockets."""
+tool's disk is clear, ramps along the pass, and the entries into closed pockets: helices,
+zig-zag ramps along a chord and, with a centre-cutting end mill, straight plunges."""
 
 from __future__ import annotations
 
@@ -14,14 +15,20 @@ from .constants import (
     _EPS,
     BACK_RAMP_ROUNDS,
     BACK_RAMP_TOL_MM,
+    CHORD_DIRECTIONS,
+    GRID_GROWTH_CELLS,
     HELIX_CHORD_MM,
     LEAD_IN_DIAMETERS,
     LEAD_IN_LATTICE,
     LEAD_IN_REACH_RADII,
     LEAD_IN_ROUTES,
     LEAD_IN_TRIES,
+    ZIGZAG_MIN_DIAMETERS,
 )
+from .contours import marching_squares
+from .gridops import _densify, capped_distance
 from .passes import _chord_angle
+from .rings import _Ring
 
 
 class _Entries:
@@ -220,8 +227,18 @@ class _Entries:
         radius = min(pocket - 3.5 * self.cell, (pocket - 1.5 * self.cell) / 1.1)
         return max(0.0, 2.0 * radius)
 
-    def helix(self, mask, z, z_above):
-        """Helical entry into a component not reaching air; (cx, cy, radius) or None."""
+    def enter(self, mask: np.ndarray, z: float, z_above: float) -> tuple | None:
+        """Enter a component of the level's allowed centres not reaching air (a closed pocket
+        or hole): by a helix where one fits (:meth:`helix`), else by a zig-zag ramp along its
+        longest straight chord where that is at least ZIGZAG_MIN_DIAMETERS tool diameters
+        long (:meth:`zigzag`), else, with a centre-cutting tool (``centre_cutting``), by a
+        straight plunge at its point farthest from the walls (:meth:`plunge`).  Returns the
+        cells the level's fronts grow from (the helix's disc, the ramp's chord, the plunge's
+        point) and the ring round them (:class:`~.rings._Ring`, None for a chord), or None
+        where none of these enters it: the pocket is then left, recorded in ``skipped``
+        (level, place, uncut XY box, the largest tool diameter whose helix would enter it)
+        for the run's note."""
+        cell = self.cell
         idx = np.argwhere(mask)
         i0, j0 = idx.min(axis=0) - 1
         i1, j1 = idx.max(axis=0) + 2
@@ -231,23 +248,64 @@ class _Entries:
         d[~sub] = 0.0
         at = int(np.argmax(d))
         ci, cj = divmod(at, sub.shape[1])
-        r_fit = (float(d.flat[at]) - 1.5) * self.cell
-        r_min = max(2 * self.cell, 0.05 * self.tool.diameter)
-        cx, cy = self.xy(np.array([[cj + j0, ci + i0]], dtype=float))[0]
-        if r_fit < r_min:
-            self.skipped.append((z, float(cx), float(cy), mask.sum() * self.cell ** 2,
-                                 self.entering_diameter(float(d.flat[at]) * self.cell)))
-            return None
-        rh = min(0.4 * self.tool.diameter, 0.8 * self.R, r_fit)
+        cx, cy = (float(v) for v in self.xy(np.array([[cj + j0, ci + i0]], dtype=float))[0])
+        near_rim = capped_distance(mask, self.s / cell + 2) * cell <= self.s
+        r_fit = (float(d.flat[at]) - 1.5) * cell
+        if r_fit >= max(2 * cell, 0.05 * self.tool.diameter):
+            rh = self.helix(cx, cy, r_fit, z)
+            seed = mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
+            return seed, _Ring(mask, (cx, cy), rh, near_rim)
+        chord = _longest_chord(d >= 1.5, ci, cj)
+        if chord is not None:
+            ends = self.xy(np.array([[c[1] + j0, c[0] + i0] for c in chord], dtype=float))
+            if math.dist(ends[0], ends[1]) >= ZIGZAG_MIN_DIAMETERS * self.tool.diameter - 1e-9:
+                self.zigzag(ends, z, mask)
+                seed = np.zeros_like(mask)
+                seed[i0:i1, j0:j1] = _segment_cells(sub.shape, chord) & (d >= 1.0)
+                return seed, None
+        if self.centre_cutting:
+            self.plunge(cx, cy, z, mask)
+            r0 = 1.5 * cell  # the cells round the point: the fronts' seed
+            seed = mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= r0 * r0)
+            seed[ci + i0, cj + j0] = True
+            return seed, _Ring(mask, (cx, cy), r0, near_rim)
+        iy, ix = np.nonzero(sub)
+        lo = self.xy(np.array([[ix.min() + j0, iy.min() + i0]], dtype=float))[0]
+        hi = self.xy(np.array([[ix.max() + j0, iy.max() + i0]], dtype=float))[0]
+        # the pocket's walls: the allowed centres' cells grown by the tool radius, the radial
+        # allowance and the tip map's growth (half a cell to a cell's edge)
+        grow = self.R + self.ar + (GRID_GROWTH_CELLS + 0.5) * cell
+        box = (float(lo[0]) - grow, float(hi[0]) + grow, float(lo[1]) - grow,
+               float(hi[1]) + grow)
+        self.skipped.append((z, z_above, cx, cy, box,
+                             self.entering_diameter(float(d.flat[at]) * cell)))
+        return None
+
+    def entry_top(self, pts: FloatArray, z: float) -> float:
+        """Height (mm) an entry over the points pts (n, 2) starts its descent at: the highest
+        :meth:`safe_at` among them (the material the surface estimate holds there)."""
+        return float(self.safe_heights(np.asarray(pts, dtype=float), z).max())
+
+    def start_entry(self, x: float, y: float, top: float) -> int:
+        """Retract, rapid over (x, y) and down to 1 mm above ``top``, feed to ``top``; the
+        index of the first move of the entry."""
         w = self.writer
         w.retract()
         first = len(w.moves)
+        w.add("rapid", x, y, w.clear)
+        if top + 1.0 < w.clear:
+            w.add("rapid", x, y, top + 1.0)
+        w.add("feed", x, y, top)
+        return first
+
+    def helix(self, cx: float, cy: float, r_fit: float, z: float) -> float:
+        """Helical entry round (cx, cy) (mm) of radius min(0.4 D, 0.8 R, r_fit) at the ramp
+        angle down to level z from the material's top, a last flat turn at z; its radius."""
+        rh = min(0.4 * self.tool.diameter, 0.8 * self.R, r_fit)
+        w = self.writer
         sx, sy = cx + rh, cy
-        w.add("rapid", sx, sy, w.clear)
         z_above = self.safe_at(np.array([sx, sy]), z)
-        if z_above + 1.0 < w.clear:
-            w.add("rapid", sx, sy, z_above + 1.0)
-        w.add("feed", sx, sy, z_above)
+        first = self.start_entry(sx, sy, z_above)
         dth = _chord_angle(rh, HELIX_CHORD_MM)
         per_turn = 2 * math.pi * rh * self.ramp_slope
         # at least one turn down, so that the helix ends where it began and its last flat
@@ -264,11 +322,190 @@ class _Entries:
         self.entry_spans.append([first, len(w.moves)])
         self.helical += 1
         self.passes += 1
-        ring = np.column_stack([px, py])
-        self.mark(ring)
+        self.mark(np.column_stack([px, py]))
         # the core within R - rh of the centre
         self.mark(np.array([[cx, cy], [cx, cy]]))
-        return float(cx), float(cy), rh
+        return rh
+
+    def zigzag(self, ends: FloatArray, z: float, mask: np.ndarray) -> None:
+        """Zig-zag ramp along the chord ``ends`` (2, 2) (mm) of the component ``mask`` of the
+        level's allowed centres: from the highest material along it (:meth:`entry_top`) back
+        and forth between its ends at the ramp angle, down to the height from which the
+        component's boundary (:meth:`lap_from`) ramped down once at the ramp angle reaches
+        level z (the last sweep turning back short where a whole one would go too low), then
+        that lap and one more round it at z (:meth:`ramp_round`): the boundary lies within a
+        few cells of the chord (no helix fits), so the lap at z also cuts the wedge the
+        sweeps left along it.  Without such a lap the ramp goes on down to z, to the end it
+        was heading for and back along the whole chord at z."""
+        w = self.writer
+        slope = self.ramp_slope
+        a, b = np.asarray(ends[0], dtype=float), np.asarray(ends[1], dtype=float)
+        length = float(np.hypot(*(b - a)))
+        top = self.entry_top(_densify(np.array([a, b]), self.cell), z)
+        first = self.start_entry(a[0], a[1], top)
+        laps = [self.lap_from(mask, a), self.lap_from(mask, b)]
+        here, there, h = a, b, top
+        if all(lap is not None for lap in laps):
+            k = 0  # the lap from ``here``: laps[k]
+            while True:
+                lead, route = laps[k]
+                need = slope * lead  # the drop round the lap (and the feed to it) from here
+                if h - z <= need + 1e-9:
+                    break
+                if h - z - need < slope * length:
+                    # a whole sweep would go too low: out and back part of the way
+                    t = 0.5 * (h - z - need) / slope
+                    p = here + (there - here) * (t / length)
+                    h -= slope * t
+                    w.add("feed", p[0], p[1], h)
+                    h = z + need
+                    w.add("feed", here[0], here[1], h)
+                    break
+                h -= slope * length
+                w.add("feed", there[0], there[1], h)
+                here, there, k = there, here, 1 - k
+            self.ramp_round(here, h, route, z)
+        else:
+            drop = h - z
+            while drop > _EPS:
+                step = min(length, drop / slope)
+                drop -= step * slope
+                p = here + (there - here) * (step / length)
+                w.add("feed", p[0], p[1], z + max(drop, 0.0))
+                if step < length - 1e-9:
+                    break
+                here, there = there, here
+            w.add("feed", there[0], there[1], z)
+            w.add("feed", here[0], here[1], z)
+        self.entry_spans.append([first, len(w.moves)])
+        self.zigzags += 1
+        self.passes += 1
+        self.mark(np.array([a, b]))
+
+    def plunge(self, cx: float, cy: float, z: float, mask: np.ndarray) -> None:
+        """Straight plunge at (cx, cy) (mm), for an end mill that cuts at its centre, into the
+        component ``mask`` of the level's allowed centres, then its boundary (:meth:`lap_from`)
+        ramped down once at the ramp angle and lapped once more at level z
+        (:meth:`ramp_round`).  The plunge stops as high above z as that ramp descends, from
+        the material's top (:meth:`entry_top`).  The lap takes the ring between the plunge's
+        reach and the wall, which the level's wall pass would take as a sliver thinner than
+        its tolerance and leave; in a hole barely wider than the tool it is all that is left.
+        Where no such lap is found, only the plunge is made."""
+        w = self.writer
+        c = np.array([cx, cy])
+        lap = self.lap_from(mask, c)
+        top = self.entry_top(np.array([[cx, cy]]), z)
+        first = self.start_entry(cx, cy, top)
+        if lap is None:
+            w.add("feed", cx, cy, z)
+        else:
+            start = min(z + self.ramp_slope * lap[0], top)
+            w.add("feed", cx, cy, start)
+            self.ramp_round(c, start, lap[1], z)
+        self.entry_spans.append([first, len(w.moves)])
+        self.plunges += 1
+        self.passes += 1
+        self.mark(np.array([c, c]))
+
+    def lap_from(self, mask: np.ndarray, at: FloatArray) -> tuple | None:
+        """The boundary of the component ``mask`` of the allowed centres (:meth:`_wall_loop`)
+        as a closed route (xy, mm) from its point nearest ``at``, and the length (mm) of the
+        feed from ``at`` to it and round it; None if there is none or that feed leaves the
+        component."""
+        loop = self._wall_loop(mask)
+        if loop is None:
+            return None
+        k = int(np.argmin(np.hypot(*(loop[:-1] - at).T)))
+        if not self._in_mask(mask, np.asarray(at, dtype=float), loop[k]):
+            return None
+        route = np.vstack([loop[k:-1], loop[:k + 1]])
+        length = float(np.hypot(*(route[0] - at))) + float(
+            np.hypot(*np.diff(route, axis=0).T).sum())
+        return length, route
+
+    def ramp_round(self, at: FloatArray, h: float, route: FloatArray, z: float) -> None:
+        """From ``at`` (xy, mm) at height h feed to the closed ``route`` and round it, down to
+        level z evenly by length, then round it again at z; the route is marked cut."""
+        w = self.writer
+        path = np.vstack([np.asarray(at, dtype=float)[None, :], route])
+        arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+        heights = h - (h - z) * arc / max(float(arc[-1]), 1e-12)
+        for (x, y), hh in zip(path[1:], heights[1:]):
+            w.add("feed", x, y, hh)
+        for x, y in route[1:]:
+            w.add("feed", x, y, z)
+        self.mark(route)
+
+    def _in_mask(self, mask: np.ndarray, a: FloatArray, b: FloatArray) -> bool:
+        """The segment a-b (xy, mm) runs through cells of ``mask`` up to half a cell short of
+        b (b itself on the mask's boundary, within a cell of an allowed centre)."""
+        length = float(np.hypot(*(b - a)))
+        if length <= 0.5 * self.cell:
+            return True
+        end = a + (b - a) * (1.0 - 0.5 * self.cell / length)
+        f = np.rint(self.idx(_densify(np.array([a, end]), 0.5 * self.cell))).astype(int)
+        ny, nx = mask.shape
+        if not ((f[:, 0] >= 0) & (f[:, 0] < nx) & (f[:, 1] >= 0) & (f[:, 1] < ny)).all():
+            return False
+        return bool(mask[f[:, 1], f[:, 0]].all())
+
+    def _wall_loop(self, mask: np.ndarray) -> FloatArray | None:
+        """The longest closed boundary (xy, mm; first point repeated) of the component
+        ``mask`` of the allowed centres; None if none."""
+        ii, jj = np.nonzero(mask)
+        ny, nx = mask.shape
+        i0, i1 = max(int(ii.min()) - 2, 0), min(int(ii.max()) + 3, ny)
+        j0, j1 = max(int(jj.min()) - 2, 0), min(int(jj.max()) + 3, nx)
+        # half-way between its cells and the others: the same loop at every level of a hole
+        # with straight walls (T - z would move it by up to a cell with z), and within a cell
+        # of an allowed centre, which the tip map's growth covers
+        F = np.where(mask[i0:i1, j0:j1], -0.5, 0.5)
+        loops = [q for q in marching_squares(F)
+                 if len(q) > 3 and bool(np.allclose(q[0], q[-1]))]
+        if not loops:
+            return None
+        q = max(loops, key=lambda q: float(np.hypot(*np.diff(q, axis=0).T).sum()))
+        return self.xy(q + np.array([j0, i0], dtype=float))
+
+
+def _longest_chord(inner: np.ndarray, ci: int, cj: int) -> tuple | None:
+    """The longest straight chord through cell (ci, cj) (row, column) of ``inner`` whose points
+    half a cell apart all fall in cells of ``inner``, over CHORD_DIRECTIONS directions: its
+    ends ((row, column), (row, column)) as fractional indices, or None if (ci, cj) is not in
+    ``inner``."""
+    if not inner[ci, cj]:
+        return None
+    ny, nx = inner.shape
+    n = 2 * (ny + nx) + 2
+    th = np.linspace(0.0, math.pi, CHORD_DIRECTIONS, endpoint=False)
+    u = np.column_stack([np.sin(th), np.cos(th)])  # (row, column) per direction
+    t = 0.5 * np.arange(1, n + 1)
+    reach = []
+    for sign in (1.0, -1.0):
+        r = np.rint(ci + sign * u[:, :1] * t[None, :]).astype(int)
+        c = np.rint(cj + sign * u[:, 1:] * t[None, :]).astype(int)
+        ok = (r >= 0) & (r < ny) & (c >= 0) & (c < nx)
+        ok[ok] = inner[r[ok], c[ok]]
+        # the last step before the first one out
+        stop = np.where(ok.all(axis=1), n, np.argmin(ok, axis=1))
+        reach.append(np.where(stop > 0, t[np.maximum(stop - 1, 0)], 0.0))
+    total = reach[0] + reach[1]
+    k = int(np.argmax(total))
+    return ((ci + reach[0][k] * u[k, 0], cj + reach[0][k] * u[k, 1]),
+            (ci - reach[1][k] * u[k, 0], cj - reach[1][k] * u[k, 1]))
+
+
+def _segment_cells(shape: tuple, chord: tuple) -> np.ndarray:
+    """Cells (of a grid of ``shape``) the chord ((row, column), (row, column)) passes through,
+    sampled half a cell apart."""
+    (r0, c0), (r1, c1) = chord
+    n = int(math.ceil(2.0 * math.hypot(r1 - r0, c1 - c0))) + 1
+    t = np.linspace(0.0, 1.0, n + 1)
+    r = np.clip(np.rint(r0 + t * (r1 - r0)).astype(int), 0, shape[0] - 1)
+    c = np.clip(np.rint(c0 + t * (c1 - c0)).astype(int), 0, shape[1] - 1)
+    out = np.zeros(shape, bool)
+    out[r, c] = True
+    return out
 
 
 def _lead_route(p: FloatArray, k: int) -> FloatArray:

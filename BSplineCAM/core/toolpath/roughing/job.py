@@ -31,6 +31,9 @@ class _Job(_Levels, _Passes, _Entries, _Peel, _Replay, _Engagement, _GridState):
         self.writer = _Writer(clearance)
         self.passes = 0
         self.helical = 0
+        self.zigzags = 0  # closed pockets entered by a zig-zag ramp along a chord
+        self.plunges = 0  # closed pockets entered by a straight plunge (centre-cutting)
+        self.centre_cutting = False  # the end mill cuts at its centre: it may plunge
         self.outside = 0
         self.ramps = 0
         self.lead_ins = 0  # straight descents on the floor already cut, then a lead-in
@@ -68,20 +71,28 @@ class _Job(_Levels, _Passes, _Entries, _Peel, _Replay, _Engagement, _GridState):
         self.__dict__.update(state)
 
     def report_leftover(self) -> None:
-        """Notes for the run's result: the pockets skipped where no helical entry fits
-        the tool (grouped by place), and the material left more than a stepdown above the
-        part away from every wall that explains it, both left for a smaller tool."""
+        """Notes for the run's result: the closed pockets no entry reached (:meth:`enter`;
+        grouped by place), and the material left more than a stepdown above the part away
+        from every wall that explains it, both left for a smaller tool.
+
+        A pocket's note gives its place (x, y mm), the XY box of its walls (its allowed
+        centres grown by the tool radius, the radial allowance and the tip map's growth), and
+        the Z range: from its lowest skipped level up to the level above its highest one,
+        where the material left stands; the largest tool diameter whose helix enters it, and,
+        for a tool not known to cut at its centre, that it would plunge it if it did."""
         cell = self.cell
         if self.skipped:
             # one entry per place (levels of one pocket lie within a tool radius)
             groups: list = []
-            for z, x, y, _, fits in self.skipped:
+            for z, z_above, x, y, box, fits in self.skipped:
                 for g in groups:
                     if math.hypot(g[0] - x, g[1] - y) <= self.R:
-                        g[2], g[3], g[4] = max(g[2], z), min(g[3], z), min(g[4], fits)
+                        g[2], g[3], g[4] = max(g[2], z_above), min(g[3], z), min(g[4], fits)
+                        g[5] = (min(g[5][0], box[0]), max(g[5][1], box[1]),
+                                min(g[5][2], box[2]), max(g[5][3], box[3]))
                         break
                 else:
-                    groups.append([x, y, z, z, fits])
+                    groups.append([x, y, z_above, z, fits, box])
 
             def mm(v: float) -> str:  # no "-0.00"
                 return f"{0.0 if abs(v) < 0.005 else v:.2f}"
@@ -90,15 +101,19 @@ class _Job(_Levels, _Passes, _Entries, _Peel, _Replay, _Engagement, _GridState):
                 return (f"a tool of at most {fits:.1f} mm enters it by a helix" if fits > 0
                         else "narrower than the roughing grid resolves")
 
+            plunge = "" if self.centre_cutting else (
+                f"; this {self.tool.diameter:g} mm end mill would plunge it if it cuts at its "
+                "centre (--centre-cutting, op property CentreCutting)")
             parts = "; ".join(
-                f"({x:.1f}, {y:.1f}) mm, uncut from Z {mm(lo)} to {mm(hi)} mm ({which(fits)})"
-                for x, y, hi, lo, fits in groups[:6])
+                f"({x:.1f}, {y:.1f}) mm, within x {mm(b[0])} to {mm(b[1])} and y {mm(b[2])} to "
+                f"{mm(b[3])} mm, uncut from Z {mm(lo)} to {mm(hi)} mm ({which(fits)}{plunge})"
+                for x, y, hi, lo, fits, b in groups[:6])
             more = f"; and {len(groups) - 6} more" if len(groups) > 6 else ""
             self.notes.append(
-                f"{len(groups)} closed pocket(s) too narrow for a helical entry of the "
-                f"{self.tool.diameter:g} mm tool were left uncut: {parts}{more}. The finishing "
-                "tool would meet that stock at full width: rough it with the smaller tool "
-                "named, or drill it, first")
+                f"{len(groups)} closed pocket(s) too narrow for a helical entry or a zig-zag "
+                f"ramp of the {self.tool.diameter:g} mm tool were left uncut: {parts}{more}. "
+                "The finishing tool would meet that stock at full width: rough it with the "
+                "smaller tool named, or a centre-cutting end mill, or drill it, first")
         # material more than a stepdown above the part, away from every wall that explains it
         gap = self.ar + GRID_GROWTH_CELLS * cell + max(2 * cell, 0.45 * self.R)
         base = np.where(np.isfinite(self.Hp), self.Hp, self.stock.z_min)

@@ -149,20 +149,20 @@ class _Levels:
         entered[np.unique(labels[Q])] = True
         self.outside += int(entered.sum())
         self.allowed = A & entered[labels]
-        rings: list[_Ring] = []  # the components entered by a helix
+        rings: list[_Ring] = []  # round the components entered by a helix or a plunge
         for comp in range(n):
             if entered[comp]:
                 continue
             mask = labels == comp
-            centre = self.helix(mask, z, z_above)
-            if centre is None:
+            entry = self.enter(mask, z, z_above)
+            if entry is None:
                 continue
             entered[comp] = True
             self.allowed |= mask
-            cx, cy, rh = centre
-            Q |= mask & ((self.X - cx) ** 2 + (self.Y - cy) ** 2 <= rh * rh)
-            rings.append(_Ring(mask, (cx, cy), rh,
-                               capped_distance(mask, self.s / cell + 2) * cell <= self.s))
+            seed, ring = entry
+            Q |= seed
+            if ring is not None:
+                rings.append(ring)
         rings += floor_rings
         frac0 = (li + 0.05) / nlevels
         # growing fronts.  On a level at a flat floor T - z is 0 over whole areas, where a
