@@ -100,7 +100,7 @@ def plot_simulated(result: Verification, path: str | os.PathLike) -> None:
 PART_TOP_MARGIN_MM = 1.0
 #: Colours of the stock above the part's top, and of the stock off the part.
 ABOVE_PART_COLOUR = (0.85, 0.35, 0.75)
-OFF_PART_COLOUR = (0.95, 0.55, 0.15)
+OFF_PART_COLOUR = (0.6, 0.6, 0.6)
 
 
 def plot_stock(result: Verification, number: int, path: str | os.PathLike) -> None:
