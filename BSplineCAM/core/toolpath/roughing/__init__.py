@@ -103,6 +103,29 @@ at the level: beside a ramp's start the material stands almost as high as before
 fair load (8 + 4 mm at a 25 % stepover on the case study): moves over 1.1 s plus the
 simulation's cell 11 -> 1, widest 3.79 -> 2.95 mm.
 
+A closed pocket no helix enters gets, with a zig-zag ramp or a plunge, a lap round the
+boundary of its allowed centres, ramped down to the level and lapped again at it: such a
+pocket's centres lie within a few cells of the ramp's chord or the plunge's point, and the
+level's wall pass would leave the ring between their reach and the wall as a sliver thinner
+than its tolerance.  The lap runs half way between the component's cells and the others, the
+same at every level of a straight-walled hole (a contour of T - z moves by up to a cell with
+z).  The descents start from the material's top the surface estimate holds within the tool's
+disk; beside such a pocket's walls that is the top of the material left there (the allowance
+and the tip map's growth), so below the first levels they descend partly through air.
+
+At a wall the passes of successive levels come to the same material within hundredths of a
+millimetre (each level's contour is interpolated on the grid, and a pass counts as cutting
+only material more than 1.25 cells deep in its tool's disk).  Where a pass of a lower level
+reaches a few micrometres nearer than those above it, it takes the hairline column they left
+over its whole height.  The job simulation's axial engagement, the deepest drop of any cell,
+counts that height: on examples/part.step (10 mm flat, 2 mm down, 0.3 mm allowance, a block 2
+mm larger) the largest outside the entries is 20 mm, at the cell 0.67 mm off the part's corner
+(80, 0): the levels from Z 21.82 down to 5.82 pass its centre 5.000 to 5.03 mm away, the one
+at Z 3.82 4.9987 mm away, so it takes a column 20 mm high and about a micrometre thick.  All
+27 moves that go deeper than the step-down and the allowance there do so only at cells
+within 0.06 mm of their tool's rim (TestBSplineCAMRoughingEntries bounds the depth of cut
+outside the entries away from the rim).
+
 The package: :mod:`.constants`; the tip-height map (:mod:`.tips`); fields and contours on the
 grid (:mod:`.gridops`, :mod:`.contours`); round fronts (:mod:`.rings`); a run (:class:`_Job`,
 :mod:`.job`) made of its grid state (:mod:`.state`), the widths of cut (:mod:`.engagement`),

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """The levels: their heights and cutting order, and the clearing of one level by distance
-fronts grown from the air, its helical entries and the floor already cut, cut again with bent
-and narrower fronts where it cuts too wide."""
+fronts grown from the air, its entries into closed pockets and the floor already cut, cut
+again with bent and narrower fronts where it cuts too wide."""
 
 from __future__ import annotations
 
