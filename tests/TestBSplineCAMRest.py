@@ -277,7 +277,7 @@ def test_simulation_input_progress_and_cancel():
 # -- steep / shallow split ----------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def ridge():
-    from BSplineCAM.core.toolpath.rest import generate_steep_shallow
+    from BSplineCAM.core.toolpath.steep_shallow import generate_steep_shallow
 
     surface = Surface(bezier_net(ridge_z, 40.0), "clamped", "ridge")
     tp = generate_steep_shallow(surface, D, 0.02, 0.01, threshold_deg=45.0)
@@ -323,7 +323,7 @@ def test_steep_shallow_passes_and_simulation(ridge):
     ({"overlap": 0.0}, "overlap"), ({"tool_diameter": -1.0}, "tool_diameter"),
 ])
 def test_steep_shallow_bad_arguments(kwargs, name):
-    from BSplineCAM.core.toolpath.rest import generate_steep_shallow
+    from BSplineCAM.core.toolpath.steep_shallow import generate_steep_shallow
 
     args = {"surface": Surface(bezier_net(ridge_z, 40.0), "clamped", "ridge"),
             "tool_diameter": D, "scallop": 0.02, "tolerance": 0.01}

@@ -53,7 +53,7 @@ from .generator import (  # noqa: F401  (re-exported: the package's request chec
     run_strategy,
 )
 from .reach import unreachable_corners
-from .rest import steep_shallow, steep_shallow_faces
+from .steep_shallow import steep_shallow, steep_shallow_faces
 
 
 def generate(
@@ -77,7 +77,7 @@ def generate(
     clearance_height are in mm; angle (raster pass direction from +X), min_slope
     (waterline: walls below this slope are left to a raster pass) and threshold
     (steep_shallow: the slope above which waterline takes over from raster,
-    :func:`rest.generate_steep_shallow`) in degrees.
+    :func:`steep_shallow.generate_steep_shallow`) in degrees.
     ``progress(fraction)`` is called as work proceeds; ``cancel()`` returning True aborts with
     :class:`ToolpathCancelled`.  Regions whose concave radius is below the tool radius are
     listed in ``Toolpath.unreachable`` and left uncut, never gouged.
@@ -156,7 +156,7 @@ def generate_faces(faceset, strategy: str, tool_diameter: float | None = None,
     ``angle`` degrees), waterline (:mod:`~BSplineCAM.core.toolpath.faces_waterline`, levels
     from the scallop on walls over 30 degrees), isoparametric
     (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``) or
-    steep_shallow (:func:`~BSplineCAM.core.toolpath.rest.steep_shallow_faces`:
+    steep_shallow (:func:`~BSplineCAM.core.toolpath.steep_shallow.steep_shallow_faces`:
     contours on walls steeper than ``threshold`` degrees, raster at ``angle`` on the rest).
     The ball is ``tool``, validated where the request came in, or else tool_diameter,
     scallop and tolerance (mm), validated here (:meth:`ToolParameters.validate`).
