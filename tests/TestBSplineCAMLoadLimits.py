@@ -286,3 +286,25 @@ def test_cli_job_limit_options_refused(capsys, tmp_path: Path, extra, fragments)
     for fragment in fragments:
         assert fragment in message, message
     assert not (tmp_path / "out").exists()
+
+
+def test_job_limit_options_override_the_jobs() -> None:
+    """--rough-limits and --finish-limits replace the fields they name, keep the others."""
+    from types import SimpleNamespace
+
+    from BSplineCAM.orchestration.cli_job import load_limits_of, roughing_parameters
+
+    args = SimpleNamespace(
+        rough="flat:10", stock_margin=2.0, stepdown=2.0, fine_stepdown=0.0, stepover=40.0,
+        ramp_angle=3.0, allowance=0.3, radial_allowance=None, axial_allowance=None,
+        no_flat_levels=False, centre_cutting=False, cell=0.1, rough_limits=None,
+        finish_limits=None)
+    rough, roughing = roughing_parameters(args)
+    plain = load_limits_of(args, rough, BALL6, roughing, 1.0, 0.01)
+    assert plain == job_limits(FLAT10, BALL6, stepdown=2.0, stepover=4.0, axial_allowance=0.3,
+                               radial_allowance=0.3, scallop=0.01, rest_limit=1.0, cell=0.1)
+    args.rough_limits = "rate=9000"
+    args.finish_limits = "radial=none,axial=2"
+    over = load_limits_of(args, rough, BALL6, roughing, 1.0, 0.01)
+    assert over[1] == LoadLimits(plain[1].axial_mm, plain[1].radial_mm, 9000.0)
+    assert over[2] == LoadLimits(axial_mm=2.0)
