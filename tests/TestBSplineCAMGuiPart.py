@@ -85,7 +85,7 @@ class TestPartJobWalk(CamTestCase):
 
     def test_part_job_walk(self) -> None:
         from BSplineCAM.app import verify_feature as vf
-        from BSplineCAM.gui import cam_commands, rough_panel
+        from BSplineCAM.gui import cam_commands, results_panel, rough_panel
 
         part = self.import_part()
         faces = up_faces(part)
@@ -154,9 +154,51 @@ class TestPartJobWalk(CamTestCase):
         process_events()
         self.assertEqual(touched(self.doc), [])
 
-        # Verify: the part's exact faces, whole program from the stock
+        # Verify: the 10 mm end mill could not enter the part's hole, so the finishing ball
+        # meets the plug left there; the panel says so in red, naming the tool and the place
+        rough = next(o for o in job.Operations.Group if o.Name.startswith("SurfaceRough"))
+        notes = json.loads(rough.Report).get("notes", [])
+        self.assertTrue(any("too narrow for a helical entry" in n for n in notes), notes)
+        self.assertIn("too narrow for a helical entry", report_text())
+        plugged = self.verify(job)
+        loads = json.loads(plugged.Metrics)["loads"]
+        self.assertFalse(loads["ok"], loads)
+        ball = int(op.ToolController.ToolNumber)
+        self.assertIn(ball, {o["tool"] for o in loads["overloads"]})
+        rpanel = results_panel.verification_panel(plugged)
+        self.assertFalse(rpanel.ok)
+        self.assertIn("over its limits", rpanel.verdict.text())
+        self.assertIn(f"T{ball}", rpanel.figures.toPlainText())
+        self.assertIn("line", rpanel.figures.toPlainText())
+        self.assertIn("#b00000", rpanel.verdict.styleSheet())  # red
+        self.doc.removeObject(plugged.Name)
+        for stage in list(plugged.StockAfter):
+            self.doc.removeObject(stage.Name)
+
+        # the end mill cuts at its centre: edited in the roughing panel, the hole is plunged
+        rough_panel.RoughPanel.last = None
+        vobj = rough.ViewObject
+        self.assertTrue(vobj.Proxy.doubleClicked(vobj))
+        process_events()
+        epanel = rough_panel.RoughPanel.last
+        self.assertTrue(epanel is not None and epanel.editing)
+        self.assertFalse(epanel.centre_cutting.isChecked())
+        epanel.centre_cutting.setChecked(True)
+        with message_boxes() as boxes:
+            accepted = epanel.accept()
+        if not accepted:
+            self.fail(f"the roughing panel refused: {epanel.message.text()} {boxes}")
+        process_events()
+        self.assertTrue(rough.CentreCutting)
+        self.assertGreater(json.loads(rough.Report)["entries"].get("plunge", 0), 0,
+                         rough.Report)
+        self.assertEqual(touched(self.doc), [])
+
+        # Verify: the part's exact faces, whole program from the stock, every load in limits
         result = self.verify(job)
         metrics = json.loads(result.Metrics)
+        self.assertTrue(metrics["loads"]["ok"], metrics["loads"])
+        self.assertTrue(results_panel.verification_panel(result).ok)
         self.assertLess(metrics["gouge_max_mm"], 0.01)
         self.assertEqual(sorted(metrics["faces"]), sorted(int(n[4:]) for n in faces))
         self.assertLess(metrics["scallop_p99_mm"], 1.5 * COARSE_SCALLOP)

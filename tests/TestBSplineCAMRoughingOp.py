@@ -172,6 +172,46 @@ class TestRoughingJob(RoughingFixture):
             for name in {o.Name for o in self.doc.Objects} - before:
                 self.doc.removeObject(name)
 
+    def test_verify_checks_the_ops_load_limits(self):
+        """Verify holds each tool to its op's load limits: the job's own (from the roughing's
+        step-down and stepover, the ball's stock to take) pass on this honest job; a finishing
+        op's MaxAxialEngagement below the stock it is left fails it, naming T2 and lines."""
+        from BSplineCAM.app import verify_feature
+
+        self.assertEqual(self.finish.MaxAxialEngagement.Value, 0.0)  # 0: the job's limit
+        self.assertFalse(self.rough.CentreCutting)
+        before = {o.Name for o in self.doc.Objects}
+        try:
+            honest = json.loads(verify_feature.verify_job(self.job, cell=0.25).Metrics)["loads"]
+            self.assertTrue(honest["ok"], honest)
+            limits = honest["limits"]
+            self.assertEqual(sorted(limits), ["1", "2"])
+            # the ball's depth: the stock planned for it (allowance + scallop + rest limit),
+            # or the skin the radial allowance leaves on a wall's top edge (a ball radius
+            # below it) when deeper, plus the simulation's resolution (a tenth of a cell)
+            planned = ROUGH.axial_allowance + FINISH.scallop + self.finish.RestLimit.Value
+            skin = 3.0 + ROUGH.axial_allowance + ROUGH.radial_allowance + FINISH.scallop
+            self.assertAlmostEqual(limits["2"]["axial_mm"], max(planned, skin) + 0.025)
+            # the end mill: a step-down deep (or a diameter, when larger), 1.1 stepover wide
+            self.assertAlmostEqual(limits["1"]["axial_mm"], max(ROUGH.stepdown, 8.0) + 0.025)
+            self.assertAlmostEqual(limits["1"]["radial_mm"], 1.1 * 0.4 * 8.0 + 0.25)
+            self.finish.MaxAxialEngagement = 0.05
+            metrics = json.loads(verify_feature.verify_job(self.job, cell=0.25).Metrics)
+            loaded = metrics["loads"]
+            self.assertFalse(loaded["ok"])
+            self.assertAlmostEqual(loaded["limits"]["2"]["axial_mm"], 0.05)
+            over = [o for o in loaded["overloads"] if o["tool"] == 2]
+            self.assertTrue(over and all(o["quantity"] == "axial" and o["value"] > 0.05
+                                         and o["line"] > 0 for o in over), over)
+            self.assertTrue(any(m.startswith("T2 ") for m in loaded["messages"]),
+                            loaded["messages"])
+            self.assertIn("EXCEEDED", verify_feature.format_metrics("job", metrics))
+        finally:
+            self.finish.MaxAxialEngagement = 0.0
+            self.finish.purgeTouched()
+            for name in {o.Name for o in self.doc.Objects} - before:
+                self.doc.removeObject(name)
+
     def test_saved_and_reopened(self):
         path = str(Path(self.tmp.name) / "rough.FCStd")
         self.doc.saveCopy(path)

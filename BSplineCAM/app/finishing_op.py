@@ -39,6 +39,7 @@ from ..core.toolpath.faceset import FaceSet
 from ..core.toolpath.rest import faceset_cl_height, generate_rest, net_cl_height
 from . import cam, compat
 from .faces import faces_and_reach
+from .load_limits import LOAD_PROPERTIES
 from .part import Extent, surface_extent
 from .progress import op_progress, previous_commands, report_cancelled
 from .proxy import add_missing_properties
@@ -77,6 +78,7 @@ PROPERTIES = (
      "the finishing op is recomputed after them", 0, None),
     ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)", 0, None),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
+    *LOAD_PROPERTIES,
 )
 
 

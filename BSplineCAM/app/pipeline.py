@@ -42,7 +42,8 @@ class RoughingParameters:
     diameter and corner radius mm), step-down (mm), stepover (percent of the diameter), stock
     to leave (mm), the stock block's margin around the part (mm), flat-area levels and the
     fine step-down (mm, 0: off) of the terraces between levels, the entries' ramp angle
-    (degrees)."""
+    (degrees), and whether the end mill cuts at its centre (closed pockets too narrow for a
+    helix are then entered by a plunge)."""
 
     shape: str = "flat"
     diameter: float = 10.0
@@ -55,6 +56,7 @@ class RoughingParameters:
     flat_levels: bool = True
     fine_stepdown: float = 0.0
     ramp_angle: float = RAMP_ANGLE_DEG
+    centre_cutting: bool = False
 
 
 def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cutting, doc,
@@ -156,6 +158,7 @@ def set_roughing(op, roughing: RoughingParameters) -> None:
     op.AxialAllowance = roughing.axial_allowance
     op.FlatLevels = bool(roughing.flat_levels)
     op.RampAngle = roughing.ramp_angle
+    op.CentreCutting = bool(roughing.centre_cutting)
 
 
 def roughing_of(op) -> RoughingParameters:
@@ -172,7 +175,8 @@ def roughing_of(op) -> RoughingParameters:
         axial_allowance=float(op.AxialAllowance.Value),
         stock_margin=RoughingParameters.stock_margin if margin is None else margin,
         flat_levels=bool(op.FlatLevels), fine_stepdown=float(op.FineStepDown.Value),
-        ramp_angle=float(op.RampAngle.Value))
+        ramp_angle=float(op.RampAngle.Value),
+        centre_cutting=bool(getattr(op, "CentreCutting", False)))
 
 
 def edit_roughing(op, roughing: RoughingParameters, cutting: cam.Cutting) -> None:

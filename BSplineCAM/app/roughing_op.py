@@ -39,6 +39,7 @@ from .finishing_op import (
     new_op,
     progress_reporter,
 )
+from .load_limits import LOAD_PROPERTIES
 from .stock_left import job_stock
 
 OBJECT_VERSION = "1"
@@ -67,6 +68,9 @@ PROPERTIES = (
      "Stock to leave on the part, sideways (mm)", 0, 0.3),
     ("App::PropertyLength", "AxialAllowance", "Roughing",
      "Stock to leave on the part, vertically (mm)", 0, 0.3),
+    ("App::PropertyBool", "CentreCutting", "Roughing",
+     "The end mill cuts at its centre: closed pockets too narrow for a helix are entered by a "
+     "straight plunge (off: such a pocket is left, and named in the report)", 0, False),
     ("App::PropertyBool", "FlatLevels", "Roughing",
      "Extra levels at the part's flat areas, so the terraces left there stay thin", 0, True),
     ("App::PropertyLength", "Cell", "Roughing",
@@ -74,6 +78,7 @@ PROPERTIES = (
     ("App::PropertyString", "Report", "Roughing", "Statistics of the last computation (JSON)",
      0, None),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
+    *LOAD_PROPERTIES,
 )
 
 
@@ -156,6 +161,7 @@ class ObjectSurfaceRough(ObjectSurfaceFinish):
             axial_allowance=obj.AxialAllowance.Value,
             cell=obj.Cell.Value or None, clearance_height=clearance,
             flat_levels=bool(obj.FlatLevels), fine_stepdown=fine, ramp_angle=ramp,
+            centre_cutting=bool(getattr(obj, "CentreCutting", False)),
             progress=progress_reporter(obj))
         if not rough.moves:
             raise OpError(f"{obj.Label}: there is no stock to remove above the part")

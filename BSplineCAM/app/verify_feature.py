@@ -33,6 +33,7 @@ from ..core.simulation.verify import Verification, verify, verify_faces
 from ..core.simulation.verify import verify_job as verify_job_program
 from . import cam, compat
 from .finishing_op import ObjectSurfaceFinish, find_surface_object
+from .load_limits import job_load_limits
 from .progress import StatusProgress
 from .proxy import StatelessProxy, add_missing_properties
 from .roughing_op import ObjectSurfaceRough
@@ -193,7 +194,8 @@ def default_cell(surface: Surface) -> float:
 def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float | None = None,
                       stride: int | None = None, program: str = "program", job=None,
                       surface: Surface | list | None = None, doc=None, progress=None,
-                      tools: dict | None = None, stock: tuple | None = None):
+                      tools: dict | None = None, stock: tuple | None = None,
+                      load_limits: dict | None = None):
     """Simulate G-code text against a design; return the new simulated-part object.
 
     ``surface_obj`` is the design object (a BSplineCAM surface object, or the part whose faces
@@ -203,7 +205,9 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
     the Z-map cell (mm, default: :func:`default_cell`).  With ``tools`` ({number: core Tool})
     the program's tool changes are followed from the block ``stock`` (x0, x1, y0, y1, z0, z1
     mm, a core Stock, or a core CylinderStock; :func:`BSplineCAM.core.simulation.verify.verify_job`), the per-tool figures join the metrics and
-    the stock after each tool but the last becomes a mesh of its own (``StockAfter``).
+    the stock after each tool but the last becomes a mesh of its own (``StockAfter``), and
+    every move is checked against ``load_limits`` ({number: core LoadLimits}; the tools'
+    defaults where missing), the overloads joining the metrics (``loads``).
     ``progress(fraction)`` is told of each stage (default: FreeCAD's progress bar when the
     GUI is up) and may raise to cancel; the document is touched only after the simulation.
     The metrics are also printed.
@@ -218,7 +222,8 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
         progress(0.15)
         if tools:
             result = verify_job_program(surface, parsed, tools, stock, cell,
-                                        progress=lambda f: progress(0.15 + 0.65 * f))
+                                        progress=lambda f: progress(0.15 + 0.65 * f),
+                                        load_limits=load_limits)
         elif isinstance(surface, Surface):
             result = verify(surface, parsed, Tool(float(tool_diameter)), cell,
                             progress=lambda f: progress(0.15 + 0.65 * f))
@@ -249,6 +254,8 @@ def make_verification(surface_obj, gcode: str, tool_diameter: float, cell: float
         obj.Deviation = [float(v) for v in np.where(np.isnan(data.deviation), OFF_FOOTPRINT,
                                                     data.deviation)]
         metrics = {"program": program, **result.metrics}
+        if getattr(result, "loads", None) is not None:  # the overloads in words, per tool
+            metrics["loads"] = {**metrics["loads"], "messages": result.loads.messages(tools)}
         obj.Metrics = json.dumps(metrics, sort_keys=True)
         obj.Mesh = mesh
         made = []
@@ -379,9 +386,14 @@ def verify_job(job, cell: float | None = None, stride: int | None = None, progre
     if cell is None and not isinstance(model, Surface):
         b = job.Stock.Shape.BoundBox
         cell = max(b.XLength, b.YLength) / DEFAULT_CELLS
+    limits = None
+    if tools:
+        ops = [o for o in finishing_ops(job) if getattr(o, "Active", True)]
+        limits = job_load_limits(job, ops, tools, cell if cell is not None
+                                 else default_cell(model))
     return make_verification(source, gcode, diameter, cell, stride, program=f"{job.Label} (linuxcnc)",
                              job=job, surface=model, doc=job.Document, progress=progress,
-                             tools=tools, stock=stock)
+                             tools=tools, stock=stock, load_limits=limits)
 
 
 def verify_file(surface_obj, path: str | os.PathLike, tool_diameter: float,
@@ -411,6 +423,7 @@ def format_metrics(label: str, m: dict) -> str:
         f"  Z-map              {m['grid_cells'][1]} x {m['grid_cells'][0]} cells of "
         f"{m['cell_mm']:.3g} mm",
     ]
+    lines.extend(load_lines(m))
     for number, t in sorted((m.get("tools") or {}).items()):
         tool = t["tool"]
         lines.append(
@@ -420,6 +433,22 @@ def format_metrics(label: str, m: dict) -> str:
             f"{t['axial_engagement_max_mm']:.3f} mm, "
             f"{len(t['rapid_collisions'])} rapid collisions")
     return "\n".join(lines) + "\n"
+
+
+def load_lines(m: dict) -> list[str]:
+    """The report-view lines of a verification's load check (none without one)."""
+    loads = m.get("loads")
+    if not loads:
+        return []
+    if loads.get("ok", True):
+        return ["  load limits        every move within its tool's limits"]
+    return ["  load limits        EXCEEDED:",
+            *(f"    {text}" for text in loads.get("messages", []))]
+
+
+def loads_ok(m: dict) -> bool:
+    """False when a verification's load check found a move over its tool's limits."""
+    return bool((m.get("loads") or {}).get("ok", True))
 
 
 def _progress_reporter(message: str):

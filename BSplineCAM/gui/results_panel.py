@@ -28,7 +28,7 @@ class ResultsPanel:
 
     def __init__(self, title: str, text: str, verdict: str = "", ok: bool = True,
                  pixmap: str = "verify") -> None:
-        self.title, self.text = title, compact(text)
+        self.title, self.text, self.ok = title, compact(text), ok
         self.form = QtGui.QWidget()
         self.form.setWindowTitle(title)
         self.form.setWindowIcon(QtGui.QIcon(icon(pixmap)))
@@ -109,16 +109,24 @@ def verification_panel(obj) -> ResultsPanel:
     """The figures of a verification object (its Metrics)."""
     import json
 
-    from ..app.verify_feature import format_metrics
+    from ..app.verify_feature import format_metrics, loads_ok
 
     metrics = json.loads(obj.Metrics or "{}")
     text = format_metrics(obj.Label, metrics) if metrics else "No metrics (not computed)\n"
     gouge = float(metrics.get("gouge_max_mm", 0.0))
     tolerance = float(metrics.get("gouge_tolerance_mm", 0.0))
-    ok = bool(metrics) and gouge <= tolerance and not metrics.get("rapid_collisions")
-    verdict = (f"{obj.Label}: no gouge beyond {tolerance:g} mm" if ok else
-               f"{obj.Label}: gouge {gouge:.4f} mm or rapid collisions, see below"
-               ) if metrics else obj.Label
+    safe = bool(metrics) and gouge <= tolerance and not metrics.get("rapid_collisions")
+    loaded = bool(metrics) and loads_ok(metrics)
+    ok = safe and loaded
+    if not metrics:
+        verdict = obj.Label
+    elif not safe:
+        verdict = f"{obj.Label}: gouge {gouge:.4f} mm or rapid collisions, see below"
+    elif not loaded:
+        verdict = f"{obj.Label}: a tool is loaded over its limits, see below"
+    else:
+        verdict = f"{obj.Label}: no gouge beyond {tolerance:g} mm" + (
+            ", loads within limits" if metrics.get("loads") else "")
     # a short title: FreeCAD's task box does not shrink below its title
     return ResultsPanel("Verification", text, verdict, ok, "verify")
 

@@ -148,6 +148,8 @@ class RoughPanel(PanelBase):
         self.margin = spin(2.0, 0.0, 1000.0, 2, " mm", 1.0)
         self.flat_levels = QtGui.QCheckBox("Extra levels at flat areas")
         self.flat_levels.setChecked(True)
+        self.centre_cutting = QtGui.QCheckBox("Centre-cutting end mill (may plunge)")
+        self.centre_cutting.setChecked(False)
         self.make_cutting_fields()
         target = QtGui.QLabel(job.Label)
         layout.addRow("Job", target)
@@ -167,6 +169,9 @@ class RoughPanel(PanelBase):
             ("Stock margin", self.margin, "The job's stock block around the part, sideways "
              "and above"),
             ("", self.flat_levels, "Extra Z levels at the part's flat areas"),
+            ("", self.centre_cutting, "The end mill cuts at its centre: closed pockets too "
+             "narrow for a helix are entered by a straight plunge (off: such a pocket is "
+             "left, and the report names it and the tool that would enter it)"),
             *self.cutting_rows(),
         ):
             widget.setToolTip(tip)
@@ -194,6 +199,7 @@ class RoughPanel(PanelBase):
                            (self.axial, params.axial_allowance), (self.margin, params.stock_margin)):
             box.setValue(value)
         self.flat_levels.setChecked(params.flat_levels)
+        self.centre_cutting.setChecked(params.centre_cutting)
         tip = f"The bit of {self.op.ToolController.Label}: change it in the tool controller"
         for widget in (self.shape, self.diameter, self.corner):
             widget.setEnabled(False)
@@ -238,7 +244,8 @@ class RoughPanel(PanelBase):
             stepdown=self.stepdown.value(), stepover_percent=int(self.stepover.value()),
             radial_allowance=self.radial.value(), axial_allowance=self.axial.value(),
             stock_margin=self.margin.value(), flat_levels=self.flat_levels.isChecked(),
-            fine_stepdown=self.fine.value(), ramp_angle=self.ramp.value())
+            fine_stepdown=self.fine.value(), ramp_angle=self.ramp.value(),
+            centre_cutting=self.centre_cutting.isChecked())
         return params, self.cutting()
 
     def accept(self) -> bool:
@@ -253,8 +260,10 @@ class RoughPanel(PanelBase):
             return False
         self.close()
         report = json.loads(self.op.Report or "{}")
+        notes = report.get("notes", [])
+        warned = f"; {len(notes)} warning(s) in the report view: {notes[0]}" if notes else ""
         show_info("Roughing", f"{self.op.Label}: {len(report.get('levels', []))} levels, "
-                  f"{report.get('cutting_length_mm', 0):.0f} mm of cutting")
+                  f"{report.get('cutting_length_mm', 0):.0f} mm of cutting{warned}")
         return True
 
 
