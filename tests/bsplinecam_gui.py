@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Helpers of the GUI tests (TestBSplineCAMGui, TestBSplineCAMGuiPart), which run inside a real
+"""Helpers of the GUI tests (TestBSplineCAMGui*.py), which run inside a real
 FreeCAD GUI: the base test cases (the workbench active, a fresh document per test), FreeCAD's
 event loop, message boxes and file dialogs answered, the report view, the bench window and its
 3D view, and checks of what a view shows.
@@ -140,7 +140,7 @@ class GuiTestCase(unittest.TestCase):
         return made[0]
 
 
-#: A coarse scallop keeps the GUI test fast (mm); TestBSplineCAMGui's FINE_SCALLOP takes
+#: A coarse scallop keeps the GUI test fast (mm); FINE_SCALLOP (below) takes
 #: seconds (to cancel).  TOOL: the ball's diameter (mm).
 COARSE_SCALLOP = 0.1
 TOOL = 6.0
@@ -364,3 +364,75 @@ class CamTestCase(PictureChecks, GuiTestCase):
         ops = [o for o in self.doc.Objects if cam_commands.is_finishing_op(o)]
         self.assertEqual((len(jobs), len(ops)), (1, 1))
         return surface, jobs[0], ops[0]
+
+
+#: A fine scallop takes seconds (to cancel); COARSE_SCALLOP keeps the GUI test fast (mm).
+FINE_SCALLOP = 0.005
+
+
+@contextlib.contextmanager
+def timed_during_computation(action, after: float = 0.05) -> Iterator[list]:
+    """A timer ticking every 10 ms meanwhile; yield its ticks as (computing, fraction).
+
+    Once a computation (a status-bar progress bar) has passed ``after`` of its work,
+    ``action(bar)`` runs once, from the timer, as a user's click would.
+    """
+    from BSplineCAM.gui import progress_bar
+
+    ticks: list = []
+    done: list = []
+
+    def tick() -> None:
+        bar = progress_bar.ProgressBar.active
+        ticks.append((bar is not None, bar.fraction if bar is not None else None))
+        if bar is not None and bar.fraction > after and not done:
+            done.append(bar.fraction)
+            action(bar)
+
+    timer = QtCore.QTimer()
+    timer.timeout.connect(tick)
+    timer.start(10)
+    try:
+        yield ticks
+    finally:
+        timer.stop()
+
+
+@contextlib.contextmanager
+def cam_dialogs(post: str = "", save_path: str = "", open_path: str = "",
+                tool: float = TOOL) -> Iterator[None]:
+    """Make the machining commands' dialogs answer fixed values."""
+    from BSplineCAM.gui import cam_commands
+
+    saved = cam_commands.ask_post, cam_commands.ask_tool_diameter
+    cam_commands.ask_post = lambda posts: post
+    cam_commands.ask_tool_diameter = lambda: tool
+    try:
+        with dialogs_answer(open_path=open_path, save_path=save_path):
+            yield
+    finally:
+        cam_commands.ask_post, cam_commands.ask_tool_diameter = saved
+
+
+def tree_dock(mw):
+    """The dock showing the document tree, brought to the front: "Combo View" in FreeCAD 0.20,
+    a "Model" dock tabbed with "Tasks" in 1.0."""
+    docks = [mw.findChild(QtGui.QDockWidget, name) for name in ("Combo View", "Model")]
+    docks += [d for d in mw.findChildren(QtGui.QDockWidget) if d.findChildren(QtGui.QTreeWidget)]
+    for dock in docks:
+        if dock is not None and dock.findChildren(QtGui.QTreeWidget):
+            dock.show()
+            dock.raise_()
+            return dock
+    return None
+
+
+def drawn_of_type(root, type_name: str) -> int:
+    """How many nodes of a Coin type are drawn under ``root`` (switches followed)."""
+    from pivy import coin
+
+    search = coin.SoSearchAction()
+    search.setType(coin.SoType.fromName(type_name))
+    search.setInterest(coin.SoSearchAction.ALL)
+    search.apply(root)
+    return search.getPaths().getLength()

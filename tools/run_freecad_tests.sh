@@ -2,7 +2,7 @@
 # Run FreeCAD-layer unittest modules in FreeCAD's own Python and exit with their status.
 #
 # Usage:
-#   tools/run_freecad_tests.sh [MODULE...]        default: TestBSplineCAMFeature
+#   tools/run_freecad_tests.sh [MODULE[.Class[.test]]...]   default: TestBSplineCAMFeature
 # Environment:
 #   FREECADCMD   the command-line FreeCAD to use (default: freecadcmd); for FreeCAD 1.0:
 #                FREECADCMD="tools/freecad10.sh freecadcmd" tools/run_freecad_tests.sh
@@ -18,7 +18,7 @@ if [[ $# -eq 0 ]]; then
     set -- TestBSplineCAMFeature
 fi
 for m in "$@"; do
-    [[ "$m" =~ ^[A-Za-z_][A-Za-z0-9_]*$ ]] || { echo "bad module name: $m" >&2; exit 2; }
+    [[ "$m" =~ ^[A-Za-z_][A-Za-z0-9_.]*$ ]] || { echo "bad module name: $m" >&2; exit 2; }
 done
 MODULES="$(printf "'%s'," "$@")"
 CODE="

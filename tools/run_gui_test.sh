@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run the GUI tests in a real FreeCAD GUI under Xvfb; exit non-zero on failure.
 #
-# Usage: tools/run_gui_test.sh [MODULE...]      default: TestBSplineCAMGui TestBSplineCAMGuiPart
+# Usage: tools/run_gui_test.sh [MODULE...]      default: TestBSplineCAMGuiCam TestBSplineCAMGuiPanels TestBSplineCAMGui TestBSplineCAMGuiPart
 # Environment:
 #   FREECAD             GUI binary (default: freecad)
 #   FREECADCMD          its command-line twin, asked where the Mod folder is (default: freecadcmd)
@@ -26,7 +26,7 @@ export XDG_CONFIG_HOME="$HOME/.config" XDG_DATA_HOME="$HOME/.local/share"
 # the Mod folder this FreeCAD reads (1.1's is versioned), as FreeCAD itself reports it
 python3 "$ROOT/tools/install_addon.py" --freecadcmd "${FREECADCMD:-freecadcmd}" >/dev/null
 export BSPLINECAM_GUI_OUT="$WORK/result.json"
-export BSPLINECAM_GUI_TESTS="${*:-TestBSplineCAMGui TestBSplineCAMGuiPart}"
+export BSPLINECAM_GUI_TESTS="${*:-TestBSplineCAMGuiCam TestBSplineCAMGuiPanels TestBSplineCAMGui TestBSplineCAMGuiPart}"
 export BSPLINECAM_DOCS="${BSPLINECAM_DOCS:-$ROOT/build/screenshots}"
 [[ $EUID -eq 0 ]] && export QTWEBENGINE_DISABLE_SANDBOX=1
 
