@@ -105,6 +105,22 @@ def _rough(centre_cutting: bool, part=plate, stock=PLATE_STOCK, tool=TOOL):
                              centre_cutting=centre_cutting)
 
 
+def _job(rough, stock: Stock, tool: Tool = TOOL):
+    """The roughing written as G-code and cut out of the block by core.job_simulation (its
+    entries, radial and axial engagement per move)."""
+    from BSplineCAM.core.program.gcode import read_gcode
+    from BSplineCAM.core.simulation.job_simulation import simulate_job
+
+    lines = ["G21 G90 G17", "T1 M6"]
+    for m in rough.moves:
+        feed = "" if m.kind == "rapid" else " F1000"
+        lines.append(f"{'G0' if m.kind == 'rapid' else 'G1'} X{m.x:.4f} Y{m.y:.4f} "
+                     f"Z{m.z:.4f}{feed}")
+    lines.append("M2")
+    program = read_gcode("\n".join(lines) + "\n", "roughing")
+    return simulate_job(program, {1: tool}, Grid.covering(*stock.bounds[:4], 0.1), stock.bounds)
+
+
 def _pocket_notes(rough) -> list:
     return [n for n in rough.stats["notes"] if "closed pocket" in n]
 
@@ -160,6 +176,13 @@ def test_plate_hole_plunged_or_named_and_no_deep_cut(centre_cutting):
                 run = math.hypot(v.x - u.x, v.y - u.y)
                 assert u.z - v.z <= slope * run * 1.001 + 1e-9 and v.z >= level - 1e-9
         assert sorted(seen) == sorted(closed)
+        # the job simulation counts every cut in the hole as entry (the plunge, the lap's
+        # ramp and the lap at the level on its track): none outside the entries ends there
+        job = _job(rough, PLATE_STOCK)
+        seg = job.segments
+        cutting = ~job.entry & (job.axial > job.threshold_mm) & ~np.asarray(seg.rapid, bool)
+        ends = np.hypot(seg.end[:, 0] - HOLE[0], seg.end[:, 1] - HOLE[1]) <= 1.0
+        assert not (cutting & ends).any(), job.radial[cutting & ends]
     else:
         assert st["entries"]["plunge"] == 0
         # untouched below the level above its first closed level: the plate's top + allowance
@@ -249,6 +272,13 @@ def test_slot_entered_by_a_zigzag_ramp():
     limit = STEPDOWN + ALLOWANCE + 0.05
     deep = [(i, d) for i, d in sim.inner if d > limit]
     assert not deep, f"{len(deep)} moves cut deeper than {limit} mm, up to {max(deep)}"
+    # the job simulation's width of cut outside the entries (the ramps, the laps and the way
+    # round them at the level) stays within 1.1 stepover and its 0.1 mm cell, as the main
+    # job's check asks; no rapid cuts
+    job = _job(rough, SLOT_STOCK)
+    report = job.tools[1]
+    assert report.radial_engagement_max_mm <= 1.1 * STEPOVER + 0.1, report
+    assert report.entries >= len(closed) and not report.collisions
 
 
 def test_centre_cutting_must_be_a_bool():

@@ -332,8 +332,10 @@ class _Entries:
         level's allowed centres: from the highest material along it (:meth:`entry_top`) back
         and forth between its ends at the ramp angle, down to the height from which the
         component's boundary (:meth:`lap_from`) ramped down once at the ramp angle reaches
-        level z (the last sweep turning back short where a whole one would go too low), then
-        that lap and one more round it at z (:meth:`ramp_round`): the boundary lies within a
+        level z (the last sweep turning back short where a whole one would go too low; the
+        ramp starts in the air above the material where that is less high), then that lap
+        and one more round it at z (:meth:`ramp_round`), every move of which descends or
+        runs on the descent's track (an entry, as the job simulation counts them): the boundary lies within a
         few cells of the chord (no helix fits), so the lap at z also cuts the wedge the
         sweeps left along it.  Without such a lap the ramp goes on down to z, to the end it
         was heading for and back along the whole chord at z."""
@@ -342,8 +344,11 @@ class _Entries:
         a, b = np.asarray(ends[0], dtype=float), np.asarray(ends[1], dtype=float)
         length = float(np.hypot(*(b - a)))
         top = self.entry_top(_densify(np.array([a, b]), self.cell), z)
-        first = self.start_entry(a[0], a[1], top)
         laps = [self.lap_from(mask, a), self.lap_from(mask, b)]
+        if laps[0] is not None:
+            # at least the lap's whole ramp (in the air above the material if need be)
+            top = max(top, z + slope * laps[0][0])
+        first = self.start_entry(a[0], a[1], top)
         here, there, h = a, b, top
         if all(lap is not None for lap in laps):
             k = 0  # the lap from ``here``: laps[k]
@@ -386,8 +391,9 @@ class _Entries:
         """Straight plunge at (cx, cy) (mm), for an end mill that cuts at its centre, into the
         component ``mask`` of the level's allowed centres, then its boundary (:meth:`lap_from`)
         ramped down once at the ramp angle and lapped once more at level z
-        (:meth:`ramp_round`).  The plunge stops as high above z as that ramp descends, from
-        the material's top (:meth:`entry_top`).  The lap takes the ring between the plunge's
+        (:meth:`ramp_round`).  The plunge, from the material's top (:meth:`entry_top`), stops
+        as high above z as that ramp descends (starting above the material where that is
+        less high).  The lap takes the ring between the plunge's
         reach and the wall, which the level's wall pass would take as a sliver thinner than
         its tolerance and leave; in a hole barely wider than the tool it is all that is left.
         Where no such lap is found, only the plunge is made."""
@@ -395,11 +401,13 @@ class _Entries:
         c = np.array([cx, cy])
         lap = self.lap_from(mask, c)
         top = self.entry_top(np.array([[cx, cy]]), z)
+        if lap is not None:
+            top = max(top, z + self.ramp_slope * lap[0])
         first = self.start_entry(cx, cy, top)
         if lap is None:
             w.add("feed", cx, cy, z)
         else:
-            start = min(z + self.ramp_slope * lap[0], top)
+            start = z + self.ramp_slope * lap[0]
             w.add("feed", cx, cy, start)
             self.ramp_round(c, start, lap[1], z)
         self.entry_spans.append([first, len(w.moves)])
