@@ -231,13 +231,15 @@ class _Entries:
         """Enter a component of the level's allowed centres not reaching air (a closed pocket
         or hole): by a helix where one fits (:meth:`helix`), else by a zig-zag ramp along its
         longest straight chord where that is at least ZIGZAG_MIN_DIAMETERS tool diameters
-        long (:meth:`zigzag`), else, with a centre-cutting tool (``centre_cutting``), by a
-        straight plunge at its point farthest from the walls (:meth:`plunge`).  Returns the
-        cells the level's fronts grow from (the helix's disc, the ramp's chord, the plunge's
-        point) and the ring round them (:class:`~.rings._Ring`, None for a chord), or None
-        where none of these enters it: the pocket is then left, recorded in ``skipped``
-        (level, place, uncut XY box, the largest tool diameter whose helix would enter it)
-        for the run's note."""
+        long (:meth:`zigzag`; a centre-cutting tool ramps there too), else, with a
+        centre-cutting tool (``centre_cutting``), by a straight plunge at its point farthest
+        from the walls (:meth:`plunge`); the last two end with a lap round the component's
+        boundary.  Returns the cells the level's fronts grow from (the helix's disc, the
+        ramp's chord, the cells round the plunge's point) and the ring round them
+        (:class:`~.rings._Ring`, None for a chord), or None where none of these enters it:
+        the pocket is then left, recorded in ``skipped`` (level, the level above, its place,
+        the XY box of its walls, the largest tool diameter whose helix would enter it) for
+        the run's note (:meth:`~.job._Job.report_leftover`)."""
         cell = self.cell
         idx = np.argwhere(mask)
         i0, j0 = idx.min(axis=0) - 1
