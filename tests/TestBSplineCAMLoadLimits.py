@@ -159,19 +159,22 @@ def test_job_limits_from_parameters() -> None:
     limit 1, cell 0.1 (threshold 0.01)."""
     limits = job_limits(FLAT10, BALL6, stepdown=2.0, stepover=4.0, axial_allowance=0.3,
                         radial_allowance=0.3, scallop=0.01, rest_limit=1.0, cell=0.1)
-    assert limits[1].axial_mm == pytest.approx(10.0 + 0.01)
+    assert limits[1].axial_mm == pytest.approx(2.0 + 0.01)  # a step-down
     assert limits[1].radial_mm == pytest.approx(1.1 * 4.0 + 0.1)
-    assert limits[2].axial_mm == pytest.approx(3.0 + 0.3 + 0.3 + 0.01 + 0.01)
+    assert limits[2].axial_mm == pytest.approx(6.0 + 0.01)  # the ball's diameter
+    # the ball's width at the planned stock (1.31 mm deep: 5.01 mm) is under 0.9 D
     planned = 0.3 + 0.01 + 1.0
-    assert limits[2].radial_mm == pytest.approx(2 * math.sqrt(planned * (6 - planned)) + 0.1)
+    assert 2 * math.sqrt(planned * (6 - planned)) < 5.4
+    assert limits[2].radial_mm == pytest.approx(0.9 * 6.0 + 0.1)
     # no rest passes: the ball meets the terraces, a step-down thick; a ball roughing tool's
-    # width is not limited, its depth the step-down or a quarter of its diameter
-    limits = job_limits(Tool(8.0), BALL6, stepdown=1.5, stepover=3.0, axial_allowance=0.3,
+    # width is not limited, its depth the step-down
+    limits = job_limits(Tool(8.0), BALL6, stepdown=1.9, stepover=3.0, axial_allowance=0.3,
                         radial_allowance=0.3, scallop=0.01, rest_limit=0.0, cell=0.1)
-    planned = 0.3 + 0.01 + 1.5
+    planned = 0.3 + 0.01 + 1.9
+    assert 2 * math.sqrt(planned * (6 - planned)) > 5.4
     assert limits[2].radial_mm == pytest.approx(2 * math.sqrt(planned * (6 - planned)) + 0.1)
     assert limits[1].radial_mm is None
-    assert limits[1].axial_mm == pytest.approx(2.0 + 0.01)
+    assert limits[1].axial_mm == pytest.approx(1.9 + 0.01)
     # terraces 2.5 mm thick: the ball's width there and a cell reach its diameter: unlimited
     limits = job_limits(FLAT10, BALL6, stepdown=2.5, stepover=4.0, axial_allowance=0.3,
                         radial_allowance=0.3, scallop=0.01, rest_limit=0.0, cell=0.1)

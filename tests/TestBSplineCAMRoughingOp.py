@@ -93,7 +93,9 @@ class TestRoughingJob(RoughingFixture):
         levels = json.loads(self.rough.Report)["levels"]
         self.assertEqual(levels, sorted(levels, reverse=True))
         entries = json.loads(self.rough.Report)["entries"]
-        self.assertEqual(set(entries), {"helical", "outside", "ramp", "lead_in"})
+        self.assertEqual(set(entries), {"helical", "outside", "ramp", "lead_in", "zigzag",
+                                        "plunge"})
+        self.assertEqual((entries["zigzag"], entries["plunge"]), (0, 0))  # no closed pocket
         self.assertGreater(entries["outside"] + entries["helical"], 0)
         self.assertIn("rest", json.loads(self.finish.Report))
 
@@ -187,13 +189,12 @@ class TestRoughingJob(RoughingFixture):
             limits = honest["limits"]
             self.assertEqual(sorted(limits), ["1", "2"])
             # the ball's depth: the stock planned for it (allowance + scallop + rest limit),
-            # or the skin the radial allowance leaves on a wall's top edge (a ball radius
-            # below it) when deeper, plus the simulation's resolution (a tenth of a cell)
+            # or its diameter when larger (the skin of radial stock on a wall's edge), plus
+            # the simulation's resolution (a tenth of a cell)
             planned = ROUGH.axial_allowance + FINISH.scallop + self.finish.RestLimit.Value
-            skin = 3.0 + ROUGH.axial_allowance + ROUGH.radial_allowance + FINISH.scallop
-            self.assertAlmostEqual(limits["2"]["axial_mm"], max(planned, skin) + 0.025)
-            # the end mill: a step-down deep (or a diameter, when larger), 1.1 stepover wide
-            self.assertAlmostEqual(limits["1"]["axial_mm"], max(ROUGH.stepdown, 8.0) + 0.025)
+            self.assertAlmostEqual(limits["2"]["axial_mm"], max(planned, 6.0) + 0.025)
+            # the end mill: a step-down deep, 1.1 stepover wide
+            self.assertAlmostEqual(limits["1"]["axial_mm"], ROUGH.stepdown + 0.025)
             self.assertAlmostEqual(limits["1"]["radial_mm"], 1.1 * 0.4 * 8.0 + 0.25)
             self.finish.MaxAxialEngagement = 0.05
             metrics = json.loads(verify_feature.verify_job(self.job, cell=0.25).Metrics)
@@ -531,8 +532,12 @@ class TestJobCommand(unittest.TestCase):
             job = json.loads((out / "job.json").read_text())
             verified = json.loads((out / "verify.json").read_text())
             self.assertTrue(verified["ok"], verified["checks"])
-            self.assertEqual(set(verified["checks"]),
-                             {"gouge_max_mm", "scallop_max_mm", "rapid_collisions"})
+            self.assertEqual(set(verified["checks"]), {"gouge_max_mm", "scallop_max_mm",
+                                                       "rapid_collisions", "load_limits"})
+            # every move within its tool's limits: the end mill a step-down deep
+            self.assertEqual(verified["checks"]["load_limits"]["value"], 0)
+            self.assertLessEqual(verified["tools"]["1"]["axial_engagement_max_mm"],
+                                 ROUGH.stepdown + 0.01 + 1e-9)
             self.assertIn("roughing_radial_engagement_max_mm", verified["targets"])
             self.assertEqual(sorted(verified["tools"]), ["1", "2"])
             self.assertEqual(verified["tools"]["1"]["tool"]["shape"], "flat")

@@ -71,8 +71,8 @@ PROPERTIES = (
     ("App::PropertyBool", "Arcs", "Surface", "Fit passes with G2/G3 arcs (one-sided, within the tolerance) in the plane holding them", 0, True),
     ("App::PropertyLength", "RestLimit", "Surface",
      "After earlier ops (roughing): rest passes first take the terraces they left down to this "
-     "much above the part, so no finishing move cuts deeper than the stock left + scallop + "
-     "this; 0: no rest passes", 0, 1.0),
+     "much above the part, so the finishing passes over them cut about the stock left + "
+     "scallop + this deep; 0: no rest passes", 0, 1.0),
     ("App::PropertyLinkList", "RestFrom", "Surface",
      "Ops whose cuts the rest passes start from (the job's roughing, set when it is added); "
      "the finishing op is recomputed after them", 0, None),

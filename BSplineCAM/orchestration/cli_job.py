@@ -99,8 +99,8 @@ def register(sub) -> None:
     p.add_argument("--finish", default="ball:6", help="finishing tool ball:DIAMETER (mm)")
     p.add_argument("--rest-limit", type=float, default=1.0,
                    help="rest passes take the roughing's terraces down to this much above the "
-                        "part, so no finishing move cuts deeper than allowance + scallop + "
-                        "this (mm, default 1; 0: no rest passes)")
+                        "part, so the finishing passes over them cut about allowance + scallop "
+                        "+ this deep (mm, default 1; 0: no rest passes)")
     p.add_argument("--scallop", type=float, default=0.01, help="largest scallop height (mm)")
     p.add_argument("--tolerance", type=float, default=0.002,
                    help="chordal tolerance along passes (mm, default 0.002)")

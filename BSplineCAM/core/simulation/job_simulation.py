@@ -14,7 +14,11 @@ Definitions, per linearised move (a line, or one chord of an arc); "removed" at 
 the height drop that move causes there, and a cell counts as *engaged* when that drop exceeds
 the depth threshold ``max(ENGAGEMENT_DEPTH_MM, cell / 10)``:
 
-* axial engagement = the largest drop (mm): how deep the tool cut into material.
+* axial engagement = the largest drop (mm) at the cells more than a cell inside the tool's
+  rim (whose centres lie within max(R - cell, R / 2) of the move's XY path): how deep the tool
+  cut into material.  A column thinner than a cell that the rim shaves beside a wall, up to
+  the whole height of the levels above (a pass whose contour lies a micrometre inside the one
+  before), is no load on the tool: it counts for the cutting length, not for the depth.
 * radial engagement = the extent of the engaged cells across the direction of travel (in XY,
   perpendicular to it: max - min of their centres' cross coordinate, plus one cell for the
   cells' own width), clipped to the tool diameter.  A full-width slot gives the diameter, a
@@ -337,6 +341,7 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     pieces = _pieces(seg, radius, grid, live)
     state.piece_volume = np.zeros(len(pieces.segment))
     state.deepest = np.full((n, 2), np.nan)
+    state.drop = np.zeros(n)
     last_report = time.monotonic()
     order = np.arange(n)
     # runs of one tool, cut in chunks of about BATCH_CELLS window cells
@@ -361,10 +366,11 @@ def simulate_job(program: Program, tools: dict[int, Tool], grid: Grid, stock,
     reports = {}
     rates = np.full(n, np.nan)
     for t in sorted(set(number.tolist()) & set(tools)):
-        cutting = (number == t) & ~rapid & (axial > thr)
+        cutting = (number == t) & ~rapid & (state.drop > thr)
         _removal_rates(cutting, pieces, feed, state.piece_volume, tools[t].radius, rates)
         reports[t] = _report(t, tools[t], number == t, seg, rapid, entry, lengths, volume,
-                             axial, radial, thr, [c for _, tt, c in hit if tt == t], rates)
+                             axial, radial, thr, [c for _, tt, c in hit if tt == t], rates,
+                             state.drop)
     collisions = _merge([c for _, _, c in hit])
     return JobSimulation(
         grid=grid, stock=(x0, x1, y0, y1, z0, z1), height=height.astype(float),
@@ -454,6 +460,7 @@ class _Cutter:
         self.threshold = np.float32(threshold)
         self.piece_volume = np.zeros(0)
         self.deepest = np.zeros((0, 2))
+        self.drop = np.zeros(0)  # per segment: the deepest drop at any cell (mm)
 
     def envelopes(self, index: np.ndarray, pieces: _Pieces, tool: Tool) -> dict[int, FloatArray]:
         """Envelope (H, W) of each piece in ``index``, batched by window shape."""
@@ -502,8 +509,10 @@ class _Cutter:
         deepest = float(d.flat[at[k_max]])
         cy, cx = divmod(at[k_max], d.shape[1])
         px, py = grid.x0 + (x + cx + 0.5) * grid.cell, grid.y0 + (y + cy + 0.5) * grid.cell
+        self.drop[s] = deepest
         axial[s] = deepest
         if deepest > self.threshold and not is_rapid:
+            axial[s] = self._inner_depth(drops, seg.start[s], seg.end[s], tool)
             radial[s] = self._radial(drops, seg.start[s], seg.end[s], tool, deepest)
             self.deepest[s] = (px, py)
         if is_rapid and deepest > COLLISION_TOLERANCE_MM:
@@ -520,6 +529,29 @@ class _Cutter:
                 self.piece_volume[k] = float((view - after).sum(dtype=np.float64)) * area
                 view[...] = after
         volume[s] = float(self.piece_volume[ks[0]:ks[-1] + 1].sum())
+
+    def _inner_depth(self, drops: list, p0: FloatArray, p1: FloatArray, tool: Tool) -> float:
+        """The largest drop (mm) at the engaged cells whose centres lie within max(R - cell,
+        R / 2) of the segment's XY path: the depth of cut, without the slivers the rim
+        shaves (see the module docstring)."""
+        grid = self.grid
+        reach = max(tool.radius - grid.cell, 0.5 * tool.radius)
+        a = np.asarray(p0[:2], dtype=float)
+        d = np.asarray(p1[:2], dtype=float) - a
+        dd = float(d @ d)
+        best = 0.0
+        for _, _, drop, x, y in drops:
+            iy, ix = np.nonzero(drop > self.threshold)
+            if not len(ix):
+                continue
+            q = np.column_stack([grid.x0 + (ix + x + 0.5) * grid.cell - a[0],
+                                 grid.y0 + (iy + y + 0.5) * grid.cell - a[1]])
+            t = np.clip(q @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(q))
+            gap = q - t[:, None] * d[None, :]
+            inner = np.einsum("ij,ij->i", gap, gap) <= reach * reach
+            if np.any(inner):
+                best = max(best, float(drop[iy[inner], ix[inner]].max()))
+        return best
 
     def _radial(self, drops: list, p0: FloatArray, p1: FloatArray, tool: Tool,
                 deepest: float) -> float:
@@ -559,9 +591,9 @@ class _Cutter:
 def _report(number: int, tool: Tool, mine: np.ndarray, seg: Segments, rapid: np.ndarray,
             entry: np.ndarray, lengths: FloatArray, volume: FloatArray,
             axial: FloatArray, radial: FloatArray, threshold: float,
-            collisions: list[Collision], rates: FloatArray) -> ToolReport:
+            collisions: list[Collision], rates: FloatArray, drop: FloatArray) -> ToolReport:
     feeds = mine & ~rapid
-    cutting = feeds & (axial > threshold)
+    cutting = feeds & (drop > threshold)
     normal = cutting & ~entry
     entries = cutting & entry
     weight = lengths[normal]

@@ -32,23 +32,25 @@ step-down and 40 % stepover, 0.3 mm allowances, and the 6 mm ball:
 * the roughing tool (T1), a flat or bull-nose end mill, cuts at most ENGAGEMENT_RATIO x the
   stepover wide outside its entries (measured: 4.30 and 4.11 mm against 4.5); a ball roughing
   tool's passes over the cusps of the pass before are wider, so its width is not limited.  Its
-  depth is limited to the step-down or, if larger, its default axial limit (one diameter): its
-  helices and ramps descend one step-down (measured 2.00 mm), but the levels leave slivers of
-  the block beside the part's corners and edges that a lower level cuts several step-downs
-  deep at a light width (measured: 4.0 mm deep, at most 1.5 mm wide, on the case study; 10.0 mm
-  deep, 1.5 mm wide, on examples/part.step);
+  depth is limited to the step-down: its levels, helices, ramps and plunges each cut one
+  step-down (measured 2.00 mm on both parts, with and without plunges; the slivers thinner
+  than a cell that a level's rim shaves beside the part's corners are no depth of cut, see
+  :mod:`.job_simulation`);
 * the finishing ball (T2) cuts at most as wide as the ball is at the depth of the stock the
-  job plans for it: the axial allowance + the scallop + the rest limit (the step-down without
-  rest passes); every move, its descending ones too (a finishing pass descending a slope is
-  no entry into a pocket; measured: 3.3 mm at most on both parts, against 5.06 mm; the 6 mm
-  ball over the stock left in examples/part.step's hole: 5.9 mm).  Its depth is limited to
-  that planned stock or, if larger, to the ball's radius + both allowances + the scallop: the
-  radial allowance stands as a skin on the part's walls (thicker across a corner), which the
-  ball rolling over a wall's top edge cuts from its top down to a radius below the edge
-  (measured: 3.17 mm deep, at most 0.8 mm wide, along examples/part.step's sides, 3.50 mm at
-  its corner; 1.1 mm on the case study);
-* neither rate is limited (measured: the ball 3150 mm^3/min at most on honest passes, 10277
-  over the hole's stock; the end mill 9913 outside and 16023 in its helices).
+  job plans for it, the axial allowance + the scallop + the rest limit (the step-down without
+  rest passes), or FINISH_WIDTH_RATIO x D if wider: the rest passes leave the terraces within
+  about their limit, not exactly (measured: 3.3 mm at most on both parts; 5.13 and 5.36 mm
+  over 1.6 to 2.0 mm of stock after rest passes of 1 mm under a waterline finish of a bump,
+  against 5.4 mm; the 6 mm ball over the stock left in examples/part.step's hole: 5.9 mm).
+  Every move is checked, its descending ones too (a finishing pass descending a slope is no
+  entry into a pocket).  Its depth is limited to that planned stock or, if larger, its
+  diameter: the radial allowance stands as a skin on the part's walls, which the ball rolling
+  over a wall's top edge and down its side cuts from its top down a radius or more at a light
+  width (measured: 3.17 mm deep, at most 0.8 mm wide, along examples/part.step's sides, 3.50
+  mm at its corner, 3.93 mm down the side of a block with rounded edges; 1.1 mm on the case
+  study); a cut that deep and wide is caught by the width;
+* neither rate is limited (measured: the ball 2200 mm^3/min at most on honest passes, 10277
+  over the hole's stock; the end mill 12600 outside and 15700 in its entries).
 
 Each limit has the simulation's resolution added: the engagement threshold (a tenth of a cell,
 at least ENGAGEMENT_DEPTH_MM) for a depth, one cell for a width.
@@ -69,6 +71,9 @@ from .simulate import Tool, ToolShape
 BALL_AXIAL_RATIO = 0.25
 #: Default axial limit of a flat or bull-nose end mill (a roughing tool), times its diameter.
 END_MILL_AXIAL_RATIO = 1.0
+#: Width of cut a finishing ball may take in a job at least, times its diameter (its width a
+#: little over a quarter of its diameter deep).
+FINISH_WIDTH_RATIO = 0.9
 #: A roughing end mill's width of cut outside its entries, times the stepover.
 ENGAGEMENT_RATIO = 1.1
 #: Range of a length limit (mm) and of a removal rate limit (mm^3/min), low end excluded.
@@ -145,11 +150,11 @@ def job_limits(rough: Tool, finish: Tool, *, stepdown: float, stepover: float,
     if rough.shape is not ToolShape.BALL:
         rough_radial = ENGAGEMENT_RATIO * stepover + cell
         rough_radial = None if rough_radial >= rough.diameter else rough_radial
-    rough_axial = max(stepdown, default_limits(rough).axial_mm) + slack
+    rough_axial = stepdown + slack
     planned = axial_allowance + scallop + (rest_limit if rest_limit > 0 else stepdown)
-    skin = finish.radius + axial_allowance + radial_allowance + scallop
-    finish_axial = max(planned, skin) + slack
-    finish_radial = ball_width(finish.diameter, planned) + cell \
+    finish_axial = max(planned, finish.diameter) + slack
+    finish_radial = max(ball_width(finish.diameter, planned),
+                        FINISH_WIDTH_RATIO * finish.diameter) + cell \
         if finish.shape is ToolShape.BALL else None
     if finish_radial is not None and finish_radial >= finish.diameter:
         finish_radial = None
