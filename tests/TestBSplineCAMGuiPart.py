@@ -171,9 +171,8 @@ class TestPartJobWalk(CamTestCase):
         self.assertIn(f"T{ball}", rpanel.figures.toPlainText())
         self.assertIn("line", rpanel.figures.toPlainText())
         self.assertIn("#b00000", rpanel.verdict.styleSheet())  # red
-        self.doc.removeObject(plugged.Name)
-        for stage in list(plugged.StockAfter):
-            self.doc.removeObject(stage.Name)
+        for name in [plugged.Name, *(stage.Name for stage in plugged.StockAfter)]:
+            self.doc.removeObject(name)
 
         # the end mill cuts at its centre: edited in the roughing panel, the hole is plunged
         rough_panel.RoughPanel.last = None
