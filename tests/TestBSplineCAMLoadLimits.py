@@ -68,6 +68,15 @@ def test_full_width_slot_over_radial_limit() -> None:
     assert deep.overloads[0].value == pytest.approx(2.0, abs=1e-5)
 
 
+def test_width_limit_from_a_depth() -> None:
+    """With radial_from_depth_mm the width limit holds for deeper cuts only: the 10 mm flat's
+    full-width slot 2 mm deep passes a 6 mm width limit from 2.5 mm, fails it from 1.5 mm."""
+    job = run(program("T1 M6", *slot(0.0, 2.0)))
+    assert check_loads(job, {1: LoadLimits(radial_mm=6.0, radial_from_depth_mm=2.5)}).ok
+    over = check_loads(job, {1: LoadLimits(radial_mm=6.0, radial_from_depth_mm=1.5)})
+    assert [(o.line, o.quantity) for o in over.overloads] == [(7, "radial")]
+
+
 def test_side_pass_within_limits() -> None:
     """The tool's edge 4 mm inside the block's side (y = 20): a 4 mm wide cut, within 4.5 mm;
     the same pass at 3 mm over a 3.5 mm limit."""
@@ -125,7 +134,8 @@ def test_plunges_axial_found_at_their_lines_and_grouped() -> None:
     data = check.to_dict()
     assert data["ok"] is False and data["overloaded_moves"] == 3
     assert data["limits"]["1"] == {"axial_mm": 3.0, "radial_mm": 4.0,
-                                   "removal_rate_mm3_per_min": None}
+                                   "removal_rate_mm3_per_min": None,
+                                   "radial_from_depth_mm": None}
     assert [r["moves"] for r in data["regions"]] == [2, 1]
     json.dumps(data, allow_nan=False)
 
@@ -247,7 +257,8 @@ def test_cli_verify_reports_the_overload(capsys, tmp_path: Path) -> None:
     # T2's other limits keep the ball's defaults; T1 its own
     assert loads["limits"]["2"]["axial_mm"] == pytest.approx(1.5)
     assert loads["limits"]["1"] == {"axial_mm": 10.0, "radial_mm": None,
-                                    "removal_rate_mm3_per_min": None}
+                                    "removal_rate_mm3_per_min": None,
+                                    "radial_from_depth_mm": None}
     assert json.loads(stdout)["overloaded_moves"] == 1
     # within the defaults (1 mm deep, 4.47 mm wide against 1.5 and 5.2 mm): exit 0
     status, stdout, err = run_main(capsys, *base, "--out", str(tmp_path / "ok"))
@@ -310,4 +321,5 @@ def test_job_limit_options_override_the_jobs() -> None:
     args.finish_limits = "radial=none,axial=2"
     over = load_limits_of(args, rough, BALL6, roughing, 1.0, 0.01)
     assert over[1] == LoadLimits(plain[1].axial_mm, plain[1].radial_mm, 9000.0)
-    assert over[2] == LoadLimits(axial_mm=2.0)
+    # radial=none lifts the width limit (the depth it held from stays, unused)
+    assert over[2] == LoadLimits(axial_mm=2.0, radial_from_depth_mm=plain[2].radial_from_depth_mm)

@@ -214,6 +214,13 @@ def test_plate_hole_plunged_or_named_and_no_deep_cut(centre_cutting):
     assert not deep, f"{len(deep)} moves cut deeper than {limit} mm, up to {max(deep)}"
     # not vacuous: the passes do cut a whole step-down (at the rim only: hair-thin columns)
     assert max(d for _, d in sim.inner) >= STEPDOWN - 0.05
+    # the job simulation's depth of cut is that same measure: at most the step-down and the
+    # allowance outside the entries and in them, though the rim shaves columns several
+    # step-downs tall beside the walls
+    report = _job(rough, PLATE_STOCK).tools[1]
+    assert report.axial_engagement_max_mm <= limit, report
+    assert report.entry_axial_engagement_max_mm <= limit, report
+    assert max(d for _, d in sim.any) > limit  # the columns the rim shaves
 
 
 def test_slot_entered_by_a_zigzag_ramp():

@@ -50,12 +50,18 @@ def op_overrides(op, limits: LoadLimits) -> LoadLimits:
 
 
 def _loosest(a: LoadLimits, b: LoadLimits) -> LoadLimits:
-    """Per figure the larger limit (None, no limit, is the largest): a tool that two ops use
-    is held to the looser of their limits."""
+    """Per figure the larger limit (None, no limit, is the largest), and the larger depth from
+    which the width limit holds: a tool that two ops use is held to the looser of their
+    limits."""
     def pick(x, y):
         return None if x is None or y is None else max(x, y)
 
-    return LoadLimits(*(pick(getattr(a, f), getattr(b, f)) for _, f in _FIELDS))
+    def deeper(x, y):  # the depth from which the width holds: None, every cut, is the least
+        return y if x is None else x if y is None else max(x, y)
+
+    return LoadLimits(*(pick(getattr(a, f), getattr(b, f)) for _, f in _FIELDS),
+                      radial_from_depth_mm=deeper(a.radial_from_depth_mm,
+                                                  b.radial_from_depth_mm))
 
 
 def is_roughing(op) -> bool:

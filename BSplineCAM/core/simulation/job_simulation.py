@@ -14,11 +14,12 @@ Definitions, per linearised move (a line, or one chord of an arc); "removed" at 
 the height drop that move causes there, and a cell counts as *engaged* when that drop exceeds
 the depth threshold ``max(ENGAGEMENT_DEPTH_MM, cell / 10)``:
 
-* axial engagement = the largest drop (mm) at the cells more than a cell inside the tool's
-  rim (whose centres lie within max(R - cell, R / 2) of the move's XY path): how deep the tool
-  cut into material.  A column thinner than a cell that the rim shaves beside a wall, up to
-  the whole height of the levels above (a pass whose contour lies a micrometre inside the one
-  before), is no load on the tool: it counts for the cutting length, not for the depth.
+* axial engagement = the largest drop (mm) at the cells whose centres lie within
+  R - max(cell, RIM_FRACTION x D) of the move's XY path (at least R / 2): how deep the tool
+  cut into material.  A column in the outer RIM_FRACTION of the diameter that the rim shaves
+  beside a wall, up to the whole height of the levels above (a level's wall contour a little
+  inside the one above), is a side cut under RIM_FRACTION x D wide, a light load at any depth
+  the flutes reach: it counts for the cutting length, not for the depth.
 * radial engagement = the extent of the engaged cells across the direction of travel (in XY,
   perpendicular to it: max - min of their centres' cross coordinate, plus one cell for the
   cells' own width), clipped to the tool diameter.  A full-width slot gives the diameter, a
@@ -86,6 +87,9 @@ ENTRY_DESCENT_MM = 1e-3
 ENTRY_REACH_MM = 0.02
 #: Smallest height drop (mm) that engages a cell (the threshold is at least a tenth of a cell).
 ENGAGEMENT_DEPTH_MM = 0.01
+#: The outer band of the tool's disk (times its diameter) whose cuts count for the cutting
+#: length but not for the depth of cut: light side cuts, such as slivers beside a wall.
+RIM_FRACTION = 0.05
 #: Pieces a move is cut in are at most this many cells long (or two tool radii if longer).
 PIECE_CELLS = 32
 
@@ -531,11 +535,12 @@ class _Cutter:
         volume[s] = float(self.piece_volume[ks[0]:ks[-1] + 1].sum())
 
     def _inner_depth(self, drops: list, p0: FloatArray, p1: FloatArray, tool: Tool) -> float:
-        """The largest drop (mm) at the engaged cells whose centres lie within max(R - cell,
-        R / 2) of the segment's XY path: the depth of cut, without the slivers the rim
-        shaves (see the module docstring)."""
+        """The largest drop (mm) at the engaged cells whose centres lie within R - max(cell,
+        RIM_FRACTION x D) (at least R / 2) of the segment's XY path: the depth of cut, without
+        the slivers the rim shaves (see the module docstring)."""
         grid = self.grid
-        reach = max(tool.radius - grid.cell, 0.5 * tool.radius)
+        reach = max(tool.radius - max(grid.cell, RIM_FRACTION * tool.diameter),
+                    0.5 * tool.radius)
         a = np.asarray(p0[:2], dtype=float)
         d = np.asarray(p1[:2], dtype=float) - a
         dd = float(d @ d)

@@ -38,7 +38,10 @@ step-down and 40 % stepover, 0.3 mm allowances, and the 6 mm ball:
   :mod:`.job_simulation`);
 * the finishing ball (T2) cuts at most as wide as the ball is at the depth of the stock the
   job plans for it, the axial allowance + the scallop + the rest limit (the step-down without
-  rest passes), or FINISH_WIDTH_RATIO x D if wider: the rest passes leave the terraces within
+  rest passes), or FINISH_WIDTH_RATIO x D if wider, where it cuts deeper than that planned
+  stock (``radial_from_depth_mm``): a rest pass taking its limit's depth across a column left
+  in a round-bottomed hole at full width is the planned load, the same width through a plug
+  of stock is not.  The rest passes leave the terraces within
   about their limit, not exactly (measured: 3.3 mm at most on both parts; 5.13 and 5.36 mm
   over 1.6 to 2.0 mm of stock after rest passes of 1 mm under a waterline finish of a bump,
   against 5.4 mm; the 6 mm ball over the stock left in examples/part.step's hole: 5.9 mm).
@@ -95,11 +98,14 @@ _QUANTITIES = {"axial": ("axial_mm", "axial engagement", "mm"),
 @dataclass(frozen=True)
 class LoadLimits:
     """Largest axial and radial engagement (mm) and removal rate (mm^3/min) one tool may take
-    in a move; None: not limited."""
+    in a move; None: not limited.  With ``radial_from_depth_mm`` the width limit holds for the
+    cuts deeper than that only (a finishing ball may take the stock planned for it at any
+    width, a slot through a plug not)."""
 
     axial_mm: float | None = None
     radial_mm: float | None = None
     removal_rate_mm3_per_min: float | None = None
+    radial_from_depth_mm: float | None = None
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -159,7 +165,8 @@ def job_limits(rough: Tool, finish: Tool, *, stepdown: float, stepover: float,
     if finish_radial is not None and finish_radial >= finish.diameter:
         finish_radial = None
     return {1: LoadLimits(axial_mm=rough_axial, radial_mm=rough_radial),
-            2: LoadLimits(axial_mm=finish_axial, radial_mm=finish_radial)}
+            2: LoadLimits(axial_mm=finish_axial, radial_mm=finish_radial,
+                          radial_from_depth_mm=planned + slack if finish_radial else None)}
 
 
 def parse_limit_fields(text: str, option: str) -> dict:
@@ -361,8 +368,11 @@ def check_loads(job: JobSimulation, limits: dict[int, LoadLimits],
         tool = job.tools[number].tool if number in job.tools else None
         exempt = job.entry if tool is not None and tool.shape is not ToolShape.BALL \
             else np.zeros(n, bool)
+        wide = mine & ~exempt
+        if lim.radial_from_depth_mm is not None:
+            wide &= job.axial > lim.radial_from_depth_mm
         for quantity, values, mask in (("axial", job.axial, mine),
-                                       ("radial", job.radial, mine & ~exempt),
+                                       ("radial", job.radial, wide),
                                        ("removal_rate", rate, mine)):
             limit = getattr(lim, _QUANTITIES[quantity][0])
             if limit is None:
