@@ -11,9 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import cut_moves
 
 from BSplineCAM.core.errors import ParameterError
-from BSplineCAM.core.simulation.simulate import Grid, Tool, _cut, _windows
+from BSplineCAM.core.simulation.simulate import Grid, Tool
 from BSplineCAM.core.simulation.stock import CylinderStock
 from BSplineCAM.core.toolpath.common import ToolpathCancelled
 from BSplineCAM.core.toolpath.roughing import (
@@ -57,22 +58,11 @@ class Machined:
             self.inside = np.hypot(xs[None, :] - stock.x, ys[:, None] - stock.y) <= stock.radius
             h[~self.inside] = stock.z_min
         moves = rough.moves
-        pos = np.array([moves[0].x, moves[0].y, rough.clearance_height]) if moves else None
         self.rapid_cut = 0.0
         self.engagement = []  # (move index, width mm) of non-descending cutting feeds
         self.descents = []    # (move index, slope dz/dxy) of descending feeds that cut
-        for i, m in enumerate(moves):
-            end = np.array([m.x, m.y, m.z])
-            st, en = pos[None, :], end[None, :]
-            win = _windows(st, en, tool.radius, grid)
-            ix0, ix1, iy0, iy1 = (int(v) for v in win[0])
-            if ix1 < ix0 or iy1 < iy0 or min(pos[2], end[2]) >= stock.z_max:
-                pos = end
-                continue
-            before = h[iy0:iy1 + 1, ix0:ix1 + 1].copy()
-            _cut(h, np.array([0]), st, en, win, tool, grid, None)
-            np.maximum(h, np.float32(stock.z_min), out=h)  # no material below the stock
-            depth = before - h[iy0:iy1 + 1, ix0:ix1 + 1]
+        for i, m, pos, end, (ix0, iy0), before, depth in cut_moves(
+                moves, rough.clearance_height, h, tool, grid, stock.z_min, stock.z_max):
             cut = depth > CUT_EPS
             if m.kind == "rapid":
                 self.rapid_cut = max(self.rapid_cut, float(depth.max(initial=0.0)))
@@ -90,12 +80,10 @@ class Machined:
                     n = np.array([-d[1], d[0]]) / length
                     iy, ix = np.nonzero(cut)
                     if not len(iy):
-                        pos = end
                         continue
                     across = (xs[ix0 + ix] - pos[0]) * n[0] + (ys[iy0 + iy] - pos[1]) * n[1]
                     width = min(float(across.max() - across.min()), tool.diameter)
                     self.engagement.append((i, width))
-            pos = end
         self.height = h.astype(float)
         self.xs, self.ys = xs, ys
 

@@ -12,9 +12,10 @@ import re
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import cut_moves
 
 from BSplineCAM.core.errors import ParameterError
-from BSplineCAM.core.simulation.simulate import Grid, Tool, _cut, _windows
+from BSplineCAM.core.simulation.simulate import Grid, Tool
 from BSplineCAM.core.toolpath.roughing import RAMP_ANGLE_DEG, Stock, generate_roughing
 
 SIM_CELL = 0.2
@@ -70,31 +71,19 @@ class Cut:
             entry[a:b] = True
         self.inner: list = []  # (move index, deepest drop inside the disk by more than rim)
         self.any: list = []    # (move index, deepest drop)
-        moves = rough.moves
-        pos = np.array([moves[0].x, moves[0].y, rough.clearance_height])
-        for i, m in enumerate(moves):
-            end = np.array([m.x, m.y, m.z])
-            st, en = pos[None, :], end[None, :]
-            win = _windows(st, en, tool.radius, grid)
-            ix0, ix1, iy0, iy1 = (int(v) for v in win[0])
-            if ix1 < ix0 or iy1 < iy0 or min(pos[2], end[2]) >= stock.z_max:
-                pos = end
-                continue
-            before = h[iy0:iy1 + 1, ix0:ix1 + 1].copy()
-            _cut(h, np.array([0]), st, en, win, tool, grid, None)
-            np.maximum(h, np.float32(stock.z_min), out=h)
-            drop = before - h[iy0:iy1 + 1, ix0:ix1 + 1]
+        for i, m, pos, end, (ix0, iy0), _, drop in cut_moves(
+                rough.moves, rough.clearance_height, h, tool, grid, stock.z_min, stock.z_max):
             if m.kind == "feed" and not entry[i] and float(drop.max()) > 0.0:
                 # the distance of each cell's centre from the move's XY track
-                px = xs[ix0:ix1 + 1][None, :] - pos[0]
-                py = ys[iy0:iy1 + 1][:, None] - pos[1]
+                rows, cols = drop.shape
+                px = xs[ix0:ix0 + cols][None, :] - pos[0]
+                py = ys[iy0:iy0 + rows][:, None] - pos[1]
                 ab = end[:2] - pos[:2]
                 t = np.clip((px * ab[0] + py * ab[1]) / max(float(ab @ ab), 1e-300), 0.0, 1.0)
                 dist = np.hypot(px - t * ab[0], py - t * ab[1])
                 self.any.append((i, float(drop.max())))
                 inner = drop[dist <= tool.radius - rim]
                 self.inner.append((i, float(inner.max(initial=0.0))))
-            pos = end
         self.height = h.astype(float)
         self.xs, self.ys = xs, ys
 

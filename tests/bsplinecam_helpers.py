@@ -185,3 +185,27 @@ def ridge_contact_slope(x: np.ndarray) -> np.ndarray:
         f = mid + R * np.sin(np.arctan(2 * K_RIDGE * mid)) - target
         lo, hi = np.where(f < 0, mid, lo), np.where(f < 0, hi, mid)
     return np.degrees(np.arctan(2 * K_RIDGE * 0.5 * (lo + hi)))
+
+
+def cut_moves(moves, start_height: float, height, tool, grid, z_min: float, z_top: float):
+    """Cut roughing ``moves`` one at a time out of the Z-map ``height`` (float32, changed in
+    place) with core.simulation.simulate's swept envelope, the tool starting above the first
+    move at ``start_height``; no material below ``z_min``, none met above ``z_top``.  Yields
+    (index, move, start xyz, end xyz, (ix0, iy0) of the window, drop) for each move that reaches
+    the stock, drop the window's height lowered by the move (mm)."""
+    from BSplineCAM.core.simulation.simulate import _cut, _windows
+
+    pos = np.array([moves[0].x, moves[0].y, start_height]) if moves else None
+    for i, m in enumerate(moves):
+        end = np.array([m.x, m.y, m.z])
+        st, en = pos[None, :], end[None, :]
+        win = _windows(st, en, tool.radius, grid)
+        ix0, ix1, iy0, iy1 = (int(v) for v in win[0])
+        if ix1 < ix0 or iy1 < iy0 or min(pos[2], end[2]) >= z_top:
+            pos = end
+            continue
+        before = height[iy0:iy1 + 1, ix0:ix1 + 1].copy()
+        _cut(height, np.array([0]), st, en, win, tool, grid, None)
+        np.maximum(height, np.float32(z_min), out=height)  # no material below the stock
+        yield i, m, pos, end, (ix0, iy0), before, before - height[iy0:iy1 + 1, ix0:ix1 + 1]
+        pos = end
