@@ -124,8 +124,9 @@ def register(sub) -> None:
                         "(default: axial the step-down, radial 1.1 x the stepover)")
     p.add_argument("--finish-limits", default=None,
                    help="load limits of the finishing ball T2, overriding the job's (same "
-                        "syntax; default: axial allowance + scallop + rest limit, radial the "
-                        "ball's width at that depth)")
+                        "syntax; default: axial the ball's diameter, radial its width at the "
+                        "planned stock (allowance + scallop + rest limit) or 0.9 x its "
+                        "diameter if wider, on cuts deeper than that stock)")
     p.add_argument("--no-rs274", action="store_true", help="do not check with LinuxCNC's rs274")
     p.add_argument("--out", required=True, help="output folder")
     add_machine_options(p)
