@@ -152,6 +152,10 @@ class TestPartJobWalk(CamTestCase):
         notes = json.loads(rough.Report).get("notes", [])
         self.assertTrue(any("too narrow for a helical entry" in n for n in notes), notes)
         self.assertIn("too narrow for a helical entry", report_text())
+        # the finishing op says it may meet that stock, and Verify checks it
+        left = json.loads(op.Report).get("stock_left_uncut", [])
+        self.assertEqual([item["op"] for item in left], [rough.Label], op.Report)
+        self.assertIn(f"{op.Label}: the ball may meet stock {rough.Label} left", report_text())
         plugged = self.verify(job)
         loads = json.loads(plugged.Metrics)["loads"]
         self.assertFalse(loads["ok"], loads)
@@ -181,6 +185,7 @@ class TestPartJobWalk(CamTestCase):
             self.fail(f"the roughing panel refused: {epanel.message.text()} {boxes}")
         process_events()
         self.assertTrue(rough.CentreCutting)
+        self.assertNotIn("stock_left_uncut", json.loads(op.Report))  # recomputed after it
         self.assertGreater(json.loads(rough.Report)["entries"].get("plunge", 0), 0,
                          rough.Report)
         self.assertEqual(touched(self.doc), [])

@@ -305,6 +305,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         out = report(toolpath, commands, moves)
         if rest is not None:
             out["rest"] = rest_report(rest)
+        out.update(stock_left_uncut(obj))
         obj.Report = json.dumps(out, sort_keys=True)
         warn_left(obj, toolpath)
 
@@ -339,8 +340,28 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
             out["rest"] = rest_report(rest)
         out["faces"] = [f.name for f in faceset.faces if f.selected]
         out["check_faces"] = sum(not f.selected for f in faceset.faces)
+        out.update(stock_left_uncut(obj))
         obj.Report = json.dumps(out, sort_keys=True)
         warn_left(obj, toolpath)
+
+
+def stock_left_uncut(obj) -> dict:
+    """The stock the ops of ``RestFrom`` (the roughing) left uncut, which this op's ball may
+    meet, from their reports' notes: {"stock_left_uncut": [{"op", "note"}]}, said in the
+    report view; {} when there is none.  Verify checks every move against the ball's load
+    limits there."""
+    found = []
+    for other in getattr(obj, "RestFrom", None) or []:
+        try:
+            notes = json.loads(getattr(other, "Report", "") or "{}").get("notes", [])
+        except ValueError:
+            continue
+        found += [{"op": other.Label, "note": n} for n in notes if "left uncut" in n]
+    for item in found:
+        FreeCAD.Console.PrintWarning(
+            f"{obj.Label}: the ball may meet stock {item['op']} left: {item['note']}; Verify "
+            "checks every move against the ball's load limits\n")
+    return {"stock_left_uncut": found} if found else {}
 
 
 def warn_left(obj, toolpath) -> None:
