@@ -126,7 +126,11 @@ class _Levels:
               layer: float | None = None, scale: float = 1.0) -> None:
         tip, cell = self.T, self.cell
         if not hasattr(self, "surface"):
-            self.surface = np.where(in_stock, self.stock.z_max, -np.inf)
+            # a cell whose centre lies just outside the block still holds a sliver of it (its
+            # square reaches in): material in the estimate until a pass's disk covers it, so
+            # that no rapid or descent crosses the block's uncut corners
+            rim = ~in_stock & (self.outside_mm <= 0.5 * math.sqrt(2.0) * cell)
+            self.surface = np.where(in_stock | rim, self.stock.z_max, -np.inf)
             self.surface_lo = self.surface.copy()
         A = tip <= z + _EPS
         self.uncut = in_stock & (self.Hp < z_above - _EPS)
