@@ -93,7 +93,7 @@ def job(plate: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
         [str(ROOT / "bin" / "bsplinecam"), "job", str(plate), "--stock-margin", "2",
          "--rough", "flat:10", "--stepdown", str(STEPDOWN), "--stepover", "40", "--allowance", "0.3",
          "--finish", "ball:6", "--scallop", "0.1", "--tolerance", "0.01", "--cell", str(CELL),
-         "--no-rs274", *extra, "--out", str(out)],
+         *extra, "--out", str(out)],
         capture_output=True, text=True, timeout=900)
 
 
@@ -148,3 +148,7 @@ def test_centre_cutting_roughing_enters_the_hole(plate: Path, top_face: str,
     assert t1["axial_engagement_max_mm"] <= STEPDOWN + slack, t1
     assert t1["entry_axial_engagement_max_mm"] <= STEPDOWN + slack, t1
     assert report["loads"]["ok"] and report["ok"], report["checks"]
+    # the program a controller would run: LinuxCNC's rs274 reads it through
+    job_report = json.loads((tmp_path / "out" / "job.json").read_text())
+    if shutil.which("rs274") or os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
+        assert job_report["rs274"]["ok"], job_report["rs274"]
