@@ -49,7 +49,7 @@ LOCK="$ROOT.lock"
 # Packages installed in the chroot. Changing this list makes `ensure` install
 # the difference into an existing chroot (no full rebuild).  python3-opencamlib: FreeCAD's own
 # 3D Surface op (the benchmark peer) imports it as opencamlib.ocl.
-PACKAGES=(freecad-python3 python3-numpy python3-opencamlib xvfb xauth linuxcnc-uspace)
+PACKAGES=(freecad-python3 python3-numpy python3-numba python3-opencamlib xvfb xauth linuxcnc-uspace)
 # Packages whose Debian versions every test log records (an upstream change shows there).
 REPORTED=(freecad-python3 'libocct-modeling-algorithms-*' python3 python3-numpy python3-opencamlib
     'python3-pyside*.qtcore' linuxcnc-uspace)

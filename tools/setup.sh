@@ -15,7 +15,7 @@ for arg in "$@"; do
 done
 say() { printf '[setup] %s\n' "$*" >&2; }
 
-debian_packages=(freecad xvfb xauth linuxcnc-uspace python3-pip python3-matplotlib python3-scipy)
+debian_packages=(freecad xvfb xauth linuxcnc-uspace python3-pip python3-matplotlib python3-scipy python3-numba)
 if [ "$want_test" = 1 ]; then
   debian_packages+=(python3-pytest python3-pytest-xdist python3-hypothesis debootstrap)
 fi
