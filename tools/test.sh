@@ -2,8 +2,11 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 # Every test suite, in order; exits non-zero if any test failed.  Assumes tools/setup.sh --test.
 #   lint         ruff on the whole tree
-#   core-venv    pytest in the project venv (numpy 2.x, cadquery's OCCT, SciPy/geomdl references)
-#   core-debian  pytest in Debian's python3 (numpy 1.24, the Python FreeCAD 0.20 runs)
+#   core-venv    pytest in the project venv (numpy 2.x, cadquery's OCCT, SciPy/geomdl references),
+#                the numba engine (the venv's numba)
+#   core-debian  pytest in Debian's python3 (numpy 1.24, the Python FreeCAD 0.20 runs), the numpy
+#                engine (BSPLINECAM_KERNELS=numpy); its kernel tests compare both engines with
+#                Debian's numba, and the FreeCAD suites run the numba engine in all three
 #   freecad-0.20 unittest modules inside freecadcmd 0.20
 #   freecad-1.0  the same modules inside freecadcmd 1.0 (Debian trixie chroot)
 #   freecad-1.1  the same modules inside freecadcmd 1.1 (Debian sid chroot)
@@ -123,7 +126,7 @@ suite() {
 pytest_opts=(-p no:cacheprovider -n 2 --dist loadfile --durations=10)
 suite lint plain host .venv/bin/ruff check .
 BSPLINECAM_REQUIRE_ALL=1 suite core-venv pytest host .venv/bin/python -m pytest "${pytest_opts[@]}" tests
-BSPLINECAM_REQUIRE_ALL=0 suite core-debian pytest host /usr/bin/python3 -m pytest "${pytest_opts[@]}" \
+BSPLINECAM_REQUIRE_ALL=0 BSPLINECAM_KERNELS=numpy suite core-debian pytest host /usr/bin/python3 -m pytest "${pytest_opts[@]}" \
   -m "not venv_only" tests
 
 export BSPLINECAM_REQUIRE_ALL=1  # FreeCAD suites: a missing OpenCAMLib or rs274 fails, never skips

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ..app import runtime
-from ..core import BSplineCAMError
+from ..core import BSplineCAMError, kernels
 from ..core.errors import ParameterError
 
 EXIT_INPUT_ERROR = 2
@@ -243,7 +243,10 @@ def captured_console() -> Iterator[None]:
 
 def emit(result: dict) -> None:
     """Print a command's JSON result on stdout (descriptor BSPLINECAM_RESULT_FD when set, so
-    FreeCAD's own console output cannot mix into it)."""
+    FreeCAD's own console output cannot mix into it), with the engine that computed it
+    (``kernels``: numba or numpy, why, the compile seconds of this run)."""
+    if isinstance(result, dict) and "kernels" not in result:
+        result = {**result, "kernels": kernels.engine().to_dict()}
     text = json_text(result)
     fd = os.environ.get("BSPLINECAM_RESULT_FD")
     if fd:

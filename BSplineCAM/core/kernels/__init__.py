@@ -133,8 +133,12 @@ def engine() -> Engine:
 
 
 def use_numba() -> bool:
-    """Whether the compiled kernels run (else the numpy engine)."""
-    return engine().name == "numba"
+    """Whether the compiled kernels run (else the numpy engine, and its notice is printed
+    once)."""
+    if engine().name == "numba":
+        return True
+    _say_once()
+    return False
 
 
 def notice() -> str:
