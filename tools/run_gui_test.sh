@@ -21,6 +21,9 @@ WORK="$(mktemp -d -t bsplinecam-gui.XXXXXX)"
 trap 'rm -rf "$WORK"' EXIT
 
 mkdir -p "$WORK/home"
+# the compiled kernels stay in the user's cache folder (the throw-away HOME would compile them
+# at every run)
+export BSPLINECAM_CACHE="${BSPLINECAM_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/bsplinecam/numba}"
 export HOME="$WORK/home"
 export XDG_CONFIG_HOME="$HOME/.config" XDG_DATA_HOME="$HOME/.local/share"
 # the Mod folder this FreeCAD reads (1.1's is versioned), as FreeCAD itself reports it
