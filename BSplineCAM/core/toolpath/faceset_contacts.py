@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import regions_kernels
 from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_params import POLISH_STEPS
@@ -66,6 +68,15 @@ def polish(data: list, q: FloatArray, R: float, best: FloatArray, face: np.ndarr
         if len(idx) == 0:
             continue
         s = d.face.surface
+        if kernels.use_numba():
+            try:
+                best[idx], bu[idx], bv[idx] = _polish_compiled(d, q[idx], R2, best[idx],
+                                                               bu[idx], bv[idx], steps)
+                if len(d.edges):
+                    edge_polish(d, q, R, idx, best, bu, bv)
+                continue
+            except kernels.KernelUnavailable:
+                pass
         (u0, u1), (v0, v1) = s.domain
         u, v = bu[idx].copy(), bv[idx].copy()
         qq = q[idx]
@@ -115,7 +126,25 @@ def edge_polish(d: _FaceData, q: FloatArray, R: float, idx: np.ndarray, best: Fl
     qq = q[rows]
     R2 = R * R
     s = d.face.surface
-    ft = np.full(len(rows), -np.inf)
+    t, ft = _edge_newton(s, a, dd, t, qq, R2)
+    uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
+    order = np.argsort(ft, kind="stable")  # later (larger) assignments win
+    rows, ft, uu, vv = rows[order], ft[order], uu[order], vv[order]
+    up = ft > best[rows]
+    best[rows[up]] = ft[up]
+    bu[rows[up]], bv[rows[up]] = uu[up], vv[up]
+
+
+def _edge_newton(s, a: FloatArray, dd: FloatArray, t: FloatArray, qq: FloatArray,
+                 R2: float) -> tuple[FloatArray, FloatArray]:
+    """Newton's method for the largest f along segments a + t dd (t in [0, 1]) from ``t``:
+    the parameters reached and their values f (-inf where no step raised f)."""
+    if kernels.use_numba():
+        try:
+            return _edge_newton_compiled(s, a, dd, t, qq, R2)
+        except kernels.KernelUnavailable:
+            pass
+    ft = np.full(len(t), -np.inf)
     for _ in range(2 * POLISH_STEPS):
         uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -132,12 +161,67 @@ def edge_polish(d: _FaceData, q: FloatArray, R: float, idx: np.ndarray, best: Fl
         ft = np.where(better, fv, ft)
         if not better.any():
             break
-    uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
-    order = np.argsort(ft, kind="stable")  # later (larger) assignments win
-    rows, ft, uu, vv = rows[order], ft[order], uu[order], vv[order]
-    up = ft > best[rows]
-    best[rows[up]] = ft[up]
-    bu[rows[up]], bv[rows[up]] = uu[up], vv[up]
+    return t, ft
+
+
+def _grad_hess_compiled(s, u: FloatArray, v: FloatArray, qq: FloatArray, R2: float) -> FloatArray:
+    """:func:`grad_hess` by the compiled kernels: (5, n) rows gu, gw, Huu, Huw, Hww.  h ** 3
+    is numpy's (its last bit may come from a vector math library)."""
+    j = s.derivatives(u, v)
+    f64 = np.float64
+    point = np.ascontiguousarray(j.point, f64)
+    h = regions_kernels.ball_depth(point, qq, R2)
+    h3 = h ** 3
+    return regions_kernels.grad_hess(point, np.ascontiguousarray(j.su, f64),
+                                     np.ascontiguousarray(j.sw, f64),
+                                     np.ascontiguousarray(j.suu, f64),
+                                     np.ascontiguousarray(j.suw, f64),
+                                     np.ascontiguousarray(j.sww, f64), qq, h, h3)
+
+
+def _polish_compiled(d: _FaceData, qq: FloatArray, R2: float, fbest: FloatArray, u: FloatArray,
+                     v: FloatArray, steps: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`polish`'s Newton ascent on face ``d`` by the compiled kernels (the same steps
+    and choices): the contacts' values and (u, v), from theirs (copies are changed)."""
+    s = d.face.surface
+    (u0, u1), (v0, v1) = s.domain
+    dom = np.array([u0, u1, v0, v1], np.float64)
+    bands = d._bands
+    qq = np.ascontiguousarray(qq, np.float64)
+    u, v, fbest = u.copy(), v.copy(), fbest.copy()
+    live = np.arange(len(u))
+    for _ in range(steps):
+        ul, vl, ql = u[live], v[live], qq[live]
+        gh = _grad_hess_compiled(s, ul, vl, ql, R2)
+        ok_, nu_, nv_ = regions_kernels.newton(gh, ul, vl, dom)
+        p = np.ascontiguousarray(s.evaluate(nu_, nv_), np.float64)
+        fv, good = regions_kernels.newton_accept(p, ql, R2, fbest[live], ok_, nu_, nv_, ul, vl,
+                                                 bands.table, float(bands.v0),
+                                                 float(bands.h), dom)
+        if not good.any():
+            break
+        live = live[good]
+        u[live], v[live], fbest[live] = nu_[good], nv_[good], fv[good]
+    return fbest, u, v
+
+
+def _edge_newton_compiled(s, a: FloatArray, dd: FloatArray, t: FloatArray, qq: FloatArray,
+                          R2: float) -> tuple[FloatArray, FloatArray]:
+    """:func:`_edge_newton` by the compiled kernels (the same steps and choices)."""
+    f64 = np.float64
+    dd = np.ascontiguousarray(dd, f64)
+    qq = np.ascontiguousarray(qq, f64)
+    t = np.array(t, f64)
+    ft = np.full(len(t), -np.inf)
+    for _ in range(2 * POLISH_STEPS):
+        uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
+        gh = _grad_hess_compiled(s, uu, vv, qq, R2)
+        nt = regions_kernels.edge_step(gh, dd, t)
+        p = np.ascontiguousarray(s.evaluate(a[:, 0] + nt * dd[:, 0], a[:, 1] + nt * dd[:, 1]),
+                                 f64)
+        if regions_kernels.edge_accept(p, qq, R2, nt, t, ft) == 0:
+            break
+    return t, ft
 
 
 def merge(data: list, fb: FloatArray, fu: FloatArray, fv: FloatArray, best: FloatArray,

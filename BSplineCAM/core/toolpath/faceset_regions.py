@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import regions_kernels
 from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_bezier import _bernstein, _quadratic_bound, _second_differences, _sub_net
@@ -63,6 +65,11 @@ def face_regions(d: _FaceData, qq: FloatArray, R: float, u: FloatArray, v: Float
     if n == 0:
         return found, out_box, out_ex
     c = _contact_frames(d, qq, R, u, v, limit)
+    if kernels.use_numba():
+        try:
+            return _regions_compiled(d, c, R, limit)
+        except kernels.KernelUnavailable:
+            pass
     todo = c.valid.copy()
     # trim segments crossing each box: those of the (nested) box tried before it
     segs = d.root_segs[c.root]
@@ -93,6 +100,29 @@ def face_regions(d: _FaceData, qq: FloatArray, R: float, u: FloatArray, v: Float
         out_ex[hit] = excess[first]
         todo[hit] = False
     return found, out_box, out_ex
+
+
+def _regions_compiled(d: _FaceData, c: _ContactFrames, R: float,
+                      limit: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
+    """:func:`face_regions` after its contact frames, by the compiled kernel (the same boxes,
+    bounds and choices, one call)."""
+    f64 = np.float64
+    (u0, u1), (v0, v1) = d.face.surface.domain
+    edges = d.edges if len(d.edges) else np.zeros((0, 4))
+    bands = d._bands
+    return regions_kernels.regions(
+        d.nets, c.root.astype(np.int64), d.boxes, c.cs, c.ct, c.wu, c.wv,
+        np.ascontiguousarray(c.g, f64), np.ascontiguousarray(c.gp, f64),
+        np.ascontiguousarray(c.p0, f64), np.ascontiguousarray(c.j.su, f64),
+        np.ascontiguousarray(c.j.sw, f64), np.ascontiguousarray(c.wstar, f64),
+        np.ascontiguousarray(c.valid), np.ascontiguousarray(limit, f64),
+        np.asarray(REGION_SIZES, f64), 1, float(R), d.p, d.q,
+        np.ascontiguousarray(d.root_segs[c.root], np.int64),
+        d.root_status[c.root].astype(np.int64), np.ascontiguousarray(edges, f64),
+        np.ascontiguousarray(d._elo.reshape(-1, 2), f64),
+        np.ascontiguousarray(d._ehi.reshape(-1, 2), f64), float(d._pad),
+        bands.table, float(bands.v0), float(bands.h),
+        np.array([u0, u1, v0, v1], f64))
 
 
 @dataclass
