@@ -49,7 +49,9 @@ from math import comb
 
 import numpy as np
 
+from .. import kernels
 from ..errors import NetError, ParameterError
+from ..kernels import nurbs_eval
 from ..numeric import clamp
 from ..typing import ArrayLike, FloatArray
 from .matrix import DEGENERATE_NORMAL
@@ -199,6 +201,7 @@ class NurbsSurface:
         self._v = Direction(kv, degrees[1])
         self._nets: dict[tuple[int, int], FloatArray] = {}
         self._tables: dict[tuple[int, int], FloatArray] = {}
+        self._packs: dict[tuple, tuple | FloatArray] = {}  # the compiled kernels' arguments
 
     # -- construction ------------------------------------------------------------------------
     @classmethod
@@ -274,6 +277,14 @@ class NurbsSurface:
         return self._coefficients(0, 0)
 
     # -- parameters --------------------------------------------------------------------------
+    @cached_property
+    def _tolerances(self) -> tuple[float, ...]:
+        """(lo, hi, tol) of u then v: the domains and the round-off ``_check`` lets pass."""
+        out: tuple[float, ...] = ()
+        for lo, hi in (self._u.domain, self._v.domain):
+            out += (lo, hi, 1e-10 * max(hi - lo, abs(lo), abs(hi)))
+        return out
+
     def _check(self, u: ArrayLike, w: ArrayLike) -> tuple[FloatArray, FloatArray]:
         try:
             u = np.asarray(u, dtype=float)
@@ -281,6 +292,14 @@ class NurbsSurface:
         except (TypeError, ValueError):
             raise ParameterError(f"surface {self.name!r}: parameters u and w must be numbers") \
                 from None
+        if kernels.use_numba():
+            try:
+                cu, cw, ok = nurbs_eval.check(_plain(u), _plain(w), *self._tolerances)
+                if ok:
+                    return (cu if u.ndim == 1 else cu.reshape(u.shape),
+                            cw if w.ndim == 1 else cw.reshape(w.shape))
+            except kernels.KernelUnavailable:
+                pass
         out = []
         for axis, values, (lo, hi) in (("u", u, self._u.domain), ("w", w, self._v.domain)):
             tol = 1e-10 * max(hi - lo, abs(lo), abs(hi))  # round-off of trimmed-face bounds
@@ -310,7 +329,13 @@ class NurbsSurface:
                                orders: list[tuple[int, int]]) -> dict:
         """Homogeneous partial derivatives at scattered points (flat u, w), per order: each
         point gathers its patch's coefficients of that derivative and sums them against the
-        Bernstein rows in t, then in s."""
+        Bernstein rows in t, then in s (under the numba engine, all orders in one call of
+        :mod:`~BSplineCAM.core.kernels.nurbs_eval`'s kernel, the same arithmetic)."""
+        if kernels.use_numba():
+            try:
+                return self._scattered_compiled(u, w, orders)
+            except kernels.KernelUnavailable:
+                pass
         d = self.homogeneous.shape[-1]
         p, q = self.degree_u, self.degree_v
         spans_v = len(self._v.matrices)
@@ -333,9 +358,71 @@ class NurbsSurface:
                 outs[(a, b)][sl] = np.einsum("am,mac->mc", rows_s[p - a], planes)
         return outs
 
+    def _pack(self, orders: tuple[tuple[int, int], ...]) -> tuple:
+        """The compiled kernel's arguments but u and w for ``orders``: each direction's knots,
+        degree and first and last non-empty span, the number of spans along v, the orders and
+        their offsets (int64) in their scatter tables laid end to end
+        (:func:`~BSplineCAM.core.kernels.nurbs_eval.pack_tables`; orders above the degrees
+        have none), and the coordinates d."""
+        pack = self._packs.get(orders)
+        if pack is None:
+            p, q = self.degree_u, self.degree_v
+            live = [o for o in orders if o[0] <= p and o[1] <= q]
+            flat, packed = nurbs_eval.pack_tables([self._scatter_table(a, b) for a, b in live])
+            offsets = np.zeros(len(orders), dtype=np.int64)
+            for k, o in enumerate(orders):
+                if o in live:
+                    offsets[k] = packed[live.index(o)]
+            spans = []
+            for direction in (self._u, self._v):
+                spans += [np.array(direction.knots, dtype=np.float64),  # contiguous, writable
+                          direction.degree, int(direction.nonempty[0]),
+                          int(direction.nonempty[-1])]
+            pack = (*spans, len(self._v.matrices), np.array(orders, dtype=np.int64).reshape(-1, 2),
+                    offsets, flat, self.homogeneous.shape[-1])
+            self._packs[orders] = pack
+        return pack
+
+    def _scattered_compiled(self, u: FloatArray, w: FloatArray,
+                            orders: list[tuple[int, int]]) -> dict:
+        """``_homogeneous_scattered`` by the compiled kernel (all orders in one call)."""
+        orders = tuple(orders)
+        out, _, _ = nurbs_eval.scattered(*self._pack(orders), _plain(u), _plain(w))
+        return {o: out[k] for k, o in enumerate(orders)}
+
+    def _evaluate_compiled(self, u: FloatArray, w: FloatArray,
+                           orders: tuple[tuple[int, int], ...]) -> list[FloatArray]:
+        """``_evaluate_orders`` of checked (u, w) by the compiled kernels: the scattered sums
+        of every order needed in one call, then (rational) the quotient rule in one."""
+        shape = u.shape
+        if u.ndim != 1 or w.shape != shape:
+            u, w = np.broadcast_arrays(u, w)
+            shape = u.shape
+            u, w = u.ravel(), w.ravel()
+        needed = tuple(_closure(orders)) if self.rational else tuple(dict.fromkeys(orders))
+        pack = self._pack(needed)
+        out, _, _ = nurbs_eval.scattered(*pack, _plain(u), _plain(w))
+        if self.rational:
+            index = self._packs.get(("index", needed))
+            if index is None:  # the row of each order (a, b) in ``needed``
+                top = max(max(a, b) for a, b in needed)
+                index = np.zeros((top + 1, top + 1), dtype=np.int64)
+                for k, (a, b) in enumerate(needed):
+                    index[a, b] = k
+                self._packs[("index", needed)] = index
+            out = nurbs_eval.rational(out, pack[9], index)  # pack[9]: the orders (int64)
+        if len(shape) == 1:
+            return [out[needed.index(o)] for o in orders]
+        return [out[needed.index(o)].reshape(shape + (3,)) for o in orders]
+
     def _evaluate_orders(self, u: ArrayLike, w: ArrayLike,
                          orders: tuple[tuple[int, int], ...]) -> list[FloatArray]:
         u, w = self._check(u, w)
+        if kernels.use_numba():
+            try:
+                return self._evaluate_compiled(u, w, orders)
+            except kernels.KernelUnavailable:
+                pass
         u, w = np.broadcast_arrays(u, w)
         shape = u.shape
         needed = _closure(orders) if self.rational else list(orders)
@@ -552,6 +639,16 @@ class NurbsSurface:
 def patch_bounds(surface: NurbsSurface) -> PatchBounds:
     """Per-span boxes of ``surface`` (:meth:`NurbsSurface.patch_bounds`)."""
     return surface.patch_bounds()
+
+
+def _plain(values: FloatArray) -> FloatArray:
+    """``values`` as a flat, C-contiguous, writable float64 array that owns its data (the
+    kernels' one array type): views are copied, since numba reads their writable flag, which
+    warns under numpy 1.x for the views ``np.broadcast_arrays`` returns."""
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    if values.ndim != 1:
+        values = values.reshape(-1)
+    return values if values.base is None and values.flags.writeable else values.copy()
 
 
 def _order(value: int, label: str) -> int:
