@@ -6,7 +6,12 @@ f(p) = p_z + sqrt(R^2 - |p_xy - q|^2) over the sub-patch's material (the smaller
 bound and the tangent-plane bound at the net's centroid, evaluated at the material's vertices;
 near the ball's rim also the material's own reach) and a lower bound from surface points
 inside the trim (corners, trim vertices, and on shallow sub-patches the point below the
-control point nearest the query)."""
+control point nearest the query).
+
+Under the numba engine (:mod:`..kernels`) the net planes, the box and tangent-plane bounds and
+the corners' lower bounds run as compiled loops (:mod:`..kernels.faceset_kernels`), the same
+arithmetic in the same order (the affine parts' products stay numpy's), so the same bounds to
+the last bit."""
 
 from __future__ import annotations
 
@@ -14,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import faceset_kernels as fk
 from ..typing import FloatArray
 from .faceset_bezier import _corner_index, _material_reach, _rational_drift
 from .faceset_params import CORNERS, MAX_SEGMENTS, RIM_DEPTH, RIM_FRACTION, SEED_DEPTH, TOUCH
@@ -25,6 +32,11 @@ def sub_patch_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
     """Upper bound of f over each sub-patch's material, a lower bound (f at a surface
     point inside the trim, -inf if none) and that point's (u, v).  Pairs whose bound is
     at most ``floor`` (per pair: they will be dropped) are not bounded more tightly."""
+    if kernels.use_numba() and it.nets.shape[2] * it.nets.shape[3] <= fk.MAX_NET:
+        try:
+            return _compiled_bounds(d, it, q, R, floor)
+        except kernels.KernelUnavailable:
+            pass
     n = len(it.query)
     R2 = R * R
     P = _net_planes(d, it.nets)
@@ -39,6 +51,38 @@ def sub_patch_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
     ub[~reach] = -np.inf
     _rim_bound(d, it, P, qq, R, ub, dd, floor, m)
     lb, lu, lv = _lower_bounds(d, it, P, qq, R2, reach, cok, m)
+    return ub, lb, lu, lv
+
+
+_net_coords = kernels.Kernel(fk.net_coords)
+_pair_bounds = kernels.Kernel(fk.pair_bounds)
+_corner_lower = kernels.Kernel(fk.corner_lower)
+
+
+def _compiled_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
+                     floor: FloatArray | float):
+    """:func:`sub_patch_bounds` with the per-node and per-pair loops compiled."""
+    n = len(it.query)
+    R2 = R * R
+    N = len(it.nets)
+    flat = np.ascontiguousarray(it.nets.reshape(N, 4, -1))
+    PX, PY, PZ, cen, G, box = _net_coords(flat, bool(d.face.surface.rational))
+    C = G @ d.pinv.T  # (3, N, 3)
+    RS = G - C @ d.design.T  # (3, N, K)
+    P = _NetPlanes(flat, PX, PY, PZ, cen[:, 0], cen[:, 1], cen[:, 2], C, RS)
+    nd = np.ascontiguousarray(it.node, dtype=np.int64)
+    qq = np.ascontiguousarray(q[it.query], dtype=float)
+    ub, dd, reach, cz, s0, lin_ok, coef, resid, amax = _pair_bounds(nd, qq, R2, box, cen, C,
+                                                                    RS)
+    cok = np.ones((n, 4), bool)
+    m = _straddling(d, it, P, coef, amax, reach, cok)
+    lin = cz + s0 + amax + resid
+    ub = np.where(lin_ok & (lin < ub), lin, ub)
+    ub[~reach] = -np.inf
+    _rim_bound(d, it, P, qq, R, ub, dd, floor, m)
+    cidx = _corner_index(d.p, d.q).astype(np.int64)
+    lb, k = _corner_lower(nd, qq, TOUCH * R2, R2, PX, PY, PZ, cidx, cok)
+    lb, lu, lv = _lower_rest(d, it, P, qq, R2, reach, m, lb, k)
     return ub, lb, lu, lv
 
 
@@ -221,6 +265,16 @@ def _lower_bounds(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R2: f
     k = np.argmax(fc, axis=1)
     rows = np.arange(n)
     lb = fc[rows, k]
+    return _lower_rest(d, it, P, qq, R2, reach, m, lb, k)
+
+
+def _lower_rest(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R2: float,
+                reach: np.ndarray, m: _Straddling, lb: FloatArray,
+                k: np.ndarray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`_lower_bounds` past the corners (``lb``, the best of them, at corner ``k``):
+    the trim vertices and the shallow sub-patches' points, and the points' (u, v)."""
+    nd = it.node
+    qx, qy = qq[:, :1], qq[:, 1:]
     sloc = CORNERS[k]
     strad = m.strad
     # straddling sub-patches: the best trim vertex, evaluated on the surface

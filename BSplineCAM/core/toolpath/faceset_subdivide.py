@@ -1,12 +1,16 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Subdivision of the drop-cutter's sub-patches (:mod:`.faceset`): each open sub-patch is
 halved along its longer side by de Casteljau's algorithm, or split along a side of its face's
-certified region, and its halves classified against the trim."""
+certified region, and its halves classified against the trim.  Under the numba engine
+(:mod:`..kernels`) the halving and the splits run as compiled loops
+(:mod:`..kernels.faceset_kernels`), the same arithmetic."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import faceset_kernels as fk
 from ..typing import FloatArray
 from .faceset_bezier import _split_at, _split_into
 from .faceset_params import CUT_MARGIN, MAX_SEGMENTS
@@ -33,17 +37,7 @@ def children(d: _FaceData, it: _Items, mask: np.ndarray | None = None,
     if len(fi):
         un, inv = np.unique(it.node[fi], return_inverse=True)
         inv = inv.ravel()
-        pn = it.nets[un]
-        along_u = _longer_u(d, pn)
-        left = np.empty_like(pn)
-        right = np.empty_like(pn)
-        for axis, sel in ((2, along_u), (3, ~along_u)):
-            if sel.any():
-                k = np.flatnonzero(sel)
-                lk = np.empty_like(pn[k])
-                rk = np.empty_like(lk)
-                _split_into(pn[k], axis, lk, rk)
-                left[k], right[k] = lk, rk
+        along_u, left, right = _halve(d, it.nets[un])
         b = it.box[fi]
         au = along_u[inv]
         mu = 0.5 * (b[:, 0] + b[:, 1])
@@ -75,8 +69,7 @@ def children(d: _FaceData, it: _Items, mask: np.ndarray | None = None,
             b0, b1 = bb.copy(), bb.copy()
             b0[:, hi] = mid
             b1[:, lo] = mid
-            pn = it.nets[it.node[idx]]
-            nets += [_split_at(pn, axis, tt, True), _split_at(pn, axis, tt, False)]
+            nets += list(_split_both(it.nets[it.node[idx]], axis, tt))
             boxes += [b0, b1]
             parents += [idx, idx]
             nodes += [count + np.arange(m), count + m + np.arange(m)]
@@ -96,6 +89,45 @@ def children(d: _FaceData, it: _Items, mask: np.ndarray | None = None,
     pieces = _Items(it.query[parent], node, out, box, it.depth[parent] + 1, status, segs)
     keep = status > 0
     return pieces if keep.all() else pieces.take(keep)
+
+
+_halve_kernel = kernels.Kernel(fk.halve)
+_split_at_kernel = kernels.Kernel(fk.split_at)
+
+
+def _halve(d: _FaceData, pn: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
+    """Whether each net (U, 4, p+1, q+1) is halved along u (its longer side) and its left and
+    right halves (de Casteljau at 1/2)."""
+    if kernels.use_numba():
+        try:
+            return _halve_kernel(np.ascontiguousarray(pn, dtype=float),
+                                 bool(d.face.surface.rational))
+        except kernels.KernelUnavailable:
+            pass
+    along_u = _longer_u(d, pn)
+    left = np.empty_like(pn)
+    right = np.empty_like(pn)
+    for axis, sel in ((2, along_u), (3, ~along_u)):
+        if sel.any():
+            k = np.flatnonzero(sel)
+            lk = np.empty_like(pn[k])
+            rk = np.empty_like(lk)
+            _split_into(pn[k], axis, lk, rk)
+            left[k], right[k] = lk, rk
+    return along_u, left, right
+
+
+def _split_both(pn: FloatArray, axis: int, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Both sides of de Casteljau's split of nets ``pn`` at local parameters ``t`` along
+    ``axis`` (2: u, 3: v)."""
+    if kernels.use_numba():
+        try:
+            return _split_at_kernel(np.ascontiguousarray(pn, dtype=float),
+                                    np.full(len(pn), axis == 2),
+                                    np.ascontiguousarray(t, dtype=float))
+        except kernels.KernelUnavailable:
+            pass
+    return _split_at(pn, axis, t, True), _split_at(pn, axis, t, False)
 
 
 def _longer_u(d: _FaceData, net: FloatArray) -> np.ndarray:

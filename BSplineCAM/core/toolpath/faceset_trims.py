@@ -2,7 +2,9 @@
 """Trims of the drop-cutter's faces (:mod:`.faceset`): point-in-trim tests, trim segments
 filed by band and by grid cell, Liang-Barsky clipping, and per face its Bezier patches with
 each sub-patch's trim classification (outside, inside, straddling) and the vertices of its
-material, remembered per distinct sub-patch."""
+material, remembered per distinct sub-patch.  Under the numba engine (:mod:`..kernels`) the
+clipping, the classification, the vertices and the point-in-trim test run as compiled loops
+(:mod:`..kernels.faceset_trim_kernels`), the same arithmetic and the same answers."""
 
 from __future__ import annotations
 
@@ -10,16 +12,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
 from ..geometry.faces import Face
+from ..kernels import faceset_trim_kernels as tk
 from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_bezier import _bernstein_grid
 from .faceset_params import CLASSIFY_CACHE, CORNERS, MAX_SEGMENTS
 
+_clip_kernel = kernels.Kernel(tk.clip)
+_listed_kernel = kernels.Kernel(tk.classify_listed)
+_all_kernel = kernels.Kernel(tk.classify_all)
+_inside_kernel = kernels.Kernel(tk.inside)
+_vertices_kernel = kernels.Kernel(tk.vertices)
+#: no clamping of the points of :meth:`_Bands.__call__`
+_ANYWHERE = np.array([-np.inf, np.inf, -np.inf, np.inf])
+
 
 def _clip(seg: FloatArray, box: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
     """Liang-Barsky clipping of segments (n, K, 4) (u0, v0, u1, v1) by boxes (n, 4)
     (u0, u1, v0, v1): hit mask (n, K) and the clipped end points (n, K, 2) each."""
+    if kernels.use_numba():
+        try:
+            return _clip_kernel(np.ascontiguousarray(seg, dtype=float),
+                                np.ascontiguousarray(box, dtype=float))
+        except kernels.KernelUnavailable:
+            pass
     a = seg[..., :2]
     d = seg[..., 2:] - a
     t0 = np.zeros(seg.shape[:2])
@@ -70,9 +88,19 @@ class _Bands:
     def _band(self, v: FloatArray) -> np.ndarray:
         return clamp(np.floor((v - self.v0) / self.h), 0, self.n - 1).astype(np.intp)
 
-    def __call__(self, u: FloatArray, v: FloatArray) -> np.ndarray:
+    def __call__(self, u: FloatArray, v: FloatArray, dom: FloatArray = _ANYWHERE) -> np.ndarray:
+        """Whether each (u, v) lies inside (the points clamped into ``dom``, (u lo, u hi,
+        v lo, v hi), first)."""
         u = np.asarray(u, dtype=float)
         v = np.asarray(v, dtype=float)
+        if kernels.use_numba():
+            try:
+                return self._compiled(u, v, dom)
+            except kernels.KernelUnavailable:
+                pass
+        if dom is not _ANYWHERE:
+            u = clamp(u, dom[0], dom[1])
+            v = clamp(v, dom[2], dom[3])
         shape = np.broadcast(u, v).shape
         pu, pv = (np.broadcast_to(a, shape).ravel() for a in (u, v))
         seg = self.table[self._band(pv)]  # (m, width, 4); NaN rows never straddle
@@ -83,6 +111,12 @@ class _Bands:
             cross = u0 + (qv - v0) * ((u1 - u0) / (v1 - v0))
         hits = straddle & (pu[:, None] < cross)
         return ((np.count_nonzero(hits, axis=1) % 2) == 1).reshape(shape)
+
+    def _compiled(self, u: FloatArray, v: FloatArray, dom: FloatArray) -> np.ndarray:
+        shape = np.broadcast(u, v).shape
+        pu, pv = (np.ascontiguousarray(np.broadcast_to(a, shape).ravel()) for a in (u, v))
+        return _inside_kernel(self.table, self.v0, self.h, self.n, pu, pv,
+                              np.asarray(dom, dtype=float)).reshape(shape)
 
 
 class _SegmentGrid:
@@ -220,6 +254,9 @@ class _FaceData:
         pts = bez.points.reshape(nu * nv, -1, 3)
         self.lo, self.hi = pts.min(axis=1), pts.max(axis=1)
         self._bands = _Bands(face._edges)
+        (u0, u1), (v0, v1) = s.domain
+        eu, ev = 1e-12 * (u1 - u0), 1e-12 * (v1 - v0)
+        self._inner = np.array([u0 + eu, u1 - eu, v0 + ev, v1 - ev])
         # Segments (u0, v0, u1, v1) that bound the material inside the domain: those lying on
         # the domain's own sides bound nothing more than the surface's edge does (an untrimmed
         # face has none left, so none of its sub-patches straddles).
@@ -229,7 +266,7 @@ class _FaceData:
         on_side = np.zeros(len(e), bool)
         for c, side in ((0, du0), (0, du1), (1, dv0), (1, dv1)):
             on_side |= (np.abs(e[:, c] - side) <= eps) & (np.abs(e[:, c + 2] - side) <= eps)
-        self.edges = e[~on_side]
+        self.edges = np.ascontiguousarray(e[~on_side], dtype=float)
         self._elo = np.minimum(self.edges[:, :2], self.edges[:, 2:])
         self._ehi = np.maximum(self.edges[:, :2], self.edges[:, 2:])
         self._pad = 1e-9 * max(du1 - du0, dv1 - dv0)
@@ -247,11 +284,7 @@ class _FaceData:
         """Whether (u, v) lies in the material: the trim test of :func:`faces.inside`, with points
         on the domain's own sides (where pnpoly's half-open rule would put the right and top
         sides outside) moved a hair into the domain first."""
-        (u0, u1), (v0, v1) = self.face.surface.domain
-        eu, ev = 1e-12 * (u1 - u0), 1e-12 * (v1 - v0)
-        u = clamp(np.asarray(u, dtype=float), u0 + eu, u1 - eu)
-        v = clamp(np.asarray(v, dtype=float), v0 + ev, v1 - ev)
-        return self._bands(u, v)
+        return self._bands(u, v, self._inner)
 
     def segments_at(self, u: FloatArray, v: FloatArray, eps: float):
         """(point index, segment index) of the trim segments within ``eps`` of each (u, v)."""
@@ -272,6 +305,10 @@ class _FaceData:
         face's segments, runs per sub-patch, not per query."""
         if len(box) == 0:
             return np.zeros(0, np.int8), np.full((0, MAX_SEGMENTS), -1, dtype=np.int64)
+        if kernels.use_numba() and not (parent_segs[:, 0] == -2).any():
+            # compiled, a row crossed by listed segments costs less than finding it among
+            # the known ones
+            return self._classify(box, parent_segs)
         return self._known(np.column_stack([box, parent_segs]),
                            lambda rows: self._classify(box[rows], parent_segs[rows]))
 
@@ -284,6 +321,11 @@ class _FaceData:
             return status, segs
         every = parent_segs[:, 0] == -2
         E = len(self.edges)
+        if kernels.use_numba():
+            try:
+                return self._compiled_classify(box, parent_segs, every, status, segs)
+            except kernels.KernelUnavailable:
+                pass
         counts = np.zeros(n, int)
         # sub-patches whose parent was crossed by many segments: test all of them, those whose
         # boxes (padded against rounding) meet the sub-patch's by Liang-Barsky
@@ -318,6 +360,27 @@ class _FaceData:
             order = np.argsort(~hit, axis=1, kind="stable")
             kept = np.take_along_axis(np.where(hit, ps, -1), order, axis=1)
             segs[rest, : kept.shape[1]] = kept
+        return self._status(box, counts, status, segs)
+
+    def _compiled_classify(self, box: FloatArray, parent_segs: np.ndarray, every: np.ndarray,
+                           status: np.ndarray, segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_classify` with the clipping loops compiled."""
+        counts = np.zeros(len(box), np.int64)
+        box = np.ascontiguousarray(box, dtype=float)
+        idx_all = np.flatnonzero(every)
+        if len(idx_all):
+            counts[idx_all], segs[idx_all] = _all_kernel(self.edges, self._elo, self._ehi,
+                                                         self._pad, box[idx_all], MAX_SEGMENTS)
+        rest = np.flatnonzero(~every)
+        if len(rest) and len(self.edges):
+            ps = np.ascontiguousarray(parent_segs[rest], dtype=np.int64)
+            counts[rest], segs[rest, : ps.shape[1]] = _listed_kernel(self.edges, ps, box[rest])
+        return self._status(box, counts, status, segs)
+
+    def _status(self, box: FloatArray, counts: np.ndarray, status: np.ndarray,
+                segs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Status 2 where ``counts`` of crossing segments, else 1 or 0 by the trim test at the
+        box's middle, in place; and ``segs``."""
         crossed = counts > 0
         status[crossed] = 2
         clear = np.flatnonzero(~crossed)
@@ -332,13 +395,22 @@ class _FaceData:
         sub-patches (n, 4 + 2K, 2) and their validity (n, 4 + 2K): the 4 corners (valid when
         inside the trim), then the clipped trim segment end points.  They depend on the box
         and its segments alone: computed once per distinct sub-patch (see :class:`_RowCache`)."""
-        if len(items.query) == 0:
+        if len(items.query) == 0 or kernels.use_numba():
+            # compiled, a row's vertices cost less than finding it among the known ones
             return self._vertices(items.box, items.segs)
         return self._known_vertices(np.column_stack([items.box, items.segs]),
                                     lambda rows: self._vertices(items.box[rows], items.segs[rows]))
 
     def _vertices(self, box: FloatArray, ps: np.ndarray) -> tuple[FloatArray, np.ndarray]:
         """:meth:`vertices` of every row (no sharing)."""
+        if kernels.use_numba():
+            try:
+                st, oks = _vertices_kernel(self.edges, np.ascontiguousarray(box, dtype=float),
+                                           np.ascontiguousarray(ps, dtype=np.int64))
+                corners = self.inside(box[:, [0, 1, 0, 1]], box[:, [2, 2, 3, 3]])
+                return st, np.concatenate([corners, oks], axis=1)
+            except kernels.KernelUnavailable:
+                pass
         n = len(box)
         st = np.zeros((n, 4 + 2 * MAX_SEGMENTS, 2))
         ok = np.zeros((n, 4 + 2 * MAX_SEGMENTS), bool)
