@@ -8,6 +8,9 @@ Definitions (all heights at cell centres, mm):
 * gouge = design - machined where positive; scallop (material left) = machined - design.
   Both are taken over the *inner* footprint, the footprint shrunk by one tool diameter; the
   band along the edges, where a tool rolling off the part cannot finish, is reported apart.
+* scallop evenness = mean over the inner cells of the largest scallop within a square of the
+  flat stepover at the largest scallop around each (the local cusp peak), over the largest
+  scallop (:mod:`.evenness`); ``scallop_mean_over_max`` the plain mean over the largest.
 * coverage = fraction of all footprint cells machined to within ``coverage_tolerance`` of
   the design (machined - design <= tolerance): the share of the surface the tool finished.
 * machining time = sum of feed-move lengths / their feeds + rapid lengths / the rapid rate.
@@ -39,6 +42,7 @@ from ..program.gcode import MoveKind, Program, linearise, simulation_chord_toler
 from ..program.tooltable import check_program_tools
 from ..toolpath.common import check_tool_fits
 from ..typing import FloatArray
+from .evenness import scallop_evenness
 from .job_simulation import JobSimulation, check_stock_form, simulate_job
 from .load_limits import LoadCheck, LoadLimits, check_loads, default_limits
 from .simulate import Grid, Simulation, Tool, simulate
@@ -472,6 +476,7 @@ def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.n
         "scallop_max_mm": float(max(0.0, inner_dev.max())),
         "scallop_p99_mm": float(max(0.0, np.percentile(inner_dev, 99))),
         "scallop_mean_mm": float(max(0.0, inner_dev.mean())),
+        **scallop_evenness(dev, inner, sim.grid.cell, tool),
         "edge_scallop_max_mm": float(max(0.0, edge_dev.max())) if edge_dev.size else 0.0,
         "edge_gouge_max_mm": float(max(0.0, -edge_dev.min())) if edge_dev.size else 0.0,
         "coverage": float(np.mean(dev[coverage] <= coverage_tolerance)),

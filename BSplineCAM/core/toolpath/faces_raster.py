@@ -3,7 +3,11 @@
 
 Like :mod:`.raster` (one surface), passes are vertical planes at ``angle`` from +X, spaced by
 the scallop height from the curvature and slope of the selected faces
-(:func:`.raster.cross_section_stepover`, the smallest allowance of the band each step spans).
+(:func:`.raster.cross_section_stepover`).  By default (``partial``) main passes are spaced by
+what most of the faces allow and, where a stretch of a pass needs a closer neighbour, partial
+passes between two main passes cover that stretch only, the gap halved until every sample's
+allowance is met (:mod:`.raster_partial`); without ``partial`` every pass spans the whole
+extent at the smallest allowance of the band its step spans.
 Along a pass the tool tip is the certified :meth:`FaceSet.drop_ball` height over ALL faces
 (check surfaces included, so nothing on the model is gouged), sampled every sqrt(8 R tol) mm,
 refined where a midpoint departs more than tol/2 from the chord (the exact midpoint is asked
@@ -42,6 +46,7 @@ from .raster import (
     scallop_line_offsets,
     zigzag_by_line,
 )
+from .raster_partial import Piece, StepoverSamples, order_pieces, partial_offsets
 
 #: Rounds of midpoint refinement along a pass.
 REFINE_ROUNDS = 5
@@ -125,7 +130,17 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
     (along, across) extent of the centres that touch them (mm, [[a0, b0], [a1, b1]]): the
     centre's XY offset from its contact, R sin slope, capped at R sin :data:`STEEPEST_REACHED`,
     and none where a centre over the contact leaves no more than the tolerance."""
-    offs, allowed, reach = [], [], []
+    b, _a, allowed, reach = _stepover_samples(faceset, tool, along, across)
+    order = np.argsort(b)
+    return b[order], allowed[order], reach
+
+
+def _stepover_samples(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
+                      across: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                   FloatArray]:
+    """:func:`_stepover_field` unsorted, with the along-coordinate of each sample's ball
+    centre (mm) after its across-coordinate."""
+    offs, alongs, allowed, reach = [], [], [], []
     for f in faceset.faces:
         if not f.selected:
             continue
@@ -147,7 +162,9 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
         # steeper samples are not reached by the passes: their allowance does not count
         kept = sin_slope <= cap
         allowed.append(np.maximum(xy, 0.02 * tool.flat_stepover)[kept])
-        offs.append(((d.point[:, :2] + tool.radius * n[:, :2]) @ across)[kept])
+        centre = d.point[:, :2] + tool.radius * n[:, :2]
+        offs.append((centre @ across)[kept])
+        alongs.append((centre @ along)[kept])
         with np.errstate(divide="ignore", invalid="ignore"):
             scale = np.where(kept, 1.0, cap / sin_slope)
             # a ball centred over a contact this gentle leaves at most the tolerance (its
@@ -156,28 +173,29 @@ def _stepover_field(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
         scale[gentle] = 0.0
         centre = d.point[:, :2] + tool.radius * scale[:, None] * n[:, :2]
         reach.append(centre @ np.column_stack([along, across]))
-    b = np.concatenate(offs)
-    a = np.concatenate(allowed)
-    order = np.argsort(b)
     ab = np.concatenate(reach)
-    return b[order], a[order], np.array([ab.min(axis=0), ab.max(axis=0)])
+    return (np.concatenate(offs), np.concatenate(alongs), np.concatenate(allowed),
+            np.array([ab.min(axis=0), ab.max(axis=0)]))
 
 
 def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float,
                           tolerance: float, angle: float = 0.0,
-                          progress: ProgressFn = None) -> Toolpath:
+                          progress: ProgressFn = None, partial: bool = True) -> Toolpath:
     """:func:`raster_faces` with the tool given by its diameter, scallop (cusp height) and
     tolerance (one-sided chordal), all mm, validated here."""
     return raster_faces(faceset, ToolParameters.validate(tool_diameter, scallop, tolerance),
-                        angle, progress)
+                        angle, progress, partial)
 
 
 def raster_faces(faceset: FaceSet, tool: ToolParameters, angle: float = 0.0,
-                 progress: ProgressFn = None) -> Toolpath:
+                 progress: ProgressFn = None, partial: bool = True) -> Toolpath:
     """Zig-zag raster toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
 
     ``tool`` is validated (:meth:`ToolParameters.validate`); angle in degrees from +X.
-    Heights are the certified drop-cutter over every face of the set.
+    Heights are the certified drop-cutter over every face of the set.  With ``partial`` the
+    main passes are spaced by what most of the faces allow and partial passes fill the
+    stretches that need closer ones (:mod:`.raster_partial`); without it every pass spans the
+    whole extent, spaced by the least allowance of its band.
     """
     started = time.perf_counter()
     angle = check_angle(angle)
@@ -193,18 +211,26 @@ def raster_faces(faceset: FaceSet, tool: ToolParameters, angle: float = 0.0,
     # ball centres over the selected faces' extent, as the net raster keeps them over the
     # surface's (further out the ball only grazes a flat border with its equator), and beyond
     # it as far as the centres touching a steep border lie (R sin slope past the contact)
-    b_off, allowed, reach = _stepover_field(faceset, tool, along, across)
+    b_off, a_off, allowed, reach = _stepover_samples(faceset, tool, along, across)
     a0 = min(float((corners @ along).min()), float(reach[0, 0]))
     a1 = max(float((corners @ along).max()), float(reach[1, 0]))
     b0 = min(float((corners @ across).min()), float(reach[0, 1]))
     b1 = max(float((corners @ across).max()), float(reach[1, 1]))
-    offsets = scallop_line_offsets(b_off, allowed, b0, b1, tool, 0.5 * tool.flat_stepover)
     step = min(math.sqrt(8.0 * R * tool.tolerance), R / 2.0)
-    n = max(2, math.ceil((a1 - a0) / step) + 1)
-    base = np.linspace(a0, a1, n)
-    bvals = np.asarray(offsets)
-    line = np.repeat(np.arange(len(offsets)), n)
-    a = np.tile(base, len(offsets))
+    if partial:
+        samples = StepoverSamples(b_off, a_off, allowed)
+        offsets, partials = partial_offsets(samples, b0, b1, (a0, a1), tool,
+                                            0.5 * tool.flat_stepover)
+        pieces = [Piece(b, a0, a1, k, 0) for k, b in enumerate(offsets)] + partials
+    else:
+        offsets = scallop_line_offsets(np.sort(b_off), allowed[np.argsort(b_off)], b0, b1, tool,
+                                       0.5 * tool.flat_stepover)
+        pieces = [Piece(b, a0, a1, k, 0) for k, b in enumerate(offsets)]
+    # a line index per piece: pieces may share an across-offset, each sampled over its stretch
+    counts = [max(2, math.ceil((p.a1 - p.a0) / step) + 1) for p in pieces]
+    bvals = np.array([p.b for p in pieces])
+    line = np.repeat(np.arange(len(pieces)), counts)
+    a = np.concatenate([np.linspace(p.a0, p.a1, n) for p, n in zip(pieces, counts)])
 
     def xy_of(a_, line_):
         return a_[:, None] * along + bvals[line_][:, None] * across
@@ -252,15 +278,18 @@ def raster_faces(faceset: FaceSet, tool: ToolParameters, angle: float = 0.0,
         xy = xy_of(a[idx], line[idx])
         passes, lift_stats = lifted_line_runs(query.heights_and_slopes, runs, line, a[idx], xy,
                                               z[idx], grad[idx], half, monitor)
-    ordered = zigzag_by_line(passes)
+    ordered = order_pieces(passes, pieces, along) if partial else zigzag_by_line(passes)
     monitor(0.95)
-    steps = np.diff(bvals)
+    steps = np.diff(np.unique(bvals))
     parameters = {"strategy": "raster", "tool_diameter": tool.diameter, "scallop": tool.scallop,
                   "tolerance": tool.tolerance, "angle": angle, "direction": "zigzag",
                   "faces": [f.name for f in faceset.faces if f.selected]}
     stats = ToolpathStats(stepover_min_mm=float(steps.min()) if len(steps) else float("nan"),
                           stepover_max_mm=float(steps.max()) if len(steps) else float("nan"))
-    extra = {"line_offsets_mm": bvals.tolist(), "chord_lift": lift_stats,
+    parameters["partial"] = bool(partial)
+    extra = {"line_offsets_mm": list(map(float, offsets)),
+             "partial_passes_mm": [[p.b, p.a0, p.a1] for p in pieces if not p.main],
+             "chord_lift": lift_stats,
              "angle_frame": (along.tolist(), across.tolist()),
              "dropcutter": dict(faceset.stats)}
     toolpath = Toolpath("raster", ordered, parameters, [], stats, extra=extra)
