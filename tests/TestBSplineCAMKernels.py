@@ -111,7 +111,7 @@ def test_compile_failure_switches_to_numpy_and_names_the_kernel(capfd):
     pytest.importorskip("numba")
 
     def untypable(a):
-        return {"a": a, 1: "b"}  # a dict of mixed keys: numba cannot type it
+        return object()  # a Python object: numba cannot type it
 
     k = kernels.Kernel(untypable)
     with kernels.forced("numba"):

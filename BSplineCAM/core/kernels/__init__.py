@@ -161,10 +161,12 @@ def _say_once() -> None:
 
 def fall_back(reason: str) -> None:
     """Switch this process to the numpy engine (a kernel failed to compile), with a notice."""
-    global _engine
+    global _engine, _noticed
     with _lock:
         e = engine()
         _engine = Engine("numpy", reason, e.numba_version, e.cache, e.compile_seconds)
+        if e.name == "numba":
+            _noticed = False  # the switch is news: say it
     _say_once()
 
 
@@ -249,10 +251,12 @@ def _reset_for_tests(choice: str | None = None) -> None:
 def forced(choice: str):
     """Run a block under the engine ``choice`` ("numba" or "numpy"), then restore the one
     chosen before (tests compare the two engines in one process)."""
-    global _engine
+    global _engine, _noticed
     before_env = os.environ.get(ENV)
     before = _engine
+    noticed = _noticed
     _reset_for_tests(choice)
+    _noticed = noticed  # the notice stays one line per process
     try:
         yield engine()
     finally:
