@@ -82,6 +82,12 @@ class TestJob(JobFixture):
         report = json.loads(self.op.Report)
         self.assertEqual(report["strategy"], "raster")
         self.assertGreater(report["passes"], 10)
+        # the machine figures: air beyond the rapids (plunges, links), acceleration's cost
+        self.assertGreaterEqual(report["air_length_mm"], report["rapid_length_mm"])
+        self.assertGreater(report["link_length_mm"], 0.0)
+        self.assertGreater(report["machining_time_s"], 0.0)
+        self.assertGreater(report["machining_time_with_acceleration_s"],
+                           report["machining_time_s"])
         stock_top = self.job.Stock.Shape.BoundBox.ZMax
         self.assertGreater(self.op.SafeHeight.Value, stock_top)
         self.assertGreater(self.op.ClearanceHeight.Value, self.op.SafeHeight.Value)

@@ -34,6 +34,7 @@ from BSplineCAM.app import faces as app_faces  # noqa: E402
 from BSplineCAM.core import toolpath as core_toolpath  # noqa: E402
 from BSplineCAM.core.program import rs274  # noqa: E402
 from BSplineCAM.core.program.gcode import MoveKind, read_gcode  # noqa: E402
+from BSplineCAM.core.simulation.measures import program_measures  # noqa: E402
 from BSplineCAM.core.simulation.simulate import Grid, Tool, simulate_program  # noqa: E402
 from BSplineCAM.core.toolpath.common import ToolpathCancelled  # noqa: E402
 from BSplineCAM.core.toolpath.faceset import FaceSet  # noqa: E402
@@ -198,6 +199,21 @@ class TestFilletFace(PartJob):
         self.assertGreaterEqual(self.op.OpStartDepth.Value, 10.0 - 1e-4)
         self.assertGreater(self.op.SafeHeight.Value, self.job.Stock.Shape.BoundBox.ZMax - 1e-9)
         self.assertGreater(self.op.ClearanceHeight.Value, self.op.SafeHeight.Value)
+
+    def test_report_gives_the_machine_figures(self):
+        """Rapid, air and link length and the machining time with acceleration, from the op's
+        moves at its tool controller's feeds: as the posted program measures them."""
+        report = self.report()
+        for key in ("rapid_length_mm", "air_length_mm", "link_length_mm", "machining_time_s",
+                    "machining_time_with_acceleration_s"):
+            self.assertIn(key, report)
+        self.assertGreaterEqual(report["air_length_mm"], report["rapid_length_mm"] - 1e-6)
+        self.assertGreater(report["machining_time_with_acceleration_s"],
+                           report["machining_time_s"])
+        posted = program_measures(read_gcode(self.text))
+        self.assertAlmostEqual(report["machining_time_with_acceleration_s"],
+                               posted["machining_time_with_acceleration_s"],
+                               delta=0.1 * posted["machining_time_with_acceleration_s"])
 
     def test_program_passes_rs274(self):
         self.assert_rs274()

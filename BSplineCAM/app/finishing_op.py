@@ -32,8 +32,12 @@ from ..core.errors import BSplineCAMError
 from ..core.geometry import faces as core_faces
 from ..core.geometry.face_import import DEFAULT_CHORDAL_TOLERANCE
 from ..core.geometry.faces import FaceError
+from ..core.program.gcode import read_gcode
+from ..core.simulation.machining_time import DEFAULT_RAPID_RATE, MachineLimits
+from ..core.simulation.measures import program_measures, toolpath_lengths
 from ..core.toolpath import common as toolpath_common
 from ..core.toolpath.arcs import feed_length
+from ..core.toolpath.arcs_moves import plain_gcode
 from ..core.toolpath.common import RAPID_RANGE, CuttingParameters, ToolParameters
 from ..core.toolpath.faceset import FaceSet
 from ..core.toolpath.rest import faceset_cl_height, generate_rest, net_cl_height
@@ -303,6 +307,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         out = report(toolpath, commands, moves)
+        out.update(machine_figures(obj, moves, toolpath, rest))
         if rest is not None:
             out["rest"] = rest_report(rest)
         out.update(stock_left_uncut(obj))
@@ -336,6 +341,7 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         out = report(toolpath, commands, moves)
+        out.update(machine_figures(obj, moves, toolpath, rest))
         if rest is not None:
             out["rest"] = rest_report(rest)
         out["faces"] = [f.name for f in faceset.faces if f.selected]
@@ -487,6 +493,25 @@ def report(toolpath, commands=None, moves=None) -> dict:
         out["arc_moves"] = sum(c.Name in ("G2", "G3") for c in commands)
         out["program_moves"] = sum(c.Name in ("G0", "G1", "G2", "G3") for c in commands)
     return out
+
+
+def machine_figures(obj, moves, *toolpaths) -> dict:
+    """The op's program measured as :mod:`BSplineCAM.core.simulation.measures` says (rapid,
+    air and link lengths, nominal machining time and the time with acceleration on the
+    default machine), from its ``moves`` at its tool controller's feeds and rapid rate (the
+    default machine's when the controller has none); ``toolpaths`` are the core toolpaths
+    the moves follow (the rest passes and the finishing ones)."""
+    cutting = cam.controller_cutting(obj.ToolController)
+    rapid = cutting.rapid if RAPID_RANGE[0] <= cutting.rapid <= RAPID_RANGE[1] \
+        else DEFAULT_RAPID_RATE
+    text = plain_gcode(moves, cutting.horizontal_feed, plunge_feed=cutting.vertical_feed)
+    program = read_gcode(text, obj.Label, require_end=False)
+    lengths = toolpath_lengths(*toolpaths)
+    figures = program_measures(program, lengths["along_passes_mm"],
+                               MachineLimits(rapid_rate=rapid))
+    figures.pop("cutting_length_mm")  # the report's own, from the moves
+    figures["link_length_mm"] = lengths["link_length_mm"]
+    return {k: round(v, 6) for k, v in figures.items()}
 
 
 def rest_report(rest) -> dict:

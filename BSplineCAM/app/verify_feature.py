@@ -414,6 +414,8 @@ def format_metrics(label: str, m: dict) -> str:
         f"{m['gouge_tolerance_mm']:g} mm)",
         f"  scallop max / p99  {m['scallop_max_mm']:.4f} / {m['scallop_p99_mm']:.4f} mm "
         f"(edge band max {m['edge_scallop_max_mm']:.3f} mm)",
+        f"  scallop evenness   {m.get('scallop_evenness', float('nan')):.2f} (local cusp "
+        f"peak / max; mean / max {m.get('scallop_mean_over_max', float('nan')):.2f})",
         f"  coverage           {100 * m['coverage']:.2f} % within "
         f"{m['coverage_tolerance_mm']:g} mm",
         f"  cutting length     {m['cutting_length_mm']:.1f} mm (rapids "

@@ -270,7 +270,8 @@ def cmd_job(args: argparse.Namespace) -> int:
 
 
 #: Figures of verify.json repeated in job.json and printed on stdout.
-SUMMARY = ("ok", "checks", "targets", "gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "coverage",
+SUMMARY = ("ok", "checks", "targets", "gouge_max_mm", "scallop_max_mm", "scallop_p99_mm",
+           "scallop_evenness", "coverage",
            "rapid_collisions", "machining_time_s", "machining_time_with_acceleration_s",
            "tools")
 

@@ -321,7 +321,8 @@ def _job_summary(metrics: dict) -> dict:
 
 
 #: The figures of verify.json the command prints on stdout.
-SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "edge_scallop_max_mm",
+SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "scallop_mean_mm",
+           "scallop_evenness", "scallop_mean_over_max", "edge_scallop_max_mm",
            "coverage", "rapid_collisions", "cutting_length_mm", "machining_time_s",
            "machining_time_with_acceleration_s")
 

@@ -39,6 +39,7 @@ from ..core.geometry.basis import cox_de_boor
 from ..core.geometry.face_import import ACCEPT_SHARE, DEFAULT_CHORDAL_TOLERANCE, acceptance_limit
 from ..core.geometry.faces import DEFAULT_TOLERANCE, Face, FaceError
 from ..core.program import rs274
+from ..core.simulation.measures import toolpath_lengths
 from ..core.toolpath import faces_program_moves, generate_faces, program_moves
 from ..core.toolpath.faceset import FaceSet
 from .cli_common import (
@@ -50,7 +51,7 @@ from .cli_common import (
     json_text,
     staged_output,
 )
-from .pipeline_run import machining_time
+from .pipeline_run import program_figures
 
 if TYPE_CHECKING:
     import argparse
@@ -490,8 +491,9 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                            "arcs": getattr(args, "arcs", "off"),
                            "tool_diameter_mm": tool.diameter, "scallop_mm": tool.scallop,
                            "tolerance_mm": tool.tolerance}}
-        report["cutting_length_mm"], report["machining_time_s"] = (
-            round(v, 3) for v in machining_time(text, cutting_params.rapid))
+        lengths = toolpath_lengths(toolpath)
+        report["link_length_mm"] = round(lengths["link_length_mm"], 3)
+        report.update(program_figures(text, cutting_params.rapid, lengths["along_passes_mm"]))
         if not args.no_rs274 and rs274.available():
             check = rs274.check(program, {1: tool.diameter})
             report["rs274"] = check.as_dict()

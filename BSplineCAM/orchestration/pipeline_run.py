@@ -4,7 +4,8 @@
 Both check the feeds and the post-processors before any work (so that no refusal happens
 inside a FreeCAD recompute, whose traceback FreeCAD prints), run the pipeline with FreeCAD's
 console held, turn the op's refusal (ValueError) into the command's ParameterError, and add
-the program's cutting length and machining time, measured on its own text, to the report.
+the program's cutting, rapid and air length and machining time (nominal and with
+acceleration), measured on its own text, to the report.
 """
 
 from __future__ import annotations
@@ -15,7 +16,9 @@ from pathlib import Path
 
 from ..app import compat
 from ..core.errors import ParameterError
-from ..core.program.gcode import MoveKind, read_gcode
+from ..core.program.gcode import read_gcode
+from ..core.simulation.machining_time import MachineLimits
+from ..core.simulation.measures import program_measures
 from ..core.toolpath.common import CuttingParameters
 from .cli_common import captured_console, check_interrupted
 
@@ -50,21 +53,23 @@ def freecad_cutting(cutting: CuttingParameters):
     return cam.Cutting(cutting.feed, cutting.plunge_feed, cutting.spindle, cutting.rapid)
 
 
-def machining_time(gcode: str, rapid: float = DEFAULT_RAPID) -> tuple[float, float]:
-    """(cutting length mm, machining time s) of a program, from its own text and feeds."""
+def program_figures(gcode: str, rapid: float = DEFAULT_RAPID,
+                    along_passes_mm: float | None = None) -> dict:
+    """The program's figures of :mod:`BSplineCAM.core.simulation.measures`, measured on its
+    own text (mm, s, rounded to 3 decimals): cutting and rapid length, machining time nominal
+    and with acceleration (the default machine, rapids at ``rapid`` mm/min), and the air
+    length when ``along_passes_mm``, the length along its passes, is known."""
     program = read_gcode(gcode, "program", require_end=False)
-    lengths = program.lengths()
-    rapid_mask = program.kind == MoveKind.RAPID
-    cutting = float(lengths[~rapid_mask].sum())
-    minutes = float((lengths[~rapid_mask] / program.feed[~rapid_mask]).sum()) + float(lengths[rapid_mask].sum()) / rapid
-    return cutting, 60.0 * minutes
+    limits = MachineLimits(rapid_rate=float(rapid))
+    figures = program_measures(program, along_passes_mm, limits)
+    return {k: round(v, 3) for k, v in figures.items()}
 
 
 def run_pipeline(run: Callable[[], dict], program: Path, rapid: float) -> dict:
     """``run()`` (app.pipeline.machine writing ``program``) with FreeCAD's console held; the
     op's ValueError becomes a ParameterError, an interruption stops here.  Returns its report
-    with the program's name, cutting length (mm) and machining time (s) at ``rapid``
-    (mm/min)."""
+    with the program's name and :func:`program_figures` at ``rapid`` (mm/min); the air length
+    when the report tells the length along the passes (a finishing op's alone)."""
     try:
         with captured_console():
             report = run()
@@ -72,7 +77,10 @@ def run_pipeline(run: Callable[[], dict], program: Path, rapid: float) -> dict:
         check_interrupted()
         raise ParameterError(str(exc)) from None
     check_interrupted()
-    report["cutting_length_mm"], report["machining_time_s"] = (
-        round(v, 3) for v in machining_time(program.read_text(), rapid))
+    along = None
+    if "roughing" not in report and "link_length_mm" in report:
+        along = report["pass_length_mm"] - report["link_length_mm"] + report.get(
+            "rest", {}).get("pass_length_mm", 0.0)
+    report.update(program_figures(program.read_text(), rapid, along))
     report["program"] = program.name
     return report

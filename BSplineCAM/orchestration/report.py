@@ -55,7 +55,8 @@ def plot_deviation(result: Verification, path: str | os.PathLike) -> None:
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     ax.set_title(f"Deviation: gouge max {m['gouge_max_mm']:.4f} mm, scallop max "
-                 f"{m['scallop_max_mm']:.4f} mm (p99 {m['scallop_p99_mm']:.4f})\n"
+                 f"{m['scallop_max_mm']:.4f} mm (p99 {m['scallop_p99_mm']:.4f}, evenness "
+                 f"{m.get('scallop_evenness', float('nan')):.2f})\n"
                  f"edge band (outside dashed line) scallop max {m['edge_scallop_max_mm']:.3f} mm, "
                  f"coverage {100 * m['coverage']:.1f} %", fontsize=9)
     ax.set_aspect("equal")

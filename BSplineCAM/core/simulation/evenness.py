@@ -69,7 +69,7 @@ def scallop_evenness(scallop: FloatArray, measured: np.ndarray, cell: float,
     if top <= 0.0:
         return {"scallop_evenness": 1.0, "scallop_mean_over_max": 1.0,
                 "scallop_evenness_window_mm": window}
-    half = int(round(0.5 * window / cell))
+    half = math.ceil(0.5 * window / cell - 1e-9)
     peak = running_max(running_max(values, half, 0), half, 1)
     return {"scallop_evenness": float(peak[measured].mean() / top),
             "scallop_mean_over_max": float(max(0.0, scallop[measured].mean()) / top),

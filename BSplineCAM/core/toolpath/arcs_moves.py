@@ -92,12 +92,16 @@ def gcode_words(arc: Arc, decimals: int = 4) -> str:
             f"R{arc.radius:.{decimals}f}")
 
 
-def plain_gcode(moves: Sequence[AnyMove], feed: float = 1000.0, decimals: int = 4) -> str:
+def plain_gcode(moves: Sequence[AnyMove], feed: float = 1000.0, decimals: int = 4,
+                plunge_feed: float | None = None) -> str:
     """A minimal program (G21 G90, G0 / G1 / G2 / G3 with F, the plane word before arcs and
-    G17 restored after them, M2)."""
+    G17 restored after them, M2); with ``plunge_feed`` (mm/min) the feed lines that keep X
+    and Y (plunges) take it instead of ``feed``."""
     lines = ["G17 G21 G90"]
     plane = 17
+    last = None
     for m in moves:
+        previous, last = last, (m.x, m.y)
         if isinstance(m, Arc):
             if m.plane != plane:
                 lines.append(f"G{m.plane}")
@@ -108,7 +112,11 @@ def plain_gcode(moves: Sequence[AnyMove], feed: float = 1000.0, decimals: int = 
             lines.append("G17")
             plane = 17
         word = "G0" if m.kind == "rapid" else "G1"
-        tail = "" if m.kind == "rapid" else f" F{feed:g}"
+        rate = feed
+        if plunge_feed is not None and previous is not None and \
+                abs(m.x - previous[0]) < 1e-9 and abs(m.y - previous[1]) < 1e-9:
+            rate = plunge_feed
+        tail = "" if m.kind == "rapid" else f" F{rate:g}"
         lines.append(f"{word} X{m.x:.{decimals}f} Y{m.y:.{decimals}f} Z{m.z:.{decimals}f}{tail}")
     if plane != 17:
         lines.append("G17")

@@ -2,7 +2,7 @@
 """Partial raster passes: main passes spaced by what most of the surface allows, and between
 two of them extra passes over the stretches that need a closer neighbour only.
 
-The input is the stepover field of the faces' raster (:func:`.faces_raster._stepover_field`):
+The input is the stepover field of the faces' raster (:func:`.faces_raster._stepover_samples`):
 per surface sample the across- and along-coordinates of the ball centre touching it (mm) and
 the largest XY distance between the two passes on either side of it that keeps the scallop
 there <= h (mm).
@@ -24,16 +24,17 @@ there <= h (mm).
   (:func:`.raster.scallop_line_offsets`: the least allowance in the band) and steps from the
   widest allowance down to it, :data:`LADDER` per halving; a wider one is taken only if it
   saves more than 1 - :data:`GAIN` of that length.  Where the allowance is the same along the
-  whole band (a plane, a cylinder across its axis), no wider step saves anything and the
+  whole band (a plane, a cylinder with passes along its axis), no wider step saves anything and the
   lines are those of the whole-pass rule.
-* **Order** (:func:`order_pieces`): the main passes zig-zag (even ranks forward, ending at the
-  high end of the along-range); a partial piece is cut while the tool is at the end of the
-  along-range it lies nearer: after the main pass of its band's two that ends there.  After
-  a main pass, first the pieces of the band below it that wait at its end (offsets
-  descending), then those of the band above it (ascending): each band's cluster is entered
-  at the part's edge and the two clusters' pieces alternate in direction, so the tool leaves
-  them where the next main pass starts and every link between them is short (within a
-  stay-down link's reach).  Each piece starts at its end nearer the tool.
+* **Order** (:func:`order_pieces`): the main passes zig-zag (even ranks forward, along the
+  pass direction).  Every forward main pass takes the pieces of the bands below and above it
+  as detours: where their stretch starts the tool leaves the main pass, cuts the band below's
+  pieces (offsets descending), the main pass's part over the stretch, then the band above's
+  (ascending), each from its end nearer the tool, and goes on along the main pass from the
+  stretch's far end.  With an odd number of pieces each side (a halving gives 2^k - 1) the
+  crossings add up to an odd number, so the detour ends at that far end and every link in it
+  is about a stepover long (within a stay-down link's reach).  The main passes are split at
+  the stretches' ends by a point on their chord (the chords are unchanged).
 """
 
 from __future__ import annotations
