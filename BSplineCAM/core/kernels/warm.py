@@ -17,13 +17,15 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..geometry.faces import Face
+from ..geometry.nurbs import NurbsSurface
+from ..program.gcode_words import Segments
+from ..simulation import simulate as sim
+from ..toolpath.faceset import FaceSet
 from . import engine, use_numba
 
 
 def _faces():
-    from ..geometry.faces import Face  # noqa: PLC0415
-    from ..geometry.nurbs import NurbsSurface  # noqa: PLC0415
-
     c = math.sqrt(0.5)
     arc = [(0.0, 10.0), (10.0, 10.0), (10.0, 0.0)]
     poles = np.array([[[x, y, z] for y in (0.0, 30.0)] for x, z in arc])
@@ -51,8 +53,6 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
             f.surface.evaluate(u, u)
 
     def drop():
-        from ..toolpath.faceset import FaceSet  # noqa: PLC0415
-
         fs = FaceSet(faces)
         x = np.linspace(-2.0, 30.0, 9)
         q = np.column_stack([x, np.full(len(x), 14.0)])
@@ -60,9 +60,6 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         fs.drop_ball(q[:2] + 0.5, 3.0)
 
     def simulate():
-        from ..program.gcode_words import Segments  # noqa: PLC0415
-        from ..simulation import simulate as sim  # noqa: PLC0415
-
         grid = sim.Grid.covering(-5.0, 25.0, -5.0, 25.0, 0.5)
         pts = np.array([[0.0, 0.0, 5.0], [20.0, 0.0, 4.0], [20.0, 20.0, 3.0]])
         segs = Segments(pts[:-1], pts[1:], np.zeros(2, bool), np.arange(1, 3), np.arange(2))
