@@ -147,3 +147,34 @@ def test_cli_json_names_the_engine(tmp_path):
 def _source_of_total() -> str:
     return ("def _total(a):\n    s = 0.0\n    for i in range(a.shape[0]):\n"
             "        s += a[i]\n    return s\n")
+
+
+@kernels.helper
+def _square(x):
+    return x * x
+
+
+@kernels.helper
+def _sum_of_squares(a):
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += _square(a[i])
+    return s
+
+
+def _norm2(a):
+    return _sum_of_squares(a)
+
+
+NORM2 = kernels.Kernel(_norm2)
+
+
+def test_helpers_compile_with_the_kernel_that_calls_them():
+    a = np.arange(4.0)
+    assert NORM2.py(a) == 14.0  # plain Python before any compile
+    pytest.importorskip("numba")
+    with kernels.forced("numba"):
+        assert NORM2(a) == 14.0
+    assert hasattr(globals()["_sum_of_squares"], "py_func")  # the compiled twin
+    assert hasattr(globals()["_square"], "py_func")
+    assert NORM2.py(a) == 14.0  # Python callers still reach it

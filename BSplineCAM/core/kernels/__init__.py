@@ -190,6 +190,7 @@ class Kernel:
                     e = engine()
                     options = {"nogil": True, "cache": bool(e.cache),
                                "parallel": self.parallel, "error_model": "numpy"}
+                    _compile_helpers(self.py, options)
                     try:
                         self._compiled = _numba.njit(**options)(self.py)
                     except Exception:  # noqa: BLE001  (no cache for it: compile in memory)
@@ -219,6 +220,41 @@ class Kernel:
             raise
         e.compile_seconds[self.name] = time.perf_counter() - start
         return out
+
+
+_HELPER = "_bsplinecam_kernel_helper"
+
+
+def helper(function):
+    """Mark a loop-style function that kernels call (a clip, a point-in-polygon test).  It
+    stays a plain Python function until a kernel that names it compiles: then the module's
+    global is replaced by its compiled twin (compiled with the kernel, cached alike), which
+    Python callers can still call.  Helpers may call helpers."""
+    setattr(function, _HELPER, True)
+    return function
+
+
+def _compile_helpers(function, options: dict, seen: set | None = None) -> None:
+    """Replace, in ``function``'s module globals, the helpers it names (and theirs) by their
+    compiled twins."""
+    seen = set() if seen is None else seen
+    names = getattr(function, "py_func", function).__code__.co_names
+    scope = getattr(function, "py_func", function).__globals__
+    for name in names:
+        target = scope.get(name)
+        if target is None or id(target) in seen:
+            continue
+        py = getattr(target, "py_func", target)
+        if not getattr(py, _HELPER, False):
+            continue
+        seen.add(id(target))
+        _compile_helpers(py, options, seen)
+        if not hasattr(target, "py_func"):
+            opts = {k: v for k, v in options.items() if k != "parallel"}
+            try:
+                scope[name] = _numba.njit(**opts)(py)
+            except Exception:  # noqa: BLE001  (no cache for it)
+                scope[name] = _numba.njit(**{**opts, "cache": False})(py)
 
 
 class KernelUnavailable(RuntimeError):
@@ -268,5 +304,5 @@ def forced(choice: str):
             _engine = before
 
 
-__all__ = ["Engine", "Kernel", "KernelUnavailable", "engine", "fall_back", "forced", "notice",
-           "use_numba"]
+__all__ = ["Engine", "Kernel", "KernelUnavailable", "engine", "fall_back", "forced", "helper",
+           "notice", "use_numba"]
