@@ -30,6 +30,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from toolpath_core import gcode  # noqa: E402
 
 from BSplineCAM.core import Surface  # noqa: E402
+from BSplineCAM.core.geometry.netio import ControlNet, KnotLayout, write_json  # noqa: E402
 from BSplineCAM.core.program.gcode import read_gcode  # noqa: E402
 from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
 from BSplineCAM.core.simulation.verify import verify  # noqa: E402
@@ -54,12 +55,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--profile", action="store_true", help="print the verify profile")
     parser.add_argument("--cell", type=float, default=0.1)
+    parser.add_argument("--write", metavar="DIR",
+                        help="also write the net (die.json) and the program (die.ngc) there, "
+                        "for timing the CLI: bin/bsplinecam verify DIR/die.json DIR/die.ngc "
+                        "--tool-diameter 10 --out OUT")
     args = parser.parse_args()
     surface = Surface(die_net(), knots="clamped", name="die")
     t0 = time.perf_counter()
     tp = generate(surface, "raster", 10.0, 0.005, 0.002)
     t_path = time.perf_counter() - t0
     text = gcode(tp)
+    if args.write:
+        folder = Path(args.write)
+        folder.mkdir(parents=True, exist_ok=True)
+        write_json(ControlNet(die_net(), KnotLayout.CLAMPED, "die"), folder / "die.json")
+        (folder / "die.ngc").write_text(text)
     mem_before = peak_mb()
     t0 = time.perf_counter()
     program = read_gcode(text)

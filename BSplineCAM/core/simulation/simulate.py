@@ -28,7 +28,9 @@ from enum import Enum
 
 import numpy as np
 
+from .. import kernels
 from ..errors import ParameterError
+from ..kernels import zmap_kernels
 from ..numeric import THREADS
 from ..program.gcode import Program, Segments, linearise, simulation_chord_tolerance
 from ..typing import FloatArray
@@ -347,6 +349,12 @@ def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArr
     for group in np.split(order, bounds):
         per_batch = max(1, BATCH_CELLS // int(hb[group[0]] * wb[group[0]]))
         batches.extend(group[b:b + per_batch] for b in range(0, len(group), per_batch))
+    if kernels.use_numba():
+        try:
+            return _cut_compiled(height, index, start, end, ix0, iy0, hb, wb, batches, tool,
+                                 grid, collision_tolerance)
+        except kernels.KernelUnavailable:
+            pass
     result: list[tuple[float, float, float]] = []
     lock = threading.Lock()
 
@@ -378,6 +386,73 @@ def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArr
             for future in [pool.submit(run, batches[i::threads]) for i in range(threads)]:
                 future.result()
     return max(result) if result else None
+
+
+#: Cells a call stamps before it is split over threads (numba engine).
+THREADED_CELLS = 1 << 16
+
+
+def _cut_compiled(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArray,
+                  ix0: np.ndarray, iy0: np.ndarray, hb: np.ndarray, wb: np.ndarray,
+                  batches: list[np.ndarray], tool: Tool, grid: Grid,
+                  collision_tolerance: float | None) -> tuple[float, float, float] | None:
+    """:func:`_cut` by the compiled :func:`.zmap_kernels.stamp`, segment by segment into
+    ``height``, with the numpy engine's windows, per-segment float32 constants and per-batch
+    ``wide`` choice (see :func:`_envelope`), so that the height map is bit-identical.  Threads
+    (the kernel runs without the GIL) take interleaved 4-row blocks, so none writes another's
+    cells."""
+    R = tool.radius
+    p0, p1 = start[index], end[index]
+    d = p1[:, :2] - p0[:, :2]
+    L = np.hypot(d[:, 0], d[:, 1])
+    flat = L < 1e-9
+    safe = np.where(flat, 1.0, L)
+    ux = np.where(flat, 1.0, d[:, 0] / safe)
+    uy = np.where(flat, 0.0, d[:, 1] / safe)
+    m = np.where(flat, 0.0, (p1[:, 2] - p0[:, 2]) / safe)
+    z0 = np.where(flat, np.minimum(p0[:, 2], p1[:, 2]), p0[:, 2])
+    L = np.where(flat, 0.0, L)
+    # the numpy engine's wide choice: per batch, from the largest |dx|, |dy| of its cells
+    # (monotone along a row or column: at the window's first or last cell)
+    def extreme(origin, first, size, p):
+        lo = origin + (first + 0.5) * grid.cell - p
+        hi = origin + (first + size - 1 + 0.5) * grid.cell - p
+        return np.maximum(np.abs(lo), np.abs(hi))
+
+    reach = np.maximum(extreme(grid.x0, ix0, wb, p0[:, 0]), extreme(grid.y0, iy0, hb, p0[:, 1]))
+    wide = np.zeros(len(index), bool)
+    for sel in batches:
+        wide[sel] = bool(reach[sel].max() > 2 * R)
+    f32 = np.float32
+    bisect = np.zeros(len(index), f32)
+    if tool.shape is ToolShape.BALL:
+        shape, slope, zf = zmap_kernels.BALL, m / np.sqrt(1.0 + m * m), z0 + R
+    elif tool.shape is ToolShape.FLAT:
+        shape, slope, zf = zmap_kernels.FLAT, np.sign(m), z0
+    else:
+        shape, slope, zf = zmap_kernels.BULLNOSE, np.sign(m), z0 + tool.corner_radius
+        bisect = np.abs(m).astype(f32)
+    consts = zmap_kernels.constants(R, tool.corner_radius, RIM_MM)
+    args = [height, float(grid.x0), float(grid.y0), float(grid.cell),
+            *(np.ascontiguousarray(v, dtype=np.int64) for v in (ix0, iy0, hb, wb)),
+            *(np.ascontiguousarray(v, dtype=float) for v in (p0[:, 0], p0[:, 1], ux, uy)),
+            wide, np.ascontiguousarray(L, dtype=float),
+            *(np.ascontiguousarray(v).astype(f32) for v in (L, m, slope, zf)), bisect,
+            int(shape), consts, collision_tolerance is not None]
+    threads = 1 if collision_tolerance is not None else min(THREADS, max(
+        1, int(np.sum(hb * wb.astype(np.int64))) // THREADED_CELLS))
+    depth = np.zeros((threads, 3))
+    if threads <= 1:
+        zmap_kernels.stamp(*args, 0, 1, depth[0])
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            for future in [pool.submit(zmap_kernels.stamp, *args, t, threads, depth[t])
+                           for t in range(threads)]:
+                future.result()
+    if collision_tolerance is None or not depth[0, 0] > collision_tolerance:
+        return None
+    y, x = int(depth[0, 1]), int(depth[0, 2])
+    return (float(depth[0, 0]), grid.x0 + (x + 0.5) * grid.cell, grid.y0 + (y + 0.5) * grid.cell)
 
 
 def _round_up(n: np.ndarray) -> np.ndarray:
