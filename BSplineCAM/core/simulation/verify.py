@@ -126,8 +126,7 @@ def _verify_surface(surface: Surface, program: Program, tool: Tool, cell: float,
     x0, x1, y0, y1 = footprint_bounds(surface)
     check_tool_fits(surface, tool.diameter, "tool diameter")
     grid = _covering((x0, x1, y0, y1), stock_xy, cell)
-    xs, ys = grid.centres()
-    design, _, _, inside = surface_height(surface, xs[None, :], ys[:, None])
+    design, inside = _design_heights(surface, grid)
     if not np.any(inside):
         raise ParameterError("no cell centre lies on the surface's footprint: cell too large")
     top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
@@ -144,7 +143,15 @@ def _verify_surface(surface: Surface, program: Program, tool: Tool, cell: float,
     _describe_job(metrics, job, inside)
     if progress is not None:
         progress(1.0)
-    return Verification(sim, np.where(inside, design, np.nan), inside, inner, metrics, job)
+    return Verification(sim, design, inside, inner, metrics, job)  # NaN off the footprint
+
+
+def _design_heights(surface: Surface, grid: Grid) -> tuple[FloatArray, np.ndarray]:
+    """The design height at each cell centre (NaN off the footprint) and the footprint's
+    mask (:func:`.footprint.surface_height`; its parameter arrays are dropped at once)."""
+    xs, ys = grid.centres()
+    found = surface_height(surface, xs[None, :], ys[:, None])
+    return found[0], found[3]
 
 
 def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: float = 0.1,
@@ -459,23 +466,28 @@ def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.n
     """Metrics over masks of the grid: ``inside`` where the design is defined, ``gouge`` where
     gouge is measured, ``inner`` where scallop is, ``edge`` the band reported apart and
     ``coverage`` where coverage and the uncut fraction are."""
-    dev = sim.height - np.where(inside, design, 0.0)
-    inner_dev = dev[inner]
-    gouge_dev = dev[gouge]
-    edge_dev = dev[edge]
+    dev = np.where(inside, design, 0.0)
+    np.subtract(sim.height, dev, out=dev)
     lengths = program.lengths()
     rapid = program.kind == MoveKind.RAPID
     cutting = float(lengths[~rapid].sum())
     feed_time = float(np.sum(lengths[~rapid] / program.feed[~rapid]) * 60.0)
     rapid_time = float(lengths[rapid].sum() / rapid_rate * 60.0)
-    gouged = gouge_dev < -GOUGE_TOLERANCE_MM
+    # one masked copy alive at a time
+    gouge_dev = dev[gouge]
+    gouged = {"gouge_max_mm": float(max(0.0, -gouge_dev.min())) if gouge_dev.size else 0.0,
+              "gouge_cells": int(np.count_nonzero(gouge_dev < -GOUGE_TOLERANCE_MM))}
+    del gouge_dev
+    inner_dev = dev[inner]
+    scallop = {"scallop_max_mm": float(max(0.0, inner_dev.max())),
+               "scallop_p99_mm": float(max(0.0, np.percentile(inner_dev, 99))),
+               "scallop_mean_mm": float(max(0.0, inner_dev.mean()))}
+    del inner_dev
+    edge_dev = dev[edge]
     return {
-        "gouge_max_mm": float(max(0.0, -gouge_dev.min())) if gouge_dev.size else 0.0,
-        "gouge_cells": int(gouged.sum()),
+        **gouged,
         "gouge_tolerance_mm": GOUGE_TOLERANCE_MM,
-        "scallop_max_mm": float(max(0.0, inner_dev.max())),
-        "scallop_p99_mm": float(max(0.0, np.percentile(inner_dev, 99))),
-        "scallop_mean_mm": float(max(0.0, inner_dev.mean())),
+        **scallop,
         **scallop_evenness(dev, inner, sim.grid.cell, tool),
         "edge_scallop_max_mm": float(max(0.0, edge_dev.max())) if edge_dev.size else 0.0,
         "edge_gouge_max_mm": float(max(0.0, -edge_dev.min())) if edge_dev.size else 0.0,
