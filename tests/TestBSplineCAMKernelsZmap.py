@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import CASE_STUDY
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -19,8 +20,6 @@ from BSplineCAM.core.program.gcode import read_gcode
 from BSplineCAM.core.program.gcode_words import Segments
 from BSplineCAM.core.simulation import simulate as sim
 from BSplineCAM.core.simulation.verify import verify
-
-from conftest import CASE_STUDY
 
 TOOLS = [sim.Tool(6.0), sim.Tool(6.0, "flat"), sim.Tool(6.0, "bullnose", 1.0),
          sim.Tool(4.0, "bullnose", 2.0), sim.Tool(10.0, "flat")]
