@@ -66,7 +66,7 @@ PROPERTIES = (
     ("App::PropertyLinkSubListGlobal", "Base", "Surface",
      "Faces to machine, e.g. (Part, ['Face3']); empty: the BSplineCAM surface, or else every "
      "face of the job's model a 3-axis tool reaches from above", 0, None),
-    ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z), isoparametric, or steep_shallow (waterline on walls over 45 degrees, raster on the rest)", 0, STRATEGIES),
+    ("App::PropertyEnumeration", "Strategy", "Surface", "raster (drop-cutter), waterline (constant Z), isoparametric, steep_shallow (waterline on walls over 45 degrees, raster on the rest), or scallop (faces: passes offset inwards from the faces' border, spaced by the scallop they leave)", 0, STRATEGIES),
     ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature", 0, 0.01),
     ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass", 0, 0.002),
     ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane", 0, None),

@@ -508,7 +508,7 @@ class JobPanel(PanelBase):
     #: The fields each strategy reads (the others are hidden).
     STRATEGY_FIELDS = {"raster": ("angle", "direction"), "waterline": (),
                        "isoparametric": ("iso_direction", "direction"),
-                       "steep_shallow": ("angle",)}
+                       "steep_shallow": ("angle",), "scallop": ()}
 
     def show_strategy_fields(self, *_args) -> None:
         """Show the raster angle, direction and iso direction only where they apply."""

@@ -41,6 +41,7 @@ from .common import (  # noqa: F401  (the package's names for its callers)
 from .dropcutter import DropCutter
 from .faces_iso import iso_faces
 from .faces_raster import raster_faces
+from .faces_scallop import scallop_faces
 from .faces_waterline import waterline_faces
 from .generator import (  # noqa: F401  (re-exported: the package's request checks)
     MAX_CUTTER_LOCATIONS,
@@ -108,6 +109,10 @@ def generate_for_tool(
     if strategy is Strategy.STEEP_SHALLOW:
         return steep_shallow(surface, tool, threshold, angle, clearance_height=clearance_height,
                              progress=progress, cancel=cancel)
+    if strategy is Strategy.SCALLOP:
+        raise ParameterError("strategy 'scallop' is available on faces only: select the "
+                             "part's faces (or use raster, waterline, isoparametric or "
+                             "steep_shallow on a BSplineCAM surface)")
     return run_strategy(started, surface, strategy, tool, angle, direction, iso_direction,
                         min_slope, clearance_height, progress, cancel)
 
@@ -142,7 +147,8 @@ __all__ = [
 FACE_STRATEGIES = (Strategy.RASTER.value,
                    Strategy.WATERLINE.value,
                    Strategy.ISOPARAMETRIC.value,
-                   Strategy.STEEP_SHALLOW.value)
+                   Strategy.STEEP_SHALLOW.value,
+                   Strategy.SCALLOP.value)
 
 
 def generate_faces(faceset, strategy: str, tool_diameter: float | None = None,
@@ -157,7 +163,9 @@ def generate_faces(faceset, strategy: str, tool_diameter: float | None = None,
     from the scallop on walls over 30 degrees), isoparametric
     (:mod:`~BSplineCAM.core.toolpath.faces_iso`, zigzag along ``iso_direction``) or
     steep_shallow (:func:`~BSplineCAM.core.toolpath.steep_shallow.steep_shallow_faces`:
-    contours on walls steeper than ``threshold`` degrees, raster at ``angle`` on the rest).
+    contours on walls steeper than ``threshold`` degrees, raster at ``angle`` on the rest) or
+    scallop (:func:`~BSplineCAM.core.toolpath.faces_scallop.scallop_faces`: passes offset
+    inwards from the selected faces' border, each by the stepover that leaves the scallop).
     The ball is ``tool``, validated where the request came in, or else tool_diameter,
     scallop and tolerance (mm), validated here (:meth:`ToolParameters.validate`).
     ``unreachable`` lists the regions of the
@@ -203,6 +211,8 @@ def _faces_toolpath(faceset, strategy: str, tool: ToolParameters, angle: float,
         return waterline_faces(faceset, tool, progress)
     if strategy == Strategy.ISOPARAMETRIC.value:
         return iso_faces(faceset, tool, iso_direction, progress)
+    if strategy == Strategy.SCALLOP.value:
+        return scallop_faces(faceset, tool, progress)
     return raster_faces(faceset, tool, angle, progress)
 
 

@@ -38,13 +38,16 @@ CancelFn = Optional[Callable[[], bool]]
 
 
 class Strategy(str, Enum):
-    """Finishing strategies of issue 4, and steep-and-shallow (issue 12): waterline on the
-    walls steeper than a slope threshold, raster on the rest."""
+    """Finishing strategies of issue 4, steep-and-shallow (issue 12): waterline on the
+    walls steeper than a slope threshold, raster on the rest, and constant scallop (faces
+    only): passes offset inwards from the selected faces' border, each by the stepover that
+    leaves the scallop (:mod:`.faces_scallop`)."""
 
     RASTER = "raster"
     WATERLINE = "waterline"
     ISOPARAMETRIC = "isoparametric"
     STEEP_SHALLOW = "steep_shallow"
+    SCALLOP = "scallop"
 
 
 class Direction(str, Enum):

@@ -197,12 +197,16 @@ def generate_single(
     min_slope: float = 30.0,
 ) -> Toolpath:
     """:func:`~BSplineCAM.core.toolpath.generate` for one strategy (raster, waterline or
-    isoparametric) and a validated ``tool``; steep_shallow, which combines two, is refused."""
+    isoparametric) and a validated ``tool``; steep_shallow, which combines two, and scallop,
+    which faces have, are refused."""
     started = time.perf_counter()
     strategy, angle, direction, iso_direction, min_slope = check_generate(
         surface, strategy, tool, angle, direction, iso_direction, clearance_height, min_slope)
     if strategy is Strategy.STEEP_SHALLOW:
         raise ParameterError("strategy 'steep_shallow' combines two strategies: "
                              "use BSplineCAM.core.toolpath.generate")
+    if strategy is Strategy.SCALLOP:
+        raise ParameterError("strategy 'scallop' is available on faces only: "
+                             "use BSplineCAM.core.toolpath.generate_faces")
     return run_strategy(started, surface, strategy, tool, angle, direction, iso_direction,
                         min_slope, clearance_height, progress, cancel)
