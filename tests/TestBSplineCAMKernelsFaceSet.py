@@ -183,6 +183,37 @@ def test_sub_patch_bounds_and_children_agree(make):
             same(getattr(ca, name), getattr(cb, name))
 
 
+@needs_numba
+@pytest.mark.parametrize("make", [trimmed_cylinder, holed_plane, lambda: plate_with_hole()])
+def test_straddling_kernel_agrees(make):
+    """The straddling pairs' vertices, affine values, amax, reach and corners in one call."""
+    d = _FaceData(make(), 0)
+    lo, hi = d.lo.min(axis=0), d.hi.max(axis=0)
+    rng = np.random.default_rng(7)
+    q = rng.uniform(lo[:2] - 1.0, hi[:2] + 1.0, (40, 2))
+    R = 3.0
+    seen = 0
+    for it in _levels(d, q, R, 6):
+        P = faceset_bounds._net_planes(d, it.nets)
+        qq = q[it.query]
+        _, _, reach = faceset_bounds._box_bound(P, it.node, qq, R * R)
+        _, _, _, coef, _, amax = faceset_bounds._tangent_plane(P, it.node, qq, R * R)
+
+        def run(fn, P=P, coef=coef, amax=amax, reach=reach, it=it):
+            a, r, c = amax.copy(), reach.copy(), np.ones((len(it.query), 4), bool)
+            m = fn(d, it, P, coef, a, r, c)
+            return (m.strad, m.st, m.ok, m.aval, m.listed, a, r, c) if m.st is not None \
+                else (m.strad, a, r, c)
+
+        with kernels.forced("numpy"):
+            a = run(faceset_bounds._straddling)
+        with kernels.forced("numba"):
+            b = run(faceset_bounds._straddling_compiled)
+        same(a, b)
+        seen += len(a[0])
+    assert seen
+
+
 # -- the drop-cutter, end to end ---------------------------------------------------------------
 def drop_both(faces, xy, R):
     """FaceSet.drop_ball of ``xy`` under both engines, and each run's pair counts."""

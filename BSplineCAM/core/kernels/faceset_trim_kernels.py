@@ -8,6 +8,11 @@ Each function computes what its numpy twin computes, element by element in the s
 operations, so both engines give the same bits and the same decisions; ``np.maximum`` and
 ``np.minimum`` are written out with their NaN rule (a NaN operand gives NaN).  They take and
 return contiguous float64, int64 and bool arrays only.
+
+The clipping of one segment (:func:`clip_one`) and the trim test of one point
+(:func:`inside_one`) are :func:`~BSplineCAM.core.kernels.helper` functions, compiled once and
+called by every kernel that needs them (here and in :mod:`.regions_kernels`,
+:mod:`.faceset_kernels`).
 """
 
 from __future__ import annotations
@@ -15,6 +20,70 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from . import helper
+
+
+@helper
+def clip_one(a0, a1, d0, d1, lo0, hi0, lo1, hi1):
+    """Liang-Barsky clipping of the segment from (a0, a1) along (d0, d1) by the box
+    [lo0, hi0] x [lo1, hi1]: (hit, t0, t1), the clipped part running from t0 to t1
+    (``faceset_trims._clip`` of one segment: an axis the segment runs across bounds t by
+    NaN-propagating maxima and minima, one it runs along drops it where outside)."""
+    t0 = 0.0
+    t1 = 1.0
+    h = math.isfinite(a0)
+    if d0 == 0:
+        if a0 < lo0 or a0 > hi0:
+            h = False
+    else:
+        ta = (lo0 - a0) / d0
+        tb = (hi0 - a0) / d0
+        tlo = ta if (ta <= tb or ta != ta) else tb
+        thi = ta if (ta >= tb or ta != ta) else tb
+        t0 = t0 if (t0 >= tlo or t0 != t0) else tlo
+        t1 = t1 if (t1 <= thi or t1 != t1) else thi
+    if d1 == 0:
+        if a1 < lo1 or a1 > hi1:
+            h = False
+    else:
+        ta = (lo1 - a1) / d1
+        tb = (hi1 - a1) / d1
+        tlo = ta if (ta <= tb or ta != ta) else tb
+        thi = ta if (ta >= tb or ta != ta) else tb
+        t0 = t0 if (t0 >= tlo or t0 != t0) else tlo
+        t1 = t1 if (t1 <= thi or t1 != t1) else thi
+    return h and t0 <= t1, t0, t1
+
+
+@helper
+def inside_one(table, v0, h, pu, pv, u_lo, u_hi, v_lo, v_hi):
+    """Whether the point (pu, pv), clamped first into [u_lo, u_hi] x [v_lo, v_hi], lies
+    inside the trim: the even-odd test against the segments of its band of v (``table``
+    (nb, W, 4), NaN padding; band b covers v0 + [b, b + 1) h) with pnpoly's half-open
+    crossing rule (``faceset_trims._Bands.__call__`` of one point; a NaN v is outside)."""
+    pu = pu if (pu >= u_lo or pu != pu) else u_lo
+    pu = pu if (pu <= u_hi or pu != pu) else u_hi
+    pv = pv if (pv >= v_lo or pv != pv) else v_lo
+    pv = pv if (pv <= v_hi or pv != pv) else v_hi
+    f = np.floor((pv - v0) / h)
+    if f != f:
+        return False
+    nb = table.shape[0]
+    f = max(f, 0.0)
+    f = min(f, nb - 1.0)
+    b = int(f)
+    odd = False
+    for k in range(table.shape[1]):
+        a0 = table[b, k, 0]
+        a1 = table[b, k, 1]
+        a2 = table[b, k, 2]
+        a3 = table[b, k, 3]
+        if (a1 > pv) != (a3 > pv):
+            cross = a0 + (pv - a1) * ((a2 - a0) / (a3 - a1))
+            if pu < cross:
+                odd = not odd
+    return odd
 
 
 def clip(seg, box):
@@ -28,32 +97,16 @@ def clip(seg, box):
     e1 = np.empty((n, K, 2))
     for i in range(n):
         for k in range(K):
-            t0 = 0.0
-            t1 = 1.0
-            h = math.isfinite(seg[i, k, 0])
-            for c in range(2):
-                lo = box[i, 2 * c]
-                hi = box[i, 2 * c + 1]
-                ac = seg[i, k, c]
-                dc = seg[i, k, c + 2] - ac
-                if dc == 0:
-                    if ac < lo or ac > hi:
-                        h = False
-                    tlo = -np.inf
-                    thi = np.inf
-                else:
-                    ta = (lo - ac) / dc
-                    tb = (hi - ac) / dc
-                    tlo = ta if (ta <= tb or ta != ta) else tb
-                    thi = ta if (ta >= tb or ta != ta) else tb
-                t0 = t0 if (t0 >= tlo or t0 != t0) else tlo
-                t1 = t1 if (t1 <= thi or t1 != t1) else thi
-            hit[i, k] = h and t0 <= t1
-            for c in range(2):
-                ac = seg[i, k, c]
-                dc = seg[i, k, c + 2] - ac
-                e0[i, k, c] = ac + t0 * dc
-                e1[i, k, c] = ac + t1 * dc
+            a0 = seg[i, k, 0]
+            a1 = seg[i, k, 1]
+            d0 = seg[i, k, 2] - a0
+            d1 = seg[i, k, 3] - a1
+            h, t0, t1 = clip_one(a0, a1, d0, d1, box[i, 0], box[i, 1], box[i, 2], box[i, 3])
+            hit[i, k] = h
+            e0[i, k, 0] = a0 + t0 * d0
+            e0[i, k, 1] = a1 + t0 * d1
+            e1[i, k, 0] = a0 + t1 * d0
+            e1[i, k, 1] = a1 + t1 * d1
     return hit, e0, e1
 
 
@@ -66,10 +119,6 @@ def classify_listed(edges, ps, box):
     kept = np.full((n, K), -1, np.int64)
     counts = np.zeros(n, np.int64)
     for i in range(n):
-        b0 = box[i, 0]
-        b1 = box[i, 1]
-        b2 = box[i, 2]
-        b3 = box[i, 3]
         c = 0
         for j in range(K):
             e = ps[i, j]
@@ -77,33 +126,9 @@ def classify_listed(edges, ps, box):
                 continue
             u0 = edges[e, 0]
             v0 = edges[e, 1]
-            du = edges[e, 2] - u0
-            dv = edges[e, 3] - v0
-            t0 = 0.0
-            t1 = 1.0
-            h = math.isfinite(u0)
-            for a in range(2):
-                if a == 0:
-                    lo = b0
-                    hi = b1
-                    ac = u0
-                    dc = du
-                else:
-                    lo = b2
-                    hi = b3
-                    ac = v0
-                    dc = dv
-                if dc == 0:
-                    if ac < lo or ac > hi:
-                        h = False
-                else:
-                    ta = (lo - ac) / dc
-                    tb = (hi - ac) / dc
-                    tlo = ta if (ta <= tb or ta != ta) else tb
-                    thi = ta if (ta >= tb or ta != ta) else tb
-                    t0 = t0 if (t0 >= tlo or t0 != t0) else tlo
-                    t1 = t1 if (t1 <= thi or t1 != t1) else thi
-            if h and t0 <= t1:
+            h, _, _ = clip_one(u0, v0, edges[e, 2] - u0, edges[e, 3] - v0,
+                               box[i, 0], box[i, 1], box[i, 2], box[i, 3])
+            if h:
                 kept[i, c] = e
                 c += 1
         counts[i] = c
@@ -131,33 +156,8 @@ def classify_all(edges, elo, ehi, pad, box, width):
                 continue
             u0 = edges[e, 0]
             v0 = edges[e, 1]
-            du = edges[e, 2] - u0
-            dv = edges[e, 3] - v0
-            t0 = 0.0
-            t1 = 1.0
-            h = math.isfinite(u0)
-            for a in range(2):
-                if a == 0:
-                    lo = b0
-                    hi = b1
-                    ac = u0
-                    dc = du
-                else:
-                    lo = b2
-                    hi = b3
-                    ac = v0
-                    dc = dv
-                if dc == 0:
-                    if ac < lo or ac > hi:
-                        h = False
-                else:
-                    ta = (lo - ac) / dc
-                    tb = (hi - ac) / dc
-                    tlo = ta if (ta <= tb or ta != ta) else tb
-                    thi = ta if (ta >= tb or ta != ta) else tb
-                    t0 = t0 if (t0 >= tlo or t0 != t0) else tlo
-                    t1 = t1 if (t1 <= thi or t1 != t1) else thi
-            if h and t0 <= t1:
+            h, _, _ = clip_one(u0, v0, edges[e, 2] - u0, edges[e, 3] - v0, b0, b1, b2, b3)
+            if h:
                 if c < width:
                     segs[i, c] = e
                 c += 1
@@ -172,35 +172,61 @@ def inside(table, v0, h, nb, u, v, dom):
     """Even-odd point-in-trim test of points (u, v) (m,) each, clamped first into ``dom``
     (u lo, u hi, v lo, v hi; infinite: no clamp), against the trim segments filed by bands of
     v (``table`` (nb, W, 4), NaN padding; band b covers v0 + [b, b + 1) h) with pnpoly's
-    half-open crossing rule (``faceset_trims._Bands.__call__``)."""
+    half-open crossing rule (``faceset_trims._Bands.__call__``; :func:`inside_one`)."""
     m = u.shape[0]
-    W = table.shape[1]
     out = np.zeros(m, np.bool_)
     for i in range(m):
-        pu = u[i]
-        pu = pu if (pu >= dom[0] or pu != pu) else dom[0]
-        pu = pu if (pu <= dom[1] or pu != pu) else dom[1]
-        pv = v[i]
-        pv = pv if (pv >= dom[2] or pv != pv) else dom[2]
-        pv = pv if (pv <= dom[3] or pv != pv) else dom[3]
-        f = np.floor((pv - v0) / h)
-        if f != f:
-            continue
-        f = max(f, 0.0)
-        f = min(f, nb - 1.0)
-        b = int(f)
-        odd = False
-        for k in range(W):
-            a0 = table[b, k, 0]
-            a1 = table[b, k, 1]
-            a2 = table[b, k, 2]
-            a3 = table[b, k, 3]
-            if (a1 > pv) != (a3 > pv):
-                cross = a0 + (pv - a1) * ((a2 - a0) / (a3 - a1))
-                if pu < cross:
-                    odd = not odd
-        out[i] = odd
+        out[i] = inside_one(table, v0, h, u[i], v[i], dom[0], dom[1], dom[2], dom[3])
     return out
+
+
+@helper
+def vertices_into(edges, b0, b1, b2, b3, ps, st, ok, o):
+    """The clipped trim segments' ends of :func:`vertices` for one box (b0, b1, b2, b3)
+    crossed by segments ``ps`` (K,): their local (s, t) into ``st`` (4 + 2K, 2) rows 4...
+    and their validity into ``ok`` (from index ``o``: 2K); the corners' rows of ``st`` are set, ``ok`` of the
+    corners is left to the caller."""
+    K = ps.shape[0]
+    st[0, 0] = 0.0
+    st[0, 1] = 0.0
+    st[1, 0] = 1.0
+    st[1, 1] = 0.0
+    st[2, 0] = 0.0
+    st[2, 1] = 1.0
+    st[3, 0] = 1.0
+    st[3, 1] = 1.0
+    du = b1 - b0
+    dv = b3 - b2
+    for k in range(K):
+        e = ps[k]
+        if e < 0:
+            # a NaN segment: no hit, its ends NaN, taken as 0
+            ok[o + k] = False
+            ok[o + K + k] = False
+            st[4 + k, 0] = 0.0
+            st[4 + k, 1] = 0.0
+            st[4 + K + k, 0] = 0.0
+            st[4 + K + k, 1] = 0.0
+            continue
+        a0 = edges[e, 0]
+        a1 = edges[e, 1]
+        d0 = edges[e, 2] - a0
+        d1 = edges[e, 3] - a1
+        h, t0, t1 = clip_one(a0, a1, d0, d1, b0, b1, b2, b3)
+        ok[o + k] = h
+        ok[o + K + k] = h
+        for end in range(2):
+            tc = t0 if end == 0 else t1
+            x = ((a0 + tc * d0) - b0) / du
+            if x != x:
+                x = 0.0
+            x = x if x >= 0.0 else 0.0
+            st[4 + end * K + k, 0] = x if x <= 1.0 else 1.0
+            x = ((a1 + tc * d1) - b2) / dv
+            if x != x:
+                x = 0.0
+            x = x if x >= 0.0 else 0.0
+            st[4 + end * K + k, 1] = x if x <= 1.0 else 1.0
 
 
 def vertices(edges, box, ps):
@@ -214,49 +240,60 @@ def vertices(edges, box, ps):
     st = np.zeros((n, 4 + 2 * K, 2))
     ok = np.zeros((n, 2 * K), np.bool_)
     for i in range(n):
-        st[i, 1, 0] = 1.0
-        st[i, 2, 1] = 1.0
-        st[i, 3, 0] = 1.0
-        st[i, 3, 1] = 1.0
-        du = box[i, 1] - box[i, 0]
-        dv = box[i, 3] - box[i, 2]
-        for k in range(K):
-            e = ps[i, k]
-            if e < 0:
-                # a NaN segment: no hit, its ends NaN, taken as 0
-                continue
-            t0 = 0.0
-            t1 = 1.0
-            h = math.isfinite(edges[e, 0])
-            for c in range(2):
-                lo = box[i, 2 * c]
-                hi = box[i, 2 * c + 1]
-                ac = edges[e, c]
-                dc = edges[e, c + 2] - ac
-                if dc == 0:
-                    if ac < lo or ac > hi:
-                        h = False
-                    tlo = -np.inf
-                    thi = np.inf
-                else:
-                    ta = (lo - ac) / dc
-                    tb = (hi - ac) / dc
-                    tlo = ta if (ta <= tb or ta != ta) else tb
-                    thi = ta if (ta >= tb or ta != ta) else tb
-                t0 = t0 if (t0 >= tlo or t0 != t0) else tlo
-                t1 = t1 if (t1 <= thi or t1 != t1) else thi
-            h = h and t0 <= t1
-            ok[i, k] = h
-            ok[i, K + k] = h
-            for c in range(2):
-                ac = edges[e, c]
-                dc = edges[e, c + 2] - ac
-                for end in range(2):
-                    x = ac + (t0 if end == 0 else t1) * dc
-                    x = (x - box[i, 0]) / du if c == 0 else (x - box[i, 2]) / dv
-                    if x != x:
-                        x = 0.0
-                    x = x if x >= 0.0 else 0.0
-                    x = x if x <= 1.0 else 1.0
-                    st[i, 4 + end * K + k, c] = x
+        vertices_into(edges, box[i, 0], box[i, 1], box[i, 2], box[i, 3], ps[i], st[i], ok[i],
+                      0)
     return st, ok
+
+
+def straddling(edges, box, segs, strad, table, v0, h, inner, coef, drift, rational, amax,
+               reach, cok):
+    """The straddling pairs ``strad`` (s,) of ``faceset_bounds._straddling``: their material's
+    vertices (:func:`vertices`, the corners tested by :func:`inside_one` in the domain's
+    inside ``inner``), the affine part a = c0 + c1 s + c2 t (``coef`` (n, 3)) there, and in
+    place the pairs' largest affine value ``amax`` (the vertices' largest where the segments
+    are listed; a rational patch's plus its ``drift`` (s,), where smaller), ``reach`` (False
+    where no vertex is valid) and the corners' validity ``cok`` (n, 4): (st (s, 4 + 2K, 2),
+    ok (s, 4 + 2K), aval (s, 4 + 2K), listed (s,))."""
+    s = strad.shape[0]
+    K = segs.shape[1]
+    V = 4 + 2 * K
+    st = np.zeros((s, V, 2))
+    ok = np.zeros((s, V), np.bool_)
+    aval = np.empty((s, V))
+    listed = np.empty(s, np.bool_)
+    for r in range(s):
+        i = strad[r]
+        b0 = box[i, 0]
+        b1 = box[i, 1]
+        b2 = box[i, 2]
+        b3 = box[i, 3]
+        vertices_into(edges, b0, b1, b2, b3, segs[i], st[r], ok[r], 4)
+        ok[r, 0] = inside_one(table, v0, h, b0, b2, inner[0], inner[1], inner[2], inner[3])
+        ok[r, 1] = inside_one(table, v0, h, b1, b2, inner[0], inner[1], inner[2], inner[3])
+        ok[r, 2] = inside_one(table, v0, h, b0, b3, inner[0], inner[1], inner[2], inner[3])
+        ok[r, 3] = inside_one(table, v0, h, b1, b3, inner[0], inner[1], inner[2], inner[3])
+        c0 = coef[i, 0]
+        c1 = coef[i, 1]
+        c2 = coef[i, 2]
+        top = -np.inf
+        some = False
+        for v in range(V):
+            a = c0 + c1 * st[r, v, 0] + c2 * st[r, v, 1]
+            aval[r, v] = a
+            x = a if ok[r, v] else -np.inf
+            top = top if (top >= x or top != top) else x
+            some = some or ok[r, v]
+        for c in range(4):
+            cok[i, c] = ok[r, c]
+        lst = segs[i, 0] != -2
+        listed[r] = lst
+        if lst:
+            if rational:
+                top = top + drift[r]
+                a = amax[i]
+                amax[i] = a if (a <= top or a != a) else top
+            else:
+                amax[i] = top
+            if not some:
+                reach[i] = False
+    return st, ok, aval, listed

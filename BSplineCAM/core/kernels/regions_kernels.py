@@ -13,8 +13,9 @@ clipping.  Where numpy calls a function whose last bit depends on its library (`
 which numpy may take from a vector math library), the caller computes it with numpy and
 passes it in.  So both engines take the same decisions and return the same bits.
 
-Numba compiles each function alone (no calls between them), so the trim test and the
-clipping are written out where they are used.
+The trim test and the clipping of a segment are :mod:`.faceset_trim_kernels`' helpers
+(:func:`~BSplineCAM.core.kernels.helper`), the sub-net split one here: compiled once, called
+by the kernels.
 """
 
 from __future__ import annotations
@@ -23,10 +24,40 @@ import math
 
 import numpy as np
 
-from . import Kernel
+from . import Kernel, helper
+from .faceset_trim_kernels import clip_one, inside_one
 
 #: ``np.nan_to_num``'s replacement for +inf
 _BIG = 1.7976931348623157e308
+
+
+@helper
+def _split_side(A, B, work, tt, left, along_u):
+    """One side of de Casteljau's split of the net ``A`` (4, P, Q) at ``tt`` along u
+    (``along_u``) or v into ``B``: the left side (``left``) or the right one (the sub-net
+    splits of ``faceset_bezier._sub_net``)."""
+    P = A.shape[1]
+    Q = A.shape[2]
+    k_ = P if along_u else Q
+    other = Q if along_u else P
+    for c in range(4):
+        for o in range(other):
+            for a in range(k_):
+                work[a] = A[c, a, o] if along_u else A[c, o, a]
+            first_out = work[0] if left else work[k_ - 1]
+            if along_u:
+                B[c, 0 if left else k_ - 1, o] = first_out
+            else:
+                B[c, o, 0 if left else k_ - 1] = first_out
+            for rr in range(1, k_):
+                for a in range(k_ - rr):
+                    work[a] = work[a] + tt * (work[a + 1] - work[a])
+                at = rr if left else k_ - 1 - rr
+                val = work[0] if left else work[k_ - 1 - rr]
+                if along_u:
+                    B[c, at, o] = val
+                else:
+                    B[c, o, at] = val
 
 
 def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, valid, limit,
@@ -49,8 +80,6 @@ def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, 
     Q = q + 1
     K = segs0.shape[1]
     E = edges.shape[0]
-    NB = bands.shape[0]
-    W = bands.shape[1]
     V = 4 + 2 * K
     found = np.zeros(n, dtype=np.bool_)
     out_box = np.zeros((n, 4))
@@ -73,6 +102,10 @@ def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, 
     m_st = np.empty(2)
     eu = 1e-12 * (dom[1] - dom[0])
     ev = 1e-12 * (dom[3] - dom[2])
+    iu0 = dom[0] + eu
+    iu1 = dom[1] - eu
+    iv0 = dom[2] + ev
+    iv1 = dom[3] - ev
     two_r = 2.0 * R
     for i in range(n):
         if not valid[i]:
@@ -98,40 +131,11 @@ def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, 
                 for a in range(P):
                     for b in range(Q):
                         A[c, a, b] = nets[r, c, a, b]
-            for step in range(4):
-                # (axis, parameter, keep the left side): u at s1 left, u at s0/s1 right,
-                # v at t1 left, v at t0/t1 right; A -> B -> A ...
-                if step == 0:
-                    tt = s1
-                elif step == 1:
-                    tt = s0 / s1
-                elif step == 2:
-                    tt = t1
-                else:
-                    tt = t0 / t1
-                left = step == 0 or step == 2
-                along_u = step < 2
-                k_ = P if along_u else Q
-                other = Q if along_u else P
-                for c in range(4):
-                    for o in range(other):
-                        for a in range(k_):
-                            work[a] = A[c, a, o] if along_u else A[c, o, a]
-                        first_out = work[0] if left else work[k_ - 1]
-                        if along_u:
-                            B[c, 0 if left else k_ - 1, o] = first_out
-                        else:
-                            B[c, o, 0 if left else k_ - 1] = first_out
-                        for rr in range(1, k_):
-                            for a in range(k_ - rr):
-                                work[a] = work[a] + tt * (work[a + 1] - work[a])
-                            at = rr if left else k_ - 1 - rr
-                            val = work[0] if left else work[k_ - 1 - rr]
-                            if along_u:
-                                B[c, at, o] = val
-                            else:
-                                B[c, o, at] = val
-                A, B = B, A
+            # u at s1 left, u at s0/s1 right, v at t1 left, v at t0/t1 right: A -> B -> A ...
+            _split_side(A, B, work, s1, True, True)
+            _split_side(B, A, work, s0 / s1, False, True)
+            _split_side(A, B, work, t1, True, False)
+            _split_side(B, A, work, t0 / t1, False, False)
             ls = (cs[i] - s0) / (s1 - s0)
             lt = (ct[i] - t0) / (t1 - t0)
             du = (s1 - s0) * wu[i]
@@ -273,27 +277,8 @@ def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, 
                     a1 = edges[e, 1]
                     d0 = edges[e, 2] - a0
                     d1 = edges[e, 3] - a1
-                    c0 = 0.0
-                    c1 = 1.0
-                    hit = np.isfinite(a0)
-                    for c in range(2):
-                        dc = d0 if c == 0 else d1
-                        ac = a0 if c == 0 else a1
-                        lo = rb0 if c == 0 else rb2
-                        hi = rb1 if c == 0 else rb3
-                        if dc == 0:
-                            if ac < lo or ac > hi:
-                                hit = False
-                            tlo = -np.inf
-                            thi = np.inf
-                        else:
-                            ta = (lo - ac) / dc
-                            tb = (hi - ac) / dc
-                            tlo = ta if (ta <= tb or ta != ta) else tb
-                            thi = ta if (ta >= tb or ta != ta) else tb
-                        c0 = c0 if (c0 >= tlo or c0 != c0) else tlo
-                        c1 = c1 if (c1 <= thi or c1 != c1) else thi
-                    if not (hit and c0 <= c1):
+                    hit, c0, c1 = clip_one(a0, a1, d0, d1, rb0, rb1, rb2, rb3)
+                    if not hit:
                         continue
                     count += 1
                     if count <= K:
@@ -333,27 +318,8 @@ def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, 
                 pts[4, 0] = rb1
                 pts[4, 1] = rb3
                 for m in range(5):
-                    pu = pts[m, 0]
-                    pu = pu if (pu >= dom[0] + eu or pu != pu) else dom[0] + eu
-                    pu = pu if (pu <= dom[1] - eu or pu != pu) else dom[1] - eu
-                    pv = pts[m, 1]
-                    pv = pv if (pv >= dom[2] + ev or pv != pv) else dom[2] + ev
-                    pv = pv if (pv <= dom[3] - ev or pv != pv) else dom[3] - ev
-                    fb = np.floor((pv - band_v0) / band_h)
-                    fb = fb if fb >= 0.0 else 0.0
-                    fb = fb if fb <= NB - 1 else float(NB - 1)
-                    band = int(fb)
-                    hits = 0
-                    for w_ in range(W):
-                        u0_ = bands[band, w_, 0]
-                        v0_ = bands[band, w_, 1]
-                        u1_ = bands[band, w_, 2]
-                        v1_ = bands[band, w_, 3]
-                        if (v0_ > pv) != (v1_ > pv):
-                            cross = u0_ + (pv - v0_) * ((u1_ - u0_) / (v1_ - v0_))
-                            if pu < cross:
-                                hits += 1
-                    ins[m] = hits % 2 == 1
+                    ins[m] = inside_one(bands, band_v0, band_h, pts[m, 0], pts[m, 1], iu0, iu1,
+                                        iv0, iv1)
                 status = 2 if count > 0 else (1 if ins[0] else 0)
                 for m in range(4):
                     okv[m] = ins[m + 1]
@@ -534,8 +500,6 @@ def _newton_accept_loops(p, qq, R2, fbest, ok, nu, nv, u, v, bands, band_v0, ban
     n = p.shape[0]
     fv = np.empty(n)
     good = np.zeros(n, dtype=np.bool_)
-    NB = bands.shape[0]
-    W = bands.shape[1]
     eu = 1e-12 * (dom[1] - dom[0])
     ev = 1e-12 * (dom[3] - dom[2])
     for i in range(n):
@@ -548,27 +512,8 @@ def _newton_accept_loops(p, qq, R2, fbest, ok, nu, nv, u, v, bands, band_v0, ban
         fv[i] = f
         if not (f > fbest[i] and ok[i] and abs(nu[i] - u[i]) + abs(nv[i] - v[i]) > 0):
             continue
-        pu = nu[i]
-        pu = pu if (pu >= dom[0] + eu or pu != pu) else dom[0] + eu
-        pu = pu if (pu <= dom[1] - eu or pu != pu) else dom[1] - eu
-        pv = nv[i]
-        pv = pv if (pv >= dom[2] + ev or pv != pv) else dom[2] + ev
-        pv = pv if (pv <= dom[3] - ev or pv != pv) else dom[3] - ev
-        fb = np.floor((pv - band_v0) / band_h)
-        fb = fb if fb >= 0.0 else 0.0
-        fb = fb if fb <= NB - 1 else float(NB - 1)
-        band = int(fb)
-        hits = 0
-        for w_ in range(W):
-            a0 = bands[band, w_, 0]
-            b0 = bands[band, w_, 1]
-            a1 = bands[band, w_, 2]
-            b1 = bands[band, w_, 3]
-            if (b0 > pv) != (b1 > pv):
-                cross = a0 + (pv - b0) * ((a1 - a0) / (b1 - b0))
-                if pu < cross:
-                    hits += 1
-        good[i] = hits % 2 == 1
+        good[i] = inside_one(bands, band_v0, band_h, nu[i], nv[i], dom[0] + eu, dom[1] - eu,
+                             dom[2] + ev, dom[3] - ev)
     return fv, good
 
 

@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import kernels
 from ..kernels import faceset_kernels as fk
+from ..kernels import faceset_trim_kernels as tk
 from ..typing import FloatArray
 from .faceset_bezier import _corner_index, _material_reach, _rational_drift
 from .faceset_params import CORNERS, MAX_SEGMENTS, RIM_DEPTH, RIM_FRACTION, SEED_DEPTH, TOUCH
@@ -75,7 +76,7 @@ def _compiled_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
     ub, dd, reach, cz, s0, lin_ok, coef, resid, amax = _pair_bounds(nd, qq, R2, box, cen, C,
                                                                     RS)
     cok = np.ones((n, 4), bool)
-    m = _straddling(d, it, P, coef, amax, reach, cok)
+    m = _straddling_compiled(d, it, P, coef, amax, reach, cok)
     lin = cz + s0 + amax + resid
     ub = np.where(lin_ok & (lin < ub), lin, ub)
     ub[~reach] = -np.inf
@@ -197,6 +198,31 @@ def _straddling(d: _FaceData, it: _Items, P: _NetPlanes, coef: FloatArray, amax:
         amax[strad[listed]] = at[listed]
     none = ~ok.any(axis=1) & listed
     reach[strad[none]] = False
+    return _Straddling(strad, st, ok, aval, listed)
+
+
+_straddling_kernel = kernels.Kernel(tk.straddling)
+
+
+def _straddling_compiled(d: _FaceData, it: _Items, P: _NetPlanes, coef: FloatArray,
+                         amax: FloatArray, reach: np.ndarray, cok: np.ndarray) -> _Straddling:
+    """:func:`_straddling` in one compiled call (vertices, corners' trim test, affine values,
+    ``amax``, ``reach`` and ``cok`` in place), the same bits."""
+    strad = np.flatnonzero(it.status == 2)
+    if not len(strad):
+        return _Straddling(strad, None, None, None, None)
+    rational = bool(d.face.surface.rational)
+    drift = (_rational_drift(P.flat[:, 3][it.node[strad]], coef[strad]) if rational
+             else np.zeros(0))
+    bands = d._bands
+    try:
+        st, ok, aval, listed = _straddling_kernel(
+            d.edges, np.ascontiguousarray(it.box, dtype=float),
+            np.ascontiguousarray(it.segs, dtype=np.int64), strad.astype(np.int64),
+            bands.table, float(bands.v0), float(bands.h), d._inner,
+            np.ascontiguousarray(coef), drift, rational, amax, reach, cok)
+    except kernels.KernelUnavailable:
+        return _straddling(d, it, P, coef, amax, reach, cok)
     return _Straddling(strad, st, ok, aval, listed)
 
 
