@@ -242,7 +242,9 @@ def simulate(segments: Segments, tool: Tool, grid: Grid, top: float,
             if depth is not None:
                 collisions.append(Collision(int(segments.line[r]), *depth))
         begin = r + 1
-    return Simulation(grid, height.astype(float), float(top), _merge(collisions))
+    out = height.astype(float)
+    out += 0.0  # a zero height as +0 (the merge's minimum may keep either zero's sign)
+    return Simulation(grid, out, float(top), _merge(collisions))
 
 
 def _merge(collisions: list[Collision]) -> tuple[Collision, ...]:
