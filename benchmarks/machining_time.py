@@ -1,11 +1,14 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Machine time of the faces' raster with and without partial passes, on a STEP part.
+"""Machine time of the faces' raster with and without partial passes and of the
+constant-scallop passes, on a STEP part.
 
 The part's faces are read with cadquery's OCCT (``BSplineCAM.ocp``, no FreeCAD), the faces
 reached from above selected, as ``bsplinecam toolpath PART.step`` does.  For each angle the
 raster (:func:`BSplineCAM.core.toolpath.faces_raster.raster_faces`) is computed with
 ``partial=False`` (every pass over the whole extent, spaced by its band's least allowance)
-and ``partial=True`` (main passes and partial ones); each program (lines, feed --feed,
+and ``partial=True`` (main passes and partial ones), then the constant-scallop passes
+(:func:`BSplineCAM.core.toolpath.faces_scallop.scallop_faces`, unless ``--no-scallop``); each
+program (lines, feed --feed,
 plunges at --plunge-feed, the core's moves) is measured from its G-code text: cutting and air
 length, machining time with acceleration (:mod:`BSplineCAM.core.simulation.machining_time`,
 the default machine), and simulated against the exact faces (:func:`BSplineCAM.core.
@@ -32,6 +35,7 @@ from BSplineCAM.core.simulation.verify import verify_faces  # noqa: E402
 from BSplineCAM.core.toolpath import to_moves  # noqa: E402
 from BSplineCAM.core.toolpath.common import ToolParameters  # noqa: E402
 from BSplineCAM.core.toolpath.faces_raster import raster_faces  # noqa: E402
+from BSplineCAM.core.toolpath.faces_scallop import scallop_faces  # noqa: E402
 from BSplineCAM.core.toolpath.faceset import FaceSet  # noqa: E402
 
 
@@ -62,6 +66,7 @@ def main() -> int:
     parser.add_argument("--cell", type=float, default=0.1)
     parser.add_argument("--feed", type=float, default=1200.0)
     parser.add_argument("--plunge-feed", type=float, default=400.0)
+    parser.add_argument("--no-scallop", action="store_true")
     args = parser.parse_args()
     from BSplineCAM.ocp import faces as ocp
 
@@ -72,24 +77,32 @@ def main() -> int:
           f"{args.tolerance:g} mm")
     print("| angle | passes | cutting m | air m | time with acc. s | largest / mean scallop mm "
           "| evenness | mean/max | gouge um | coverage | compute s |")
-    for angle in (float(a) for a in args.angles.split(",")):
-        for partial in (False, True):
-            faceset = FaceSet(faces)
-            started = time.perf_counter()
+    runs = [(float(a), partial) for a in args.angles.split(",") if a
+            for partial in (False, True)]
+    if not args.no_scallop:
+        runs.append((None, None))
+    for angle, partial in runs:
+        faceset = FaceSet(faces)
+        started = time.perf_counter()
+        if angle is None:
+            toolpath = scallop_faces(faceset, tool)
+            label = "scallop"
+        else:
             toolpath = raster_faces(faceset, tool, angle, partial=partial)
-            seconds = time.perf_counter() - started
-            text = gcode(toolpath, args.feed, args.plunge_feed)
-            program = read_gcode(text, "program")
-            figures = program_measures(program, toolpath_lengths(toolpath)["along_passes_mm"])
-            m = verify_faces(faces, program, Tool(args.diameter), cell=args.cell).metrics
-            label = "partial" if partial else "whole"
-            print(f"| {angle:g} {label} | {toolpath.stats.passes} | "
-                  f"{figures['cutting_length_mm'] / 1000:.2f} | "
-                  f"{figures['air_length_mm'] / 1000:.2f} | {figures['machining_time_with_acceleration_s']:.0f} | "
-                  f"{m['scallop_max_mm']:.3f} / {m['scallop_mean_mm']:.4f} | "
-                  f"{m['scallop_evenness']:.2f} | {m['scallop_mean_over_max']:.2f} | "
-                  f"{1000 * m['gouge_max_mm']:.2f} | {m['coverage']:.4f} | {seconds:.1f} |",
-                  flush=True)
+            label = f"{angle:g} {'partial' if partial else 'whole'}"
+        seconds = time.perf_counter() - started
+        text = gcode(toolpath, args.feed, args.plunge_feed)
+        program = read_gcode(text, "program")
+        figures = program_measures(program, toolpath_lengths(toolpath)["along_passes_mm"])
+        m = verify_faces(faces, program, Tool(args.diameter), cell=args.cell).metrics
+        print(f"| {label} | {toolpath.stats.passes} | "
+              f"{figures['cutting_length_mm'] / 1000:.2f} | "
+              f"{figures['air_length_mm'] / 1000:.2f} | "
+              f"{figures['machining_time_with_acceleration_s']:.0f} | "
+              f"{m['scallop_max_mm']:.3f} / {m['scallop_mean_mm']:.4f} | "
+              f"{m['scallop_evenness']:.2f} | {m['scallop_mean_over_max']:.2f} | "
+              f"{1000 * m['gouge_max_mm']:.2f} | {m['coverage']:.4f} | {seconds:.1f} |",
+              flush=True)
     return 0
 
 

@@ -29,7 +29,7 @@ third of the flat stepover over the selected faces' extent grown by R:
   half a stepover from every pass (:data:`GAP`, its distance E from the passes propagated the
   same way) lies between passes too far apart, on a ridge of D whose height passes the last
   level by more than a half; there the contour of D half-way between two levels is added,
-  the parts of it within a stepover of such a point.
+  the parts of it within :data:`GAP_REACH` stepovers of such a point.
 * **Certified cutter locations.**  Each polyline is sampled every sqrt(8 R tol) mm (its
   vertices kept), the tip is the drop-cutter height over all faces, midpoints are added where
   the height departs from the chord by more than tol / 2 (unless the Hermite model of the
@@ -85,9 +85,13 @@ GRID_SHARE = 1.0 / 3.0
 MAX_NODES = 2_000_000
 #: Level of the first pass (stepovers inside the border).
 FIRST_LEVEL = 0.05
-#: A region point further than this (stepovers) from every pass is a gap to close (a
-#: marching-squares contour cuts its sharp corners, which leaves up to 0.52 there).
-GAP = 0.53
+#: A region point further than this (stepovers) from every pass is a gap to close.
+GAP = 0.51
+#: A gap pass is the part of a half-way contour within this many stepovers of a gap: a
+#: ridge of D whose height passes a level by d in (1/2, 1) has that contour d - 1/2 from it.
+GAP_REACH = 0.6
+#: The gaps are looked for on a grid this many times finer than the field's.
+FINE = 3
 #: Bisection steps of the region's border on a grid edge.
 BORDER_STEPS = 10
 #: Rounds of midpoint refinement along a pass.
@@ -222,11 +226,15 @@ def scallop_faces(faceset: FaceSet, tool: ToolParameters,
     grid = _Grid(faceset, tool, query, _upward_signs(faceset))
     monitor(0.3)
     border = grid.border()
-    finite = np.where(np.isfinite(grid.cost), grid.cost, np.nan)
-    with np.errstate(invalid="ignore"):
-        scale = np.nan_to_num(np.nanmean(finite, axis=0), nan=1.0 / tool.flat_stepover) \
-            if grid.inside.any() else np.full(grid.shape, 1.0 / tool.flat_stepover)
-    d = grid.distance(border, scale)
+    finite = np.isfinite(grid.cost)
+    count = finite.sum(axis=0)
+    # the mean cost over the axes: the gap test's
+    scale = np.where(count > 0, np.where(finite, grid.cost, 0.0).sum(axis=0)
+                     / np.maximum(count, 1), 1.0 / tool.flat_stepover)
+    # next to the border the distance is started from the XY distance at the largest cost
+    # over the axes (the one across the border is not known there): passes no further apart
+    worst = np.where(count > 0, np.where(finite, grid.cost, 0.0).max(axis=0), scale)
+    d = grid.distance(border, worst)
     monitor(0.4)
     # outside the region the field falls below zero (the XY distance to the border in flat
     # stepovers): the first level's contour runs along the border, not the grid's staircase
@@ -266,20 +274,44 @@ def scallop_faces(faceset: FaceSet, tool: ToolParameters,
     return toolpath
 
 
-def _coverage(grid: _Grid, polylines: list, scale: FloatArray) -> FloatArray:
-    """Distance (stepovers) of every region node from the nearest of ``polylines``."""
-    return grid.distance(polylines, scale)
+def _gaps(grid: _Grid, polylines: list, scale: FloatArray) -> np.ndarray:
+    """Region nodes of ``grid`` near a point more than :data:`GAP` stepovers from every one of
+    ``polylines``.  The distance is taken on a grid :data:`FINE` times finer (the XY distance
+    to the polylines over the local stepover, within reach of the widest stepover): between
+    two passes that meet at a corner its largest value lies between the coarse nodes."""
+    if not polylines:
+        return grid.inside.copy()
+    xs = np.linspace(grid.xs[0], grid.xs[-1], FINE * (len(grid.xs) - 1) + 1)
+    ys = np.linspace(grid.ys[0], grid.ys[-1], FINE * (len(grid.ys) - 1) + 1)
+    widest = float(np.max(1.0 / scale[grid.inside], initial=grid.dx))
+    reach = min(int(math.ceil(0.6 * widest / (xs[1] - xs[0]))) + 1, 4 * FINE)
+    near = near_distance(polylines, xs, ys, reach)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel()])
+    inside = bilinear(grid.inside.astype(float), grid.xs, grid.ys, pts) > 0.999
+    local = bilinear(np.where(grid.inside, scale, 0.0), grid.xs, grid.ys, pts)
+    with np.errstate(invalid="ignore"):
+        far = inside & (near.ravel() * local > GAP)
+    # each fine point flags the coarse nodes of its cell
+    fi = np.clip(np.floor((pts[far, 0] - grid.xs[0]) / grid.dx).astype(int), 0,
+                 len(grid.xs) - 2)
+    fj = np.clip(np.floor((pts[far, 1] - grid.ys[0]) / grid.dy).astype(int), 0,
+                 len(grid.ys) - 2)
+    gap = np.zeros(grid.shape, bool)
+    for oi in (0, 1):
+        for oj in (0, 1):
+            gap[fi + oi, fj + oj] = True
+    return gap & grid.inside
 
 
 def _close_gaps(grid: _Grid, field: FloatArray, levels: list, polylines: list,
                 scale: FloatArray) -> tuple[list, float]:
-    """Contours of ``field`` half-way between two levels, the parts within a stepover of a
+    """Contours of ``field`` half-way between two levels, the parts near a
     gap (a region node more than :data:`GAP` stepovers from every pass); and the area (mm^2)
     of the gap left after adding them."""
     if not polylines:
         return [], 0.0
-    cover = _coverage(grid, polylines, scale)
-    gap = grid.inside & (cover > GAP)
+    gap = _gaps(grid, polylines, scale)
     if not gap.any():
         return [], 0.0
     reach = propagate(np.where(gap, 0.0, np.inf), grid.cost, grid.dx, grid.dy, grid.inside)
@@ -288,13 +320,13 @@ def _close_gaps(grid: _Grid, field: FloatArray, levels: list, polylines: list,
     for lv in levels:
         half = lv + 0.5
         for p in contours(field, grid.xs, grid.ys, half):
-            near = bilinear(reach, grid.xs, grid.ys, p) <= 1.0
+            near = bilinear(reach, grid.xs, grid.ys, p) <= GAP_REACH
             closed = len(p) > 2 and np.allclose(p[0], p[-1])
             for run in _true_runs(near, closed):
                 added.append((half, p[run]))
     if added:
-        cover = _coverage(grid, polylines + [p for _, p in added], scale)
-    left = float(np.count_nonzero(grid.inside & (cover > GAP))) * grid.dx * grid.dy
+        gap = _gaps(grid, polylines + [p for _, p in added], scale)
+    left = float(np.count_nonzero(gap)) * grid.dx * grid.dy
     return added, left
 
 

@@ -11,7 +11,8 @@ stepovers, propagated over a grid of ball-centre positions, and its contours.
   straight distance by at most 2.7 % (at about 13 degrees from an axis), never underestimates
   it.  It is solved by sweeps, rows forward then backward, each row from the rows before it in
   one vectorised step and along itself by a segmented running minimum (a path along a row is
-  a prefix sum of its edge costs), repeated until nothing changes.
+  a prefix sum of its edge costs), repeated until nothing changes.  A knight's move steps
+  over a blocked line one node wide.
 * :func:`contours` is marching squares (Lorensen & Cline 1987; the case table and chaining of
   :mod:`.waterline`) with the crossing on each grid edge interpolated linearly.
 * :func:`near_distance` gives the XY distance of grid nodes near polylines to them: the exact
