@@ -161,10 +161,9 @@ def test_step_scallop_passes_certified_covering_and_shorter(step_runs):
 
 
 def test_scallop_refused_on_a_net():
+    from BSplineCAM.core import Surface
     from BSplineCAM.core.errors import ParameterError
     from BSplineCAM.core.toolpath import generate
-
-    from BSplineCAM.core import Surface
 
     x = np.linspace(0.0, 20.0, 4)
     pts = np.zeros((4, 4, 3))
