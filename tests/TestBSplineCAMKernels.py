@@ -95,6 +95,7 @@ def test_unwritable_cache_folders_fall_back_to_a_temporary_one():
     assert run.returncode == 0, run.stderr
     value, folder = run.stdout.split()
     assert value == "6.0" and folder.startswith(tempfile.gettempdir())
+    assert Path(folder).name.startswith(f"py{sys.version_info[0]}{sys.version_info[1]}-numba")
 
 
 def test_no_cache_folder_compiles_in_memory(monkeypatch):

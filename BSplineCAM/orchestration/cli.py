@@ -47,6 +47,7 @@ from .cli_common import (  # noqa: F401  (re-exported: the command line's helper
     signal_handlers,
     staged_output,
     strict,
+    with_engine,
 )
 from .worker import handle
 
@@ -87,7 +88,7 @@ def cmd_check_part(args: argparse.Namespace) -> int:
     check_interrupted()
     if args.out is not None:
         with staged_output(Path(args.out)) as stage:
-            (stage / "check.json").write_text(json_text(report))
+            (stage / "check.json").write_text(json_text(with_engine(report)))
     emit(report)
     if not report["ok"]:
         print(f"bsplinecam check: {args.net}: over the strict limit "
@@ -111,7 +112,7 @@ def cmd_surface(args: argparse.Namespace) -> int:
             _freecad_call({"op": "export", "path": str(stage / f"{name}.{suffix}"), **request}, surface)
         _freecad_call({"op": "save_document", "path": str(stage / f"{name}.FCStd"), "solid": True, **request}, surface)
         report = crosscheck(surface, samples=args.samples)
-        (stage / "crosscheck.json").write_text(json_text(report))
+        (stage / "crosscheck.json").write_text(json_text(with_engine(report)))
     emit({"out": str(Path(args.out).resolve()), "files": sorted(
         f"{name}.{s}" for s in ("dat", "step", "brep", "FCStd")) + ["crosscheck.json"],
         "exact_route_ok": report["exact_route_ok"],

@@ -241,13 +241,20 @@ def captured_console() -> Iterator[None]:
                     os.write(2, log.read())
 
 
+def with_engine(result: dict) -> dict:
+    """``result`` with the engine that computed it (``kernels``: numba or numpy, why, the
+    compile seconds of this run), set once so that the JSON written to a file and the one
+    printed agree."""
+    if isinstance(result, dict) and "kernels" not in result:
+        result["kernels"] = kernels.engine().to_dict()
+    return result
+
+
 def emit(result: dict) -> None:
     """Print a command's JSON result on stdout (descriptor BSPLINECAM_RESULT_FD when set, so
     FreeCAD's own console output cannot mix into it), with the engine that computed it
     (``kernels``: numba or numpy, why, the compile seconds of this run)."""
-    if isinstance(result, dict) and "kernels" not in result:
-        result = {**result, "kernels": kernels.engine().to_dict()}
-    text = json_text(result)
+    text = json_text(with_engine(result))
     fd = os.environ.get("BSPLINECAM_RESULT_FD")
     if fd:
         os.write(int(fd), text.encode())

@@ -43,7 +43,15 @@ from ..core.toolpath.roughing import (
 )
 from . import parts
 from . import report as pictures
-from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
+from .cli_common import (
+    EXIT_CHECK_FAILED,
+    _safe_name,
+    check_output,
+    emit,
+    json_text,
+    staged_output,
+    with_engine,
+)
 from .cli_verify import add_machine_options, check_machine_limits, machine_time_metrics
 from .pipeline_run import (
     DEFAULT_RAPID,
@@ -243,8 +251,8 @@ def cmd_job(args: argparse.Namespace) -> int:
                                   loads)
         report["verify"] = {k: verified[k] for k in SUMMARY if k in verified}
         report["elapsed_s"] = round(time.perf_counter() - started, 3)
-        (stage / "verify.json").write_text(json_text(verified))
-        (stage / "job.json").write_text(json_text(report))
+        (stage / "verify.json").write_text(json_text(with_engine(verified)))
+        (stage / "job.json").write_text(json_text(with_engine(report)))
     for note in report.get("roughing", {}).get("notes", []):
         print(f"bsplinecam job: warning: roughing: {note}", file=sys.stderr)
     for warning in verified.get("warnings", []):

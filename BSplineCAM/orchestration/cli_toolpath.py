@@ -25,7 +25,15 @@ from ..core.toolpath.common import (
     check_angle,
 )
 from . import parts
-from .cli_common import EXIT_CHECK_FAILED, _safe_name, check_output, emit, json_text, staged_output
+from .cli_common import (
+    EXIT_CHECK_FAILED,
+    _safe_name,
+    check_output,
+    emit,
+    json_text,
+    staged_output,
+    with_engine,
+)
 from .pipeline_run import (
     DEFAULT_RAPID,
     check_posts,
@@ -101,7 +109,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
             if not check.ok:
                 emit(report)
                 raise BSplineCAMError(f"{program.name}: LinuxCNC's rs274 rejects the program: {check.message}")
-        (stage / "toolpath.json").write_text(json_text(report))
+        (stage / "toolpath.json").write_text(json_text(with_engine(report)))
     emit(report)
     return 0 if report.get("rs274", {"ok": True})["ok"] else EXIT_CHECK_FAILED
 

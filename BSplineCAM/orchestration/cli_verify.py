@@ -65,6 +65,7 @@ from .cli_common import (
     emit,
     json_text,
     staged_output,
+    with_engine,
 )
 
 
@@ -335,7 +336,7 @@ def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple 
     with staged_output(Path(args.out)) as stage:
         report.plot_deviation(result, stage / "deviation.png")
         report.plot_simulated(result, stage / "simulated.png")
-        (stage / "verify.json").write_text(json_text(metrics), encoding="utf-8")
+        (stage / "verify.json").write_text(json_text(with_engine(metrics)), encoding="utf-8")
     for warning in metrics.get("warnings", []):
         print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
     summary = {k: metrics[k] for k in SUMMARY + tuple(extra)}

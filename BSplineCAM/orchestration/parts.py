@@ -50,6 +50,7 @@ from .cli_common import (
     emit,
     json_text,
     staged_output,
+    with_engine,
 )
 from .pipeline_run import program_figures
 
@@ -501,7 +502,7 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                 emit(report)
                 raise BSplineCAMError(f"{program.name}: LinuxCNC's rs274 rejects the program: "
                                       f"{check.message}")
-        (stage / "toolpath.json").write_text(json_text(report))
+        (stage / "toolpath.json").write_text(json_text(with_engine(report)))
     emit(report)
     return 0 if report.get("rs274", {"ok": True})["ok"] else EXIT_CHECK_FAILED
 

@@ -78,6 +78,16 @@ _lock = threading.RLock()
 _noticed = False
 
 
+def _numba_version() -> str:
+    """numba's version from its package metadata (without importing it), or "unknown"."""
+    try:
+        from importlib import metadata  # noqa: PLC0415
+
+        return metadata.version("numba")
+    except Exception:  # noqa: BLE001
+        return "unknown"
+
+
 def _cache_folder() -> str:
     """A writable cache folder for numba's compiled kernels, or "" if none can be written."""
     candidates = []
@@ -89,7 +99,11 @@ def _cache_folder() -> str:
     candidates.append(Path.home() / ".cache" / "bsplinecam" / "numba")
     candidates.append(Path(tempfile.gettempdir()) / f"bsplinecam-numba-{os.getuid()}"
                       if hasattr(os, "getuid") else Path(tempfile.gettempdir()) / "bsplinecam")
-    for folder in candidates:
+    # one sub-folder per Python and numba: two numbas of one Python (Debian's and the venv's)
+    # would overwrite each other's index files and recompile at every switch
+    tag = f"py{sys.version_info[0]}{sys.version_info[1]}-numba{_numba_version()}"
+    for base in candidates:
+        folder = base / tag
         try:
             folder.mkdir(parents=True, exist_ok=True)
             probe = folder / f".probe-{os.getpid()}"
