@@ -187,3 +187,99 @@ def constants(R: float, rc: float, rim: float) -> np.ndarray:
 stamp = Kernel(stamp_loops)
 
 __all__ = ["BALL", "BULLNOSE", "FLAT", "constants", "stamp", "stamp_loops"]
+
+
+@helper
+def envelope_window(out, o, x0, y0, cell, ix0, iy0, H, W, p0x, p0y, ux, uy, wide, L, Lf, mf,
+                    slopef, zf, bisect, shape, consts, work):
+    """The envelope of one segment over its window of H x W cells from (iy0, ix0), row by row
+    into ``out[o:o + H * W]`` (float32, NaN beyond the tool's reach): the cell values
+    :func:`stamp_loops` merges, by the same float32 operations (the arguments are one
+    segment's entries of its arrays).  ``work`` (float32, (7, >= W)) is work space."""
+    f32 = np.float32
+    R2, rim2, flat_cut, rcf, rc2, rc_top, twice_rc, af, Rf = (
+        consts[0], consts[1], consts[2], consts[3], consts[4], consts[5], consts[6], consts[7],
+        consts[8])
+    zero = f32(0.0)
+    nan = f32(np.nan)
+    b_qa = work[0]
+    b_qa1 = work[1]
+    b_qp2 = work[2]
+    b_beyond = work[3]
+    b_rho = work[4]
+    b_tau = work[5]
+    b_lo = work[6]
+    for r in range(H):
+        dy = y0 + (float(iy0 + r) + 0.5) * cell - p0y
+        for c in range(W):
+            dx = x0 + (float(ix0 + c) + 0.5) * cell - p0x
+            if wide:
+                qa = f32(dy * uy + dx * ux)
+                qa1 = f32(dy * uy + (dx * ux - L))
+                qp = f32(dy * ux - dx * uy)
+            else:
+                qa = f32(f32(dy * uy) + f32(dx * ux))
+                qa1 = f32(qa - Lf)
+                qp = f32(f32(dy * ux) - f32(dx * uy))
+            qp2 = f32(qp * qp)
+            beyond = -qa
+            if qa1 > beyond:
+                beyond = qa1
+            if beyond < zero:
+                beyond = zero
+            b_qa[c] = qa
+            b_qa1[c] = qa1
+            b_qp2[c] = qp2
+            b_beyond[c] = f32(f32(beyond * beyond) + qp2)
+            b_rho[c] = f32(math.sqrt(f32(R2 - qp2)))  # NaN beyond reach
+        if shape == BULLNOSE:
+            if bisect > zero:
+                _bullnose_tau_row(b_qp2, b_rho, bisect, af, rc2, rc_top, W, b_lo, b_tau)
+            else:
+                for c in range(W):
+                    b_tau[c] = f32(b_rho[c] * zero)
+            for c in range(W):
+                b_tau[c] = f32(b_tau[c] * slopef)
+        else:
+            for c in range(W):
+                b_tau[c] = f32(b_rho[c] * slopef)
+        row = o + r * W
+        for c in range(W):
+            if not b_beyond[c] <= rim2:
+                env = nan  # beyond the tool's reach, or its rim band
+            else:
+                qa = b_qa[c]
+                rho = b_rho[c]
+                tau = b_tau[c]
+                if tau > qa:
+                    tau = qa
+                t = f32(qa - tau)
+                if b_qa1[c] > tau:
+                    tau = b_qa1[c]
+                if t > Lf:
+                    t = Lf
+                t = f32(t * mf)
+                gap = f32(f32(rho - tau) * f32(rho + tau))
+                if shape == BALL:
+                    env = nan
+                    if gap >= zero:
+                        env = f32(f32(t + zf) - f32(math.sqrt(gap)))
+                elif shape == FLAT:
+                    env = nan
+                    if not gap < flat_cut:
+                        env = f32(t + zf)
+                else:
+                    rr = f32(R2 - gap)
+                    g = nan
+                    if rr >= zero:
+                        g = f32(gap / f32(f32(math.sqrt(rr)) + Rf))
+                    if g > rcf:
+                        g = rcf
+                    g = f32(g * f32(twice_rc - g))
+                    env = nan
+                    if g >= zero:
+                        env = f32(f32(t + zf) - f32(math.sqrt(g)))
+            out[row + c] = env
+
+
+__all__ += ["envelope_window"]

@@ -61,18 +61,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import kernels
 from ..errors import ParameterError
 from ..geometry.netio import MAX_COORDINATE_MM
+from ..kernels import job_kernels, zmap_kernels
 from ..program.gcode import Program, Segments, linearise, simulation_chord_tolerance
 from ..program.tooltable import check_program_tools
 from ..typing import FloatArray
 from .simulate import (
     BATCH_CELLS,
     COLLISION_TOLERANCE_MM,
+    RIM_MM,
     Collision,
     Grid,
     Simulation,
     Tool,
+    ToolShape,
     _envelope,
     _merge,
     _round_up,
@@ -92,6 +96,9 @@ ENGAGEMENT_DEPTH_MM = 0.01
 RIM_FRACTION = 0.05
 #: Pieces a move is cut in are at most this many cells long (or two tool radii if longer).
 PIECE_CELLS = 32
+#: Whether a Python float added to a numpy float32 scalar stays float32 (numpy 2's rule):
+#: the compiled engine rounds the radial measure's corner height as numpy does.
+_WEAK_SCALARS = isinstance(1.0 + np.float32(1.0), np.float32)
 
 
 def entry_moves(program: Program, segments: Segments | None = None,
@@ -486,11 +493,65 @@ class _Cutter:
                   radial: FloatArray, hit: list, number: int) -> None:
         index = np.concatenate([np.arange(pieces.first[s], pieces.first[s] + pieces.count[s])
                                 for s in chunk.tolist()])
+        if kernels.use_numba():
+            try:
+                self._cut_chunk_compiled(chunk, index, seg, pieces, tool, rapid, volume, axial,
+                                         radial, hit, number)
+                return
+            except kernels.KernelUnavailable:
+                pass
         envs = self.envelopes(index, pieces, tool)
         for s in chunk.tolist():
             ks = range(int(pieces.first[s]), int(pieces.first[s] + pieces.count[s]))
             self.cut_segment(s, ks, envs, seg, pieces, tool, bool(rapid[s]), volume, axial,
                              radial, hit, number)
+
+    def _cut_chunk_compiled(self, chunk: np.ndarray, index: np.ndarray, seg: Segments,
+                            pieces: _Pieces, tool: Tool, rapid: np.ndarray, volume: FloatArray,
+                            axial: FloatArray, radial: FloatArray, hit: list,
+                            number: int) -> None:
+        """:meth:`cut_chunk` by the compiled :func:`.job_kernels.cut_chunk`, with the numpy
+        engine's per-piece envelope constants and per-shape ``wide`` choice (see
+        :func:`.simulate._envelope`), so that heights and figures are bit-identical."""
+        grid = self.grid
+        ix0, iy0, hb, wb = (np.ascontiguousarray(v[index], dtype=np.int64)
+                            for v in (pieces.ix0, pieces.iy0, pieces.h, pieces.w))
+        shape = {ToolShape.BALL: zmap_kernels.BALL, ToolShape.FLAT: zmap_kernels.FLAT,
+                 ToolShape.BULLNOSE: zmap_kernels.BULLNOSE}[tool.shape]
+        envelope = job_kernels.envelope_arrays(
+            pieces.start[index], pieces.end[index], ix0, iy0, hb, wb, hb * (grid.nx + 1) + wb,
+            tool.radius, tool.corner_radius, shape, grid.x0, grid.y0, grid.cell)
+        count = np.ascontiguousarray(pieces.count[chunk], dtype=np.int64)
+        first = np.cumsum(count) - count
+        start = np.ascontiguousarray(seg.start[chunk], dtype=float)
+        end = np.ascontiguousarray(seg.end[chunk], dtype=float)
+        length = np.array([math.hypot(a, b) for a, b in (end[:, :2] - start[:, :2]).tolist()])
+        is_rapid = np.ascontiguousarray(rapid[chunk], dtype=bool)
+        reach = max(tool.radius - max(grid.cell, RIM_FRACTION * tool.diameter),
+                    0.5 * tool.radius)
+        k = len(chunk)
+        drop, deep, across, volume_out = (np.zeros(k) for _ in range(4))
+        xy = np.zeros((k, 2))
+        piece_volume = np.zeros(len(index))
+        job_kernels.cut_chunk(
+            self.height, float(grid.x0), float(grid.y0), float(grid.cell),
+            np.float32(0.0 if self.z0 is None else self.z0), self.z0 is not None,
+            self.threshold, ix0, iy0, hb, wb, *envelope, int(shape),
+            zmap_kernels.constants(tool.radius, tool.corner_radius, RIM_MM), first, count,
+            start, end, length, is_rapid, reach * reach,
+            float(corner_height(tool, math.inf)), float(tool.diameter), grid.cell ** 2,
+            _WEAK_SCALARS, drop, deep, across, xy, piece_volume, volume_out)
+        self.drop[chunk] = drop
+        axial[chunk] = deep
+        radial[chunk] = across
+        volume[chunk] = volume_out
+        self.piece_volume[index] = piece_volume
+        cutting = (drop > self.threshold) & ~is_rapid
+        self.deepest[chunk[cutting]] = xy[cutting]
+        for j in np.flatnonzero(is_rapid & (drop > COLLISION_TOLERANCE_MM)).tolist():
+            s = int(chunk[j])
+            hit.append((s, number, Collision(int(seg.line[s]), float(drop[j]),
+                                             float(xy[j, 0]), float(xy[j, 1]))))
 
     def cut_segment(self, s: int, ks: range, envs: dict, seg: Segments, pieces: _Pieces,
                     tool: Tool, is_rapid: bool, volume: FloatArray, axial: FloatArray,
@@ -543,7 +604,7 @@ class _Cutter:
                     0.5 * tool.radius)
         a = np.asarray(p0[:2], dtype=float)
         d = np.asarray(p1[:2], dtype=float) - a
-        dd = float(d @ d)
+        dd = float(d[0] * d[0] + d[1] * d[1])
         best = 0.0
         for _, _, drop, x, y in drops:
             iy, ix = np.nonzero(drop > self.threshold)
@@ -551,9 +612,12 @@ class _Cutter:
                 continue
             q = np.column_stack([grid.x0 + (ix + x + 0.5) * grid.cell - a[0],
                                  grid.y0 + (iy + y + 0.5) * grid.cell - a[1]])
-            t = np.clip(q @ d / dd, 0.0, 1.0) if dd > 0 else np.zeros(len(q))
-            gap = q - t[:, None] * d[None, :]
-            inner = np.einsum("ij,ij->i", gap, gap) <= reach * reach
+            # elementwise (no BLAS dot, which may fuse): the compiled engine's arithmetic
+            t = (np.clip((q[:, 0] * d[0] + q[:, 1] * d[1]) / dd, 0.0, 1.0) if dd > 0
+                 else np.zeros(len(q)))
+            gx = q[:, 0] - t * d[0]
+            gy = q[:, 1] - t * d[1]
+            inner = gx * gx + gy * gy <= reach * reach
             if np.any(inner):
                 best = max(best, float(drop[iy[inner], ix[inner]].max()))
         return best
