@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 
+from ... import kernels
+from ...kernels import roughing_kernels as _rk
 from ...simulation.simulate import ToolShape, corner_height
 from ...typing import FloatArray
 from .constants import CELL_HALF_DIAGONAL, FILLET_MM
@@ -57,6 +59,16 @@ class _Engagement:
             return out, counts
         cells = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float))
         d = (B - A) / length[:, None]
+        if flat and kernels.use_numba():
+            try:
+                out[live], counts[live] = _rk.engaged_flat(
+                    np.ascontiguousarray(A), np.ascontiguousarray(B), length,
+                    np.ascontiguousarray(d), np.ascontiguousarray(cells[:, 0]),
+                    np.ascontiguousarray(cells[:, 1]), np.ascontiguousarray(uncut[iy, ix]),
+                    np.ascontiguousarray(work[iy, ix]), float(self.R), float(self.cell))
+                return out, counts
+            except kernels.KernelUnavailable:
+                pass
         rx = cells[None, :, 0] - A[:, :1]
         ry = cells[None, :, 1] - A[:, 1:]
         along = rx * d[:, :1] + ry * d[:, 1:]

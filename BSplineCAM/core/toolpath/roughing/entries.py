@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-from ...geometry.distance import squared_distance
 from ...typing import FloatArray
 from .constants import (
     _EPS,
@@ -26,7 +25,7 @@ from .constants import (
     ZIGZAG_MIN_DIAMETERS,
 )
 from .contours import marching_squares
-from .gridops import _densify, capped_distance
+from .gridops import _densify, capped_distance, squared_distance
 from .passes import _chord_angle
 from .rings import _Ring
 

@@ -8,6 +8,9 @@ import math
 
 import numpy as np
 
+from ... import kernels
+from ...geometry.distance import squared_distance as _squared_distance_numpy
+from ...kernels import roughing_kernels as _rk
 from ...typing import FloatArray
 
 
@@ -47,6 +50,11 @@ def capped_distance(mask: np.ndarray, cap: float) -> FloatArray:
         out = np.where(mask, 0.0, float(big))
         out[i0:i1, j0:j1] = capped_distance(mask[i0:i1, j0:j1], cap)
         return out
+    if kernels.use_numba():
+        try:
+            return _rk.capped_distance(np.ascontiguousarray(mask, dtype=bool), k, big)
+        except kernels.KernelUnavailable:
+            pass
     top = big * big + k * k
     kind = np.int16 if top < 2 ** 15 else (np.int32 if top < 2 ** 31 else np.int64)
     far = 10 * (nx + big)
@@ -69,6 +77,18 @@ def capped_distance(mask: np.ndarray, cap: float) -> FloatArray:
     return np.sqrt(best, dtype=float)
 
 
+def squared_distance(mask: np.ndarray) -> FloatArray:
+    """Squared Euclidean distance (cells^2) from each cell centre to the nearest set cell
+    (:func:`~BSplineCAM.core.geometry.distance.squared_distance`)."""
+    mask = np.asarray(mask, dtype=bool)
+    if mask.ndim == 2 and mask.size and kernels.use_numba():
+        try:
+            return _rk.squared_distance(np.ascontiguousarray(mask))
+        except kernels.KernelUnavailable:
+            pass
+    return _squared_distance_numpy(mask)
+
+
 def _grown_span(a: np.ndarray, b: np.ndarray, grow: int) -> tuple[int, int]:
     """[start, stop) of the overlap of the spans of the true entries of a and of b, each
     grown by ``grow`` (within 0 .. len)."""
@@ -83,6 +103,12 @@ def _polyline_distance(pts: FloatArray, path: FloatArray) -> FloatArray:
     """Distance (mm) from each point (k, 2) to the polyline ``path`` (n, 2)."""
     if len(path) == 1:
         return np.hypot(*(pts - path[0]).T)
+    if kernels.use_numba():
+        try:
+            return _rk.polyline_distance(np.ascontiguousarray(pts, dtype=float),
+                                         np.ascontiguousarray(path, dtype=float))
+        except kernels.KernelUnavailable:
+            pass
     ax, ay = path[:-1, 0], path[:-1, 1]
     abx, aby = path[1:, 0] - ax, path[1:, 1] - ay
     L2 = np.maximum(abx * abx + aby * aby, 1e-300)

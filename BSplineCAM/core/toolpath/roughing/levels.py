@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-from ...geometry.distance import squared_distance
 from ...simulation.simulate import ToolShape
 from ..common import label_regions
 from .constants import (
@@ -20,7 +19,7 @@ from .constants import (
     WALL_LAYER_RADII,
     WALL_LAYER_STEPS,
 )
-from .gridops import capped_distance
+from .gridops import capped_distance, squared_distance
 from .rings import _Ring, front_radius, ring_step, ring_steps
 from .tips import tip_height
 

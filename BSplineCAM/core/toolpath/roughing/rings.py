@@ -8,9 +8,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry.distance import squared_distance
 from ...typing import FloatArray
 from .constants import FRONT_SMOOTH_RADII, MIN_FRONT_STEP
+from .gridops import squared_distance
 
 
 @dataclass

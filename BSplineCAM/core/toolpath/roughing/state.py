@@ -10,10 +10,28 @@ import math
 
 import numpy as np
 
+from ... import kernels
+from ...kernels import roughing_kernels as _rk
 from ...typing import FloatArray
 from ..common import Move
 from .constants import CELL_HALF_DIAGONAL, TRAVEL_GAP_MM
 from .gridops import _bilinear, _densify, _pieces, _polyline_distance, capped_distance
+
+
+def _segment_distance(xs: FloatArray, ys: FloatArray, seg: FloatArray) -> FloatArray:
+    """Distance (mm) from each cell centre (ys[i], xs[j]) to the segment seg (2, 2)."""
+    ab = seg[1] - seg[0]
+    ab2 = max(float(ab @ ab), 1e-300)
+    if kernels.use_numba():
+        try:
+            return _rk.segment_distance(xs, ys, float(seg[0, 0]), float(seg[0, 1]),
+                                        float(ab[0]), float(ab[1]), ab2)
+        except kernels.KernelUnavailable:
+            pass
+    px = xs[None, :] - seg[0, 0]
+    py = ys[:, None] - seg[0, 1]
+    t = np.clip((px * ab[0] + py * ab[1]) / ab2, 0.0, 1.0)
+    return np.hypot(px - t * ab[0], py - t * ab[1])
 
 
 class _Writer:
@@ -98,11 +116,9 @@ class _GridState:
         if len(path_xy) == 2:
             i0, i1, j0, j1 = self.window(self.idx(path_xy), self.Rc + 2)
             g = self.grid
-            px = (g.x0 + (np.arange(j0, j1) + 0.5) * g.cell)[None, :] - path_xy[0, 0]
-            py = (g.y0 + (np.arange(i0, i1) + 0.5) * g.cell)[:, None] - path_xy[0, 1]
-            ab = path_xy[1] - path_xy[0]
-            t = np.clip((px * ab[0] + py * ab[1]) / max(float(ab @ ab), 1e-300), 0.0, 1.0)
-            dist = np.hypot(px - t * ab[0], py - t * ab[1])
+            xs = g.x0 + (np.arange(j0, j1) + 0.5) * g.cell
+            ys = g.y0 + (np.arange(i0, i1) + 0.5) * g.cell
+            dist = _segment_distance(xs, ys, path_xy)
             dist_lo = dist
         else:
             f = self.idx(_densify(path_xy, 0.5 * self.cell))
