@@ -75,7 +75,7 @@ def evaluation_cases(faces) -> list[dict]:
         def work(u=u, v=v, repeat=repeat):
             for _ in range(repeat):
                 d = surface.derivatives(u, v)
-            return np.stack([d.point, d.du, d.dw, d.duu, d.duw, d.dww])
+            return np.stack([d.point, d.su, d.sw, d.suu, d.suw, d.sww])
 
         a_s, a = _timed("numpy", work)
         b_s, b = _timed("numba", work)

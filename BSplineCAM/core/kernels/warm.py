@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Compile the kernels before the first real job: a small drop-cutter over two faces (a
 rational quarter cylinder trimmed by a hole and a bicubic bump), the scattered NURBS
-evaluation with derivatives, and a short Z-map simulation, all run through the public paths
+evaluation with derivatives, a short Z-map simulation and the roughing of a small pocketed
+plate, all run through the public paths
 so that every kernel they reach is compiled (or loaded from the cache folder) with the
 argument types real jobs pass.
 
@@ -22,6 +23,7 @@ from ..geometry.nurbs import NurbsSurface
 from ..program.gcode_words import Segments
 from ..simulation import simulate as sim
 from ..toolpath.faceset import FaceSet
+from ..toolpath.roughing import Stock, generate_roughing
 from . import engine, use_numba
 
 
@@ -66,8 +68,18 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         for shape, corner in (("ball", 0.0), ("flat", 0.0), ("bullnose", 1.0)):
             sim.simulate(segs, sim.Tool(6.0, shape, corner), grid, 6.0)
 
+    def rough():
+        def plate(xs, ys):  # a plate with a round pocket, NaN off it
+            X, Y = np.meshgrid(np.asarray(xs, float), np.asarray(ys, float))
+            h = np.where((np.abs(X) <= 12.0) & (np.abs(Y) <= 12.0), 6.0, np.nan)
+            h[np.hypot(X, Y) <= 7.0] = 2.0
+            return h
+
+        generate_roughing(plate, Stock(-14.0, 14.0, -14.0, 14.0, 0.0, 8.0),
+                          sim.Tool(6.0, "flat"), 3.0, 2.4, 0.2, 0.2, cell=0.5)
+
     return [("NURBS evaluation", evaluate), ("drop-cutter", drop),
-            ("Z-map simulation", simulate)]
+            ("Z-map simulation", simulate), ("roughing", rough)]
 
 
 def warm_up(progress: Callable[[float], None] | None = None) -> dict:
