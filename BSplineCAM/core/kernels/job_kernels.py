@@ -107,14 +107,23 @@ def cut_chunk_loops(height, x0, y0, cell, z0, has_z0, thr, ix0, iy0, hb, wb, p0x
         most_cells = max(most_cells, cells)
     work = np.empty((7, most_w), np.float32)
     new = np.empty(most_cells, np.float32)  # the move's pieces' heights after it
-    removed = np.empty(most_cells, np.float32)
+    drop = np.empty(most_cells, np.float32)  # their drops, then what each piece removed
+    # the engaged cells (drop > thr): centre from the move's start, drop, height before
+    eqx = np.empty(most_cells)
+    eqy = np.empty(most_cells)
+    edrop = np.empty(most_cells, np.float32)
+    ebefore = np.empty(most_cells, np.float32)
     offset = np.empty(npieces, np.int64)
     for k in range(len(first)):
-        # each piece: its envelope, the heights after it, its deepest drop (numpy's argmax)
+        # each piece: its envelope, the heights after it, its deepest drop (numpy's argmax:
+        # the first of the largest, or the first NaN)
         o = 0
         best_k = -1
         best_d = f32(0.0)
         best_at = 0
+        engaged = 0
+        ax = start[k, 0]
+        ay = start[k, 1]
         for p in range(first[k], first[k] + count[k]):
             H = hb[p]
             W = wb[p]
@@ -123,20 +132,37 @@ def cut_chunk_loops(height, x0, y0, cell, z0, has_z0, thr, ix0, iy0, hb, wb, p0x
                             ux[p], uy[p], wide[p], L[p], Lf[p], mf[p], slopef[p], zf[p],
                             bisect[p], shape, consts, work)
             pd = f32(0.0)
-            pat = -1
+            pat = 0
+            nan_at = -1
+            nan_d = f32(0.0)
             for r in range(H):
+                row = o + r * W
                 for c in range(W):
                     h = height[iy0[p] + r, ix0[p] + c]
-                    e = new[o + r * W + c]
+                    e = new[row + c]
                     v = e if e < h else h
                     if has_z0 and v < z0:
                         v = z0
-                    new[o + r * W + c] = v
+                    new[row + c] = v
                     d = f32(h - v)
-                    # numpy's argmax: the first of the largest, or the first NaN
-                    if pat < 0 or (pd == pd and not d <= pd):
+                    drop[row + c] = d
+                    if r == 0 and c == 0:
+                        pd = d
+                    elif d > pd:
                         pd = d
                         pat = r * W + c
+                    if d > thr:
+                        eqx[engaged] = x0 + (float(ix0[p] + c) + 0.5) * cell - ax
+                        eqy[engaged] = y0 + (float(iy0[p] + r) + 0.5) * cell - ay
+                        edrop[engaged] = d
+                        ebefore[engaged] = h
+                        engaged += 1
+                    elif d != d and nan_at < 0:
+                        nan_at = r * W + c
+                        nan_d = d  # that NaN, its sign bit as the subtraction gave it
+            if nan_at >= 0:
+                pd = nan_d
+                pat = nan_at
             if best_k < 0 or pd > best_d:  # Python's max over the pieces' drops
                 best_k = p
                 best_d = pd
@@ -146,80 +172,61 @@ def cut_chunk_loops(height, x0, y0, cell, z0, has_z0, thr, ix0, iy0, hb, wb, p0x
         W = wb[best_k]
         cy = best_at // W
         cx = best_at - cy * W
-        px = x0 + (float(ix0[best_k] + cx) + 0.5) * cell
-        py = y0 + (float(iy0[best_k] + cy) + 0.5) * cell
         drop_out[k] = deepest
         axial_out[k] = deepest
+        xy_out[k, 0] = x0 + (float(ix0[best_k] + cx) + 0.5) * cell
+        xy_out[k, 1] = y0 + (float(iy0[best_k] + cy) + 0.5) * cell
         if deepest > thr and not rapid[k]:
-            axial_out[k] = _inner_depth(height, new, offset, first[k], count[k], ix0, iy0, hb,
-                                        wb, x0, y0, cell, thr, start[k], end[k], reach2)
-            radial_out[k] = _radial(height, new, offset, first[k], count[k], ix0, iy0, hb, wb,
-                                    x0, y0, cell, thr, start[k], end[k], length[k], corner,
-                                    diameter, deepest, weak)
-        xy_out[k, 0] = px
-        xy_out[k, 1] = py
+            axial_out[k] = _inner_depth(eqx, eqy, edrop, engaged, end[k, 0] - ax,
+                                        end[k, 1] - ay, reach2)
+            radial_out[k] = _radial(eqx, eqy, ebefore, engaged, start[k], end[k],
+                                    length[k], corner, diameter, cell, thr, deepest, weak)
         # the cut, and the volume each piece removed beyond the pieces before it
         if count[k] == 1:
             p = first[k]
             if deepest > 0:
-                n = hb[p] * wb[p]
                 for r in range(hb[p]):
                     for c in range(wb[p]):
-                        removed[r * wb[p] + c] = f32(height[iy0[p] + r, ix0[p] + c]
-                                                     - new[r * wb[p] + c])
                         height[iy0[p] + r, ix0[p] + c] = new[r * wb[p] + c]
-                piece_volume[p] = pairwise_sum(removed, 0, n) * area
+                piece_volume[p] = pairwise_sum(drop, 0, hb[p] * wb[p]) * area
         else:
             for p in range(first[k], first[k] + count[k]):
                 o = offset[p]
                 for r in range(hb[p]):
+                    row = o + r * wb[p]
                     for c in range(wb[p]):
                         h = height[iy0[p] + r, ix0[p] + c]
-                        e = new[o + r * wb[p] + c]
+                        e = new[row + c]
                         v = e if e < h else h
-                        removed[r * wb[p] + c] = f32(h - v)
+                        drop[row + c] = f32(h - v)
                         height[iy0[p] + r, ix0[p] + c] = v
-                piece_volume[p] = pairwise_sum(removed, 0, hb[p] * wb[p]) * area
+                piece_volume[p] = pairwise_sum(drop, o, hb[p] * wb[p]) * area
         volume_out[k] = pairwise_sum(piece_volume, first[k], count[k])
 
 
 @helper
-def _inner_depth(height, new, offset, first, count, ix0, iy0, hb, wb, x0, y0, cell, thr, p0,
-                 p1, reach2):
-    """``_Cutter._inner_depth``: the largest drop at the engaged cells within sqrt(reach2) of
-    the move's XY path, from the heights before it (``height``) and after (``new``)."""
-    ax = p0[0]
-    ay = p0[1]
-    dx = p1[0] - ax
-    dy = p1[1] - ay
+def _inner_depth(qx, qy, drop, n, dx, dy, reach2):
+    """``_Cutter._inner_depth``: the largest drop at the ``n`` engaged cells (centres qx, qy
+    from the move's start, which moves by dx, dy in XY) within sqrt(reach2) of its XY path."""
     dd = dx * dx + dy * dy
     best = 0.0
-    for p in range(first, first + count):
-        o = offset[p]
-        W = wb[p]
-        for r in range(hb[p]):
-            for c in range(W):
-                d = np.float32(height[iy0[p] + r, ix0[p] + c] - new[o + r * W + c])
-                if not d > thr:
-                    continue
-                qx = x0 + (float(ix0[p] + c) + 0.5) * cell - ax
-                qy = y0 + (float(iy0[p] + r) + 0.5) * cell - ay
-                t = 0.0
-                if dd > 0:
-                    t = (qx * dx + qy * dy) / dd
-                    t = min(max(t, 0.0), 1.0)
-                gx = qx - t * dx
-                gy = qy - t * dy
-                if gx * gx + gy * gy <= reach2 and np.float64(d) > best:
-                    best = np.float64(d)
+    for i in range(n):
+        t = 0.0
+        if dd > 0:
+            t = (qx[i] * dx + qy[i] * dy) / dd
+            t = min(max(t, 0.0), 1.0)
+        gx = qx[i] - t * dx
+        gy = qy[i] - t * dy
+        if gx * gx + gy * gy <= reach2 and np.float64(drop[i]) > best:
+            best = np.float64(drop[i])
     return best
 
 
 @helper
-def _radial(height, new, offset, first, count, ix0, iy0, hb, wb, x0, y0, cell, thr, p0, p1,
-            L, corner, diameter, deepest, weak):
-    """``_Cutter._radial``: the extent of the engaged cells across the move (those whose
-    material stood above the corner height, if any), plus a cell, at most ``diameter``."""
+def _radial(qx, qy, before, n, p0, p1, L, corner, diameter, cell, thr, deepest, weak):
+    """``_Cutter._radial``: the extent of the ``n`` engaged cells (centres qx, qy from the
+    move's start, heights ``before`` it) across the move, those whose material stood above
+    the corner height if any, plus a cell, at most ``diameter``."""
     f32 = np.float32
     dx = p1[0] - p0[0]
     dy = p1[1] - p0[1]
@@ -230,26 +237,18 @@ def _radial(height, new, offset, first, count, ix0, iy0, hb, wb, x0, y0, cell, t
         hi = -np.inf
         lo2 = np.inf
         hi2 = -np.inf
-        for p in range(first, first + count):
-            o = offset[p]
-            W = wb[p]
-            for r in range(hb[p]):
-                for c in range(W):
-                    before = height[iy0[p] + r, ix0[p] + c]
-                    d = f32(before - new[o + r * W + c])
-                    if not d > thr or (upper and not before > above):
-                        continue
-                    cx = x0 + (float(ix0[p] + c) + 0.5) * cell - p0[0]
-                    cy = y0 + (float(iy0[p] + r) + 0.5) * cell - p0[1]
-                    if L > 1e-9:
-                        q = (cy * dx - cx * dy) / L
-                        lo = min(lo, q)
-                        hi = max(hi, q)
-                    else:
-                        lo = min(lo, cx)
-                        hi = max(hi, cx)
-                        lo2 = min(lo2, cy)
-                        hi2 = max(hi2, cy)
+        for i in range(n):
+            if upper and not before[i] > above:
+                continue
+            if L > 1e-9:
+                q = (qy[i] * dx - qx[i] * dy) / L
+                lo = min(lo, q)
+                hi = max(hi, q)
+            else:
+                lo = min(lo, qx[i])
+                hi = max(hi, qx[i])
+                lo2 = min(lo2, qy[i])
+                hi2 = max(hi2, qy[i])
         if hi >= lo:
             extent = hi - lo if L > 1e-9 else max(hi - lo, hi2 - lo2)
             return min(diameter, extent + cell)
