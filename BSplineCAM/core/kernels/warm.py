@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Compile the kernels before the first real job: a small drop-cutter over two faces (a
 rational quarter cylinder trimmed by a hole and a bicubic bump), the scattered NURBS
-evaluation with derivatives, a short Z-map simulation and the roughing of a small pocketed
+evaluation with derivatives, short Z-map simulations (one tool, and a job with two) and the roughing of a small pocketed
 plate, all run through the public paths
 so that every kernel they reach is compiled (or loaded from the cache folder) with the
 argument types real jobs pass.
@@ -20,8 +20,10 @@ import numpy as np
 
 from ..geometry.faces import Face
 from ..geometry.nurbs import NurbsSurface
+from ..program.gcode import read_gcode
 from ..program.gcode_words import Segments
 from ..simulation import simulate as sim
+from ..simulation.job_simulation import simulate_job
 from ..toolpath.faceset import FaceSet
 from ..toolpath.roughing import Stock, generate_roughing
 from . import engine, use_numba
@@ -67,6 +69,12 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         segs = Segments(pts[:-1], pts[1:], np.zeros(2, bool), np.arange(1, 3), np.arange(2))
         for shape, corner in (("ball", 0.0), ("flat", 0.0), ("bullnose", 1.0)):
             sim.simulate(segs, sim.Tool(6.0, shape, corner), grid, 6.0)
+        # a job: an end mill's pass, a tool change, a ball's pass
+        job = read_gcode("G21 G90\nT1 M6\nS8000 M3\nG0 X0 Y5 Z8\nG1 Z4 F600\n"
+                         "G1 X20 F1200\nT2 M6\nS9000 M3\nG0 X0 Y12 Z8\nG1 Z4.5 F600\n"
+                         "G1 X20 Y14 F1200\nG0 Z10\nM2\n")
+        simulate_job(job, {1: sim.Tool(6.0, "flat"), 2: sim.Tool(6.0, "ball")}, grid,
+                     (-5.0, 25.0, -5.0, 25.0, 0.0, 6.0))
 
     def rough():
         def plate(xs, ys):  # a plate with a round pocket, NaN off it
