@@ -46,10 +46,11 @@ if str(ROOT) not in sys.path:
 
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.app import cam, compat, pipeline, surface3d  # noqa: E402
+from BSplineCAM.core.program import rs274  # noqa: E402
 from BSplineCAM.core.program.gcode import MoveKind, read_gcode  # noqa: E402
 from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
 from BSplineCAM.core.simulation.verify import verify, verify_faces  # noqa: E402
-from BSplineCAM.orchestration import parts, rs274  # noqa: E402
+from BSplineCAM.orchestration import parts  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 CASE_STUDY = ROOT / "examples" / "case-study.json"
