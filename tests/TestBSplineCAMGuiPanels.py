@@ -129,39 +129,6 @@ class TestProgressAndPanels(CamTestCase):
         self.assertEqual(len(lines), 1, report_text())
         self.assertFalse(progress_bar.StatusWidgets.bar.isVisible())
 
-    def test_first_computation_compiles_the_kernels_under_a_bar(self) -> None:
-        """The session's first long computation compiles the numba kernels (or loads them
-        from the cache) under a bar of its own, before the op's bar; later ones do not."""
-        from BSplineCAM.app import progress
-        from BSplineCAM.core import kernels
-
-        surface, job, op = self.make_job()
-        inner = progress.Reporters.factory
-        messages = []
-
-        def recording(message, obj):
-            messages.append(message)
-            return inner(message, obj)
-
-        progress.Reporters.kernels_ready = False
-        progress.install(recording)
-        try:
-            op.ScallopHeight = 2.0 * COARSE_SCALLOP
-            self.doc.recompute()
-            op.ScallopHeight = COARSE_SCALLOP
-            self.doc.recompute()
-        finally:
-            progress.install(inner)
-        self.assertTrue(op.isValid(), op.State)
-        self.assertTrue(progress.Reporters.kernels_ready)
-        op_bars = [m for m in messages if "computing the toolpath" in m]
-        self.assertEqual(len(op_bars), 2, messages)
-        if kernels.use_numba():
-            self.assertIn("compiling the kernels", messages[0])
-            self.assertEqual(sum("compiling the kernels" in m for m in messages), 1, messages)
-        else:
-            self.assertFalse(any("compiling" in m for m in messages), messages)
-
     def test_job_panel_fields_and_width(self) -> None:
         surface = self.new_surface()
         panel = self.open_job_panel(surface)

@@ -46,12 +46,9 @@ OPTIONAL = "optional dependency: OCP / cadquery"
 STARTUP = "a worker's net request never loads the part machinery"
 OWNER = "owner to move to module level (issue 42 item 3)"
 LOAD_ON_USE = "loaded by the command that uses it: the workbench activates fast"
-KERNELS = "the kernels load at the first long computation: the workbench activates fast"
 
 #: (importer, imported) relative to BSplineCAM -> why the import sits inside a function.
 LAZY = {
-    ("app.progress", "core.kernels"): KERNELS,
-    ("app.progress", "core.kernels.warm"): KERNELS,
     ("app.crosscheck", "app.part"): FREECAD,
     ("app.crosscheck", "ocp.occ"): OPTIONAL,
     ("app.importers", "gui.messages"): GUI_UP,

@@ -29,11 +29,9 @@ Factory = Callable[[str, object], Reporter]
 
 
 class Reporters:
-    """Where the GUI's reporter factory is kept (one per FreeCAD session, not saved), and
-    whether this session's compiled kernels are ready."""
+    """Where the GUI's reporter factory is kept (one per FreeCAD session, not saved)."""
 
     factory: Factory | None = None
-    kernels_ready: bool = False
 
 
 def install(factory: Factory | None) -> None:
@@ -46,37 +44,7 @@ def reporter(message: str, obj=None) -> Reporter | None:
     factory = Reporters.factory
     if factory is None or not FreeCAD.GuiUp:
         return None
-    if not Reporters.kernels_ready:
-        _compile_kernels(factory)
     return factory(message, obj)
-
-
-def _compile_kernels(factory: Factory) -> None:
-    """Before the session's first long computation, compile the numba kernels (or load them
-    from the cache) under a bar of their own, so that a first start shows what it is doing;
-    its Cancel raises ToolpathCancelled like the computation's own.  Nothing to do under the
-    numpy engine."""
-    from ..core import kernels
-    from ..core.kernels.warm import warm_up
-
-    if not kernels.use_numba():
-        Reporters.kernels_ready = True
-        return
-    bar = factory("BSplineCAM: compiling the kernels (first start; cached after)", None)
-    try:
-        report = warm_up(bar)
-    finally:
-        close = getattr(bar, "close", None)
-        if close is not None:
-            close()
-    Reporters.kernels_ready = True
-    seconds = sum(report["compile_seconds"].values())
-    if seconds > 1.0:
-        FreeCAD.Console.PrintMessage(
-            f"BSplineCAM: kernels compiled in {seconds:.1f} s (numba {report['numba']}, "
-            f"cache {report['cache'] or 'none'})\n")
-    elif report["engine"] != "numba":
-        FreeCAD.Console.PrintWarning(kernels.notice() + "\n")
 
 
 def op_progress(obj) -> Reporter | None:
