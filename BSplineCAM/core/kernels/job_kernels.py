@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..simulation.simulate import segment_frame, window_reach
 from . import Kernel, helper
 from .zmap_kernels import BALL, FLAT, envelope_window
 
@@ -260,24 +261,8 @@ def envelope_arrays(p0, p1, ix0, iy0, hb, wb, key, radius, corner_radius, shape,
     ``p0`` to ``p1`` (n, 3) over windows (iy0, ix0, hb, wb), as ``simulate._envelope`` computes
     them for a batch, its ``wide`` choice made over the pieces of equal ``key`` (one batch
     each): (p0x, p0y, ux, uy, wide, L, Lf, mf, slopef, zf, bisect)."""
-    d = p1[:, :2] - p0[:, :2]
-    L = np.hypot(d[:, 0], d[:, 1])
-    flat = L < 1e-9
-    safe = np.where(flat, 1.0, L)
-    ux = np.where(flat, 1.0, d[:, 0] / safe)
-    uy = np.where(flat, 0.0, d[:, 1] / safe)
-    m = np.where(flat, 0.0, (p1[:, 2] - p0[:, 2]) / safe)
-    z0 = np.where(flat, np.minimum(p0[:, 2], p1[:, 2]), p0[:, 2])
-    L = np.where(flat, 0.0, L)
-
-    # the largest |dx|, |dy| of a window's cells (monotone along a row or column: at its
-    # first or last cell)
-    def extreme(origin, first, size, p):
-        lo = origin + (first + 0.5) * cell - p
-        hi = origin + (first + size - 1 + 0.5) * cell - p
-        return np.maximum(np.abs(lo), np.abs(hi))
-
-    reach = np.maximum(extreme(x0, ix0, wb, p0[:, 0]), extreme(y0, iy0, hb, p0[:, 1]))
+    L, ux, uy, m, z0 = segment_frame(p0, p1)
+    reach = window_reach(p0, ix0, iy0, hb, wb, x0, y0, cell)
     _, batch = np.unique(key, return_inverse=True)
     batch = batch.reshape(-1)
     most = np.full(int(batch.max()) + 1 if len(batch) else 0, -np.inf)

@@ -394,6 +394,34 @@ def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArr
 THREADED_CELLS = 1 << 16
 
 
+def segment_frame(p0: FloatArray, p1: FloatArray) -> tuple[FloatArray, ...]:
+    """Each segment's frame for its envelope: XY length L (0 for a vertical one), unit XY
+    direction (ux, uy) ((1, 0) when vertical), slope m = dz / L (0 when vertical) and the
+    start height z0 (the lower end's when vertical).  Shared by both engines' envelopes."""
+    d = p1[:, :2] - p0[:, :2]
+    L = np.hypot(d[:, 0], d[:, 1])
+    flat = L < 1e-9
+    safe = np.where(flat, 1.0, L)
+    ux = np.where(flat, 1.0, d[:, 0] / safe)
+    uy = np.where(flat, 0.0, d[:, 1] / safe)
+    m = np.where(flat, 0.0, (p1[:, 2] - p0[:, 2]) / safe)
+    z0 = np.where(flat, np.minimum(p0[:, 2], p1[:, 2]), p0[:, 2])
+    return np.where(flat, 0.0, L), ux, uy, m, z0
+
+
+def window_reach(p0: FloatArray, ix0, iy0, hb, wb, x0: float, y0: float,
+                 cell: float) -> FloatArray:
+    """The largest |dx| or |dy| (mm) from each segment's start to a cell centre of its window
+    (monotone along a row or column: at the window's first or last cell), which decides
+    :func:`_envelope`'s ``wide`` choice."""
+    def extreme(origin, first, size, p):
+        lo = origin + (first + 0.5) * cell - p
+        hi = origin + (first + size - 1 + 0.5) * cell - p
+        return np.maximum(np.abs(lo), np.abs(hi))
+
+    return np.maximum(extreme(x0, ix0, wb, p0[:, 0]), extreme(y0, iy0, hb, p0[:, 1]))
+
+
 def _cut_compiled(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArray,
                   ix0: np.ndarray, iy0: np.ndarray, hb: np.ndarray, wb: np.ndarray,
                   batches: list[np.ndarray], tool: Tool, grid: Grid,
@@ -405,23 +433,10 @@ def _cut_compiled(height: FloatArray, index: np.ndarray, start: FloatArray, end:
     cells."""
     R = tool.radius
     p0, p1 = start[index], end[index]
-    d = p1[:, :2] - p0[:, :2]
-    L = np.hypot(d[:, 0], d[:, 1])
-    flat = L < 1e-9
-    safe = np.where(flat, 1.0, L)
-    ux = np.where(flat, 1.0, d[:, 0] / safe)
-    uy = np.where(flat, 0.0, d[:, 1] / safe)
-    m = np.where(flat, 0.0, (p1[:, 2] - p0[:, 2]) / safe)
-    z0 = np.where(flat, np.minimum(p0[:, 2], p1[:, 2]), p0[:, 2])
-    L = np.where(flat, 0.0, L)
+    L, ux, uy, m, z0 = segment_frame(p0, p1)
     # the numpy engine's wide choice: per batch, from the largest |dx|, |dy| of its cells
     # (monotone along a row or column: at the window's first or last cell)
-    def extreme(origin, first, size, p):
-        lo = origin + (first + 0.5) * grid.cell - p
-        hi = origin + (first + size - 1 + 0.5) * grid.cell - p
-        return np.maximum(np.abs(lo), np.abs(hi))
-
-    reach = np.maximum(extreme(grid.x0, ix0, wb, p0[:, 0]), extreme(grid.y0, iy0, hb, p0[:, 1]))
+    reach = window_reach(p0, ix0, iy0, hb, wb, grid.x0, grid.y0, grid.cell)
     wide = np.zeros(len(index), bool)
     for sel in batches:
         wide[sel] = bool(reach[sel].max() > 2 * R)
@@ -503,15 +518,7 @@ def _envelope(p0: FloatArray, p1: FloatArray, ix0: np.ndarray, iy0: np.ndarray, 
     steep moves.
     """
     R = tool.radius
-    d = p1[:, :2] - p0[:, :2]
-    L = np.hypot(d[:, 0], d[:, 1])
-    flat = L < 1e-9
-    safe = np.where(flat, 1.0, L)
-    ux = np.where(flat, 1.0, d[:, 0] / safe)
-    uy = np.where(flat, 0.0, d[:, 1] / safe)
-    m = np.where(flat, 0.0, (p1[:, 2] - p0[:, 2]) / safe)
-    z0 = np.where(flat, np.minimum(p0[:, 2], p1[:, 2]), p0[:, 2])
-    L = np.where(flat, 0.0, L)
+    L, ux, uy, m, z0 = segment_frame(p0, p1)
     dx = (grid.x0 + (ix0[:, None] + np.arange(W) + 0.5) * grid.cell - p0[:, 0, None])[:, None, :]
     dy = (grid.y0 + (iy0[:, None] + np.arange(H) + 0.5) * grid.cell - p0[:, 1, None])[:, :, None]
     e = (slice(None), None, None)
