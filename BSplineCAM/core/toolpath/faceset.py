@@ -72,9 +72,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import kernels
 from ..errors import BSplineCAMError, ParameterError
 from ..geometry.faces import Face
 from ..typing import FloatArray
+from . import parallel
 from .faceset_bezier import _bernstein as _bernstein
 from .faceset_bezier import _bernstein_grid as _bernstein_grid
 from .faceset_bezier import _material_reach as _material_reach
@@ -82,7 +84,13 @@ from .faceset_bezier import _rational_drift as _rational_drift
 from .faceset_bezier import _sub_net as _sub_net
 from .faceset_branch import drop_chunk
 from .faceset_extent import extent
-from .faceset_params import CERTIFY, MAX_CROWDED, QUERY_CHUNK
+from .faceset_params import (
+    CERTIFY,
+    CHUNKS_PER_THREAD,
+    MAX_CROWDED,
+    PARALLEL_CHUNK,
+    QUERY_CHUNK,
+)
 from .faceset_params import CLASSIFY_CACHE as CLASSIFY_CACHE
 from .faceset_params import CORNERS as CORNERS
 from .faceset_params import CUT_MARGIN as CUT_MARGIN
@@ -106,6 +114,23 @@ from .faceset_probe import probe_heights
 from .faceset_regions import face_regions
 from .faceset_trims import _FaceData
 from .faceset_walls import _vertical, _Walls
+
+#: Counters of ``FaceSet.stats`` that keep the largest of the chunks' values (the others add).
+_PEAK_STATS = frozenset({"levels"})
+#: Holds "numba" once a drop-cutter of this process has run under the numba engine (its
+#: kernels compiled).
+_WARM: set = set()
+
+
+def chunk_size(m: int, threads: int) -> int:
+    """Queries per chunk of a call of ``m`` queries on ``threads`` threads: QUERY_CHUNK on one
+    thread; on more, small enough that every thread gets CHUNKS_PER_THREAD chunks (a pass of a
+    raster, a few thousand queries, keeps them all busy), but at least PARALLEL_CHUNK (each
+    chunk has a fixed cost, and the queries of a chunk share their sub-patches)."""
+    if threads <= 1:
+        return QUERY_CHUNK
+    share = -(-m // (CHUNKS_PER_THREAD * threads))
+    return max(1, min(QUERY_CHUNK, max(PARALLEL_CHUNK, share)))
 
 
 @dataclass
@@ -196,7 +221,13 @@ class FaceSet:
 
     def centre_heights(self, q: FloatArray, R: float, selected_only: bool = False,
                        certify: float = CERTIFY) -> DropResult:
-        """Certified ball-centre heights (see :meth:`drop_ball`), chunk by chunk."""
+        """Certified ball-centre heights (see :meth:`drop_ball`), chunk by chunk.
+
+        A query's branch and bound meets only its own pairs, so the chunks are independent:
+        with more than one thread (:mod:`.parallel`) they run on the shared pool, each
+        writing its own slice and counting into its own counters, added to ``stats`` in the
+        chunks' order afterwards; the answers and counters are those of one thread, bit for
+        bit, whatever the chunk size (:func:`chunk_size`)."""
         m = len(q)
         if m == 0:
             e = np.zeros(0)
@@ -204,18 +235,35 @@ class FaceSet:
         out = DropResult(np.full(m, -np.inf), np.full(m, -1), np.zeros(m), np.zeros(m),
                          np.zeros(m))
         data = [d for d in self.data if d.selected or not selected_only]
-        for start in range(0, m, QUERY_CHUNK):
-            sl = slice(start, min(m, start + QUERY_CHUNK))
-            r = self._chunk(q[sl], R, data, not selected_only, certify)
+        size = chunk_size(m, parallel.threads())
+        starts = range(0, m, size)
+
+        def one(k: int) -> dict:
+            sl = slice(starts[k], min(m, starts[k] + size))
+            stats = dict.fromkeys(self.stats, 0)
+            r = self._chunk(q[sl], R, data, not selected_only, certify, stats)
             out.centre[sl], out.face[sl], out.u[sl], out.v[sl], out.gap[sl] = r
+            return stats
+
+        # the process's first drop under the numba engine compiles its kernels: on one
+        # thread, before the others start
+        cold = kernels.engine().name == "numba" and not _WARM
+        counts = parallel.run(one, len(starts), first_here=cold)
+        if cold:
+            _WARM.add("numba")
+        for stats in counts:
+            for key, value in stats.items():
+                self.stats[key] = (max(self.stats[key], value) if key in _PEAK_STATS
+                                   else self.stats[key] + value)
         return out
 
     def _chunk(self, q: FloatArray, R: float, data: list, walls: bool = True,
-               certify: float = CERTIFY) -> tuple:
+               certify: float = CERTIFY, stats: dict | None = None) -> tuple:
         """Certified heights of one chunk of queries (:func:`.faceset_branch.drop_chunk`),
-        with this module's MAX_CROWDED read at each call."""
-        return drop_chunk(self.data, self.walls, self.stats, q, R, data, walls, certify,
-                          MAX_CROWDED)
+        counted into ``stats`` (default: the set's), with this module's MAX_CROWDED read at
+        each call."""
+        return drop_chunk(self.data, self.walls, self.stats if stats is None else stats, q, R,
+                          data, walls, certify, MAX_CROWDED)
 
     #: The local certificate of a face around contacts (:func:`.faceset_regions.face_regions`):
     #: ``(d, qq, R, u, v, limit) -> (found, box, excess)``.

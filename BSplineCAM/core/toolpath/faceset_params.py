@@ -14,6 +14,12 @@ import numpy as np
 CERTIFY = 1e-4
 #: Queries processed together.
 QUERY_CHUNK = 2048
+#: On more than one thread (:mod:`.parallel`) a call is cut into at least this many chunks
+#: per thread (queries differ in cost: a thread done early takes the next chunk) ...
+CHUNKS_PER_THREAD = 2
+#: ... of at least this many queries (each chunk has a fixed cost per level and face, and the
+#: queries of a chunk share their sub-patches).
+PARALLEL_CHUNK = 256
 #: Most halvings of a root patch; a pair still open then keeps its upper bound as its gap.
 MAX_DEPTH = 48
 #: A point this factor of R^2 away (squared) still touches the ball: a ball whose rim just

@@ -8,6 +8,7 @@ clipping, the classification, the vertices and the point-in-trim test run as com
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -166,41 +167,65 @@ class _RowCache:
     """Answers of a function of a row alone, remembered by the row's bytes: ``cache(keys,
     compute)`` returns ``compute(rows)`` (a tuple of arrays, one row per index of ``rows``)
     for every row of ``keys`` (n, w), computing each distinct row not seen before once.  At
-    most CLASSIFY_CACHE rows are kept (then it starts afresh)."""
+    most CLASSIFY_CACHE rows are kept (then it starts afresh).
+
+    The drop-cutter's chunks share a face's caches from several threads (:mod:`.parallel`):
+    a lock guards the table, and ``compute`` runs outside it (two threads may then compute
+    the same new row; its answer is the same, so either is kept)."""
 
     def __init__(self):
         self.index: dict = {}
         self.store: list = []
         self.size = 0
+        self._lock = threading.Lock()
 
     def __call__(self, keys: FloatArray, compute) -> tuple:
         keys = np.ascontiguousarray(keys, dtype=float)
         rows = keys.view(np.dtype((np.void, keys.itemsize * keys.shape[1]))).ravel()
         uniq, first, inverse = np.unique(rows, return_index=True, return_inverse=True)
         ukeys = uniq.tolist()
+        inverse = inverse.ravel()
+        with self._lock:
+            get = self.index.get
+            pos = np.fromiter((get(k, -1) for k in ukeys), np.intp, len(ukeys))
+            todo = np.flatnonzero(pos < 0)
+            if len(todo) == 0:
+                at = pos[inverse]
+                return tuple(g[at] for g in self.store)
+            known = np.flatnonzero(pos >= 0)
+            seen = [g[pos[known]] for g in self.store] if len(known) else []
+        done = compute(first[todo])
+        answers = []
+        for k, a in enumerate(done):
+            each = np.empty((len(ukeys),) + a.shape[1:], a.dtype)
+            each[todo] = a
+            if len(known):
+                each[known] = seen[k]
+            answers.append(each)
+        with self._lock:
+            self._remember(ukeys, answers)
+        return tuple(a[inverse] for a in answers)
+
+    def _remember(self, ukeys: list, answers: list) -> None:
+        """File the rows ``ukeys`` not yet known with their ``answers`` (caller holds the lock)."""
         get = self.index.get
-        pos = np.fromiter((get(k, -1) for k in ukeys), np.intp, len(ukeys))
-        todo = np.flatnonzero(pos < 0)
-        if len(todo) and self.size + len(todo) > CLASSIFY_CACHE:
+        todo = [k for k, key in enumerate(ukeys) if get(key, -1) < 0]
+        if not todo:
+            return
+        if self.size + len(todo) > CLASSIFY_CACHE:
             self.index, self.store, self.size = {}, [], 0
-            pos[:] = -1
-            todo = np.arange(len(ukeys))
-        if len(todo):
-            done = compute(first[todo])
-            need = self.size + len(todo)
-            if not self.store or need > len(self.store[0]):
-                cap = max(2 * need, 1024)
-                grown = [np.empty((cap,) + a.shape[1:], a.dtype) for a in done]
-                for g, old in zip(grown, self.store):
-                    g[: self.size] = old[: self.size]
-                self.store = grown
-            for g, a in zip(self.store, done):
-                g[self.size:need] = a
-            pos[todo] = np.arange(self.size, need)
-            self.index.update(zip([ukeys[k] for k in todo.tolist()], range(self.size, need)))
-            self.size = need
-        at = pos[inverse.ravel()]
-        return tuple(g[at] for g in self.store)
+            todo = list(range(len(ukeys)))
+        need = self.size + len(todo)
+        if not self.store or need > len(self.store[0]):
+            cap = max(2 * need, 1024)
+            grown = [np.empty((cap,) + a.shape[1:], a.dtype) for a in answers]
+            for g, old in zip(grown, self.store):
+                g[: self.size] = old[: self.size]
+            self.store = grown
+        for g, a in zip(self.store, answers):
+            g[self.size:need] = a[todo]
+        self.index.update(zip([ukeys[k] for k in todo], range(self.size, need)))
+        self.size = need
 
 
 @dataclass
