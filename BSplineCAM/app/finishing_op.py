@@ -14,8 +14,11 @@ a 3-axis tool reaches from above ("up").  The faces become core faces
 :class:`~BSplineCAM.core.toolpath.faceset.FaceSet` in which every other face of the job's
 models is a check surface, never cut (:func:`job_faces`).
 
-Linking: lateral rapids run at the clearance height; a rapid descends only to the safe height
-(above the stock), the rest of the approach is a feed at the vertical feed rate.
+Linking: passes close together are joined by stay-down feeds; between the others the tool
+climbs to the clearance height (``Retract`` full) or only as high as the model and the stock
+the earlier ops left need (``Retract`` minimum, :mod:`BSplineCAM.app.retract`).  A rapid
+descends only to the safe height (above the stock) or the hop's approach height, the rest of
+the approach is a feed at the vertical feed rate.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ from ..core.program.gcode import read_gcode
 from ..core.simulation.machining_time import DEFAULT_RAPID_RATE, MachineLimits
 from ..core.simulation.measures import program_measures, toolpath_lengths
 from ..core.toolpath import common as toolpath_common
+from ..core.toolpath import retracts
 from ..core.toolpath.arcs import feed_length
 from ..core.toolpath.arcs_moves import plain_gcode
 from ..core.toolpath.common import RAPID_RANGE, CuttingParameters, ToolParameters
@@ -47,6 +51,8 @@ from .load_limits import LOAD_PROPERTIES
 from .part import Extent, surface_extent
 from .progress import op_progress, previous_commands, report_cancelled
 from .proxy import add_missing_properties
+from .retract import PROPERTIES as RETRACT_PROPERTIES
+from .retract import hops_report, op_hops
 from .stock_left import stock_after_ops
 from .surface_feature import is_surface
 
@@ -82,6 +88,7 @@ PROPERTIES = (
      "the finishing op is recomputed after them", 0, None),
     ("App::PropertyString", "Report", "Surface", "Statistics of the last computation (JSON)", 0, None),
     ("App::PropertyString", "Version", "Base", "Version of the BSplineCAM operation", 0, None),
+    *RETRACT_PROPERTIES,
     *LOAD_PROPERTIES,
 )
 
@@ -119,11 +126,15 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
     def opOnDocumentRestored(self, obj):  # noqa: N802 - FreeCAD API
         """Rebuild what the proxy needs from properties (a restored proxy has only its class):
         missing properties, the job's exact-surface stock, a restorable tool controller.
-        Documents saved before arcs existed keep their straight moves (Arcs off)."""
+        Documents saved before arcs existed keep their straight moves (Arcs off), those saved
+        before minimum retracts their climbs to the clearance height (Retract full)."""
         had_arcs = hasattr(obj, "Arcs")
+        had_retract = hasattr(obj, "Retract")
         self.ensure_properties(obj)
         if not had_arcs:
             obj.Arcs = False
+        if not had_retract:
+            obj.Retract = "full"
         job = self.job_of(obj)
         if job is not None:
             cam.use_surface_stock(job)
@@ -297,17 +308,23 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         lowest = min(float(p[:, 2].min()) for p in toolpath.passes)
         clearance = obj.ClearanceHeight.Value
         rest = self.rest_toolpath(obj, net_cl_height(surface), toolpath, tool)
+        hops = op_hops(obj, self.job_of(obj), [rest, toolpath],
+                       lambda t, c, m, s: retracts.surface_hops(t, surface, c, m, s),
+                       progress_reporter(obj))
         moves = []
         if rest is not None:
             lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
             moves = core_toolpath.program_moves(rest, clearance, max(obj.SafeHeight.Value, lowest),
-                                  arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
+                                  arcs=bool(getattr(obj, "Arcs", False)), surface=surface,
+                                  hops=hops[0])
         moves += core_toolpath.program_moves(toolpath, clearance, max(obj.SafeHeight.Value, lowest),
-                               arcs=bool(getattr(obj, "Arcs", False)), surface=surface)
+                               arcs=bool(getattr(obj, "Arcs", False)), surface=surface,
+                               hops=hops[1])
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         out = report(toolpath, commands, moves)
         out.update(machine_figures(obj, moves, toolpath, rest))
+        out.update(hops_report(hops))
         if rest is not None:
             out["rest"] = rest_report(rest)
         out.update(stock_left_uncut(obj))
@@ -331,17 +348,21 @@ class ObjectSurfaceFinish(OpBase.ObjectOp):
         clearance = obj.ClearanceHeight.Value
         rest = self.rest_toolpath(obj, faceset_cl_height(faceset), toolpath, tool)
         arcs = bool(getattr(obj, "Arcs", False))
+        hops = op_hops(obj, self.job_of(obj), [rest, toolpath],
+                       lambda t, c, m, s: retracts.faces_hops(t, faceset, c, m, s),
+                       progress_reporter(obj))
         moves = []
         if rest is not None:
             lowest = min(lowest, *(float(p[:, 2].min()) for p in rest.passes))
             moves = core_toolpath.faces_program_moves(rest, faceset, clearance,
-                                        max(obj.SafeHeight.Value, lowest), arcs)
+                                        max(obj.SafeHeight.Value, lowest), arcs, hops[0])
         moves += core_toolpath.faces_program_moves(toolpath, faceset, clearance,
-                                     max(obj.SafeHeight.Value, lowest), arcs)
+                                     max(obj.SafeHeight.Value, lowest), arcs, hops[1])
         commands = moves_to_commands(moves, self.horizFeed, self.vertFeed, clearance)
         self.commandlist.extend(commands)
         out = report(toolpath, commands, moves)
         out.update(machine_figures(obj, moves, toolpath, rest))
+        out.update(hops_report(hops))
         if rest is not None:
             out["rest"] = rest_report(rest)
         out["faces"] = [f.name for f in faceset.faces if f.selected]

@@ -34,6 +34,8 @@ class FinishingParameters:
     iso_direction: str = "u"
     arcs: bool = True  # fit passes with one-sided G2/G3 arcs (core.toolpath.arcs)
     rest_limit: float = 1.0  # after roughing: rest passes down to this above the part (mm)
+    retract: str = "minimum"  # between passes: "minimum" (model and stock left) or "full"
+    retract_margin: float = 1.0  # how far a minimum retract clears them (mm)
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,8 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     op.IsoDirection = params.iso_direction
     op.Arcs = bool(params.arcs)
     op.RestLimit = params.rest_limit
+    op.Retract = params.retract
+    op.RetractMargin = params.retract_margin
     return model, job, op
 
 
@@ -207,7 +211,8 @@ def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = c
     for prop, value in (("Strategy", params.strategy), ("ScallopHeight", params.scallop),
                         ("Tolerance", params.tolerance), ("Angle", params.angle),
                         ("Direction", params.direction), ("IsoDirection", params.iso_direction),
-                        ("Arcs", bool(params.arcs)), ("RestLimit", params.rest_limit)):
+                        ("Arcs", bool(params.arcs)), ("RestLimit", params.rest_limit),
+                        ("Retract", params.retract), ("RetractMargin", params.retract_margin)):
         setattr(op, prop, value)
     return job, op
 

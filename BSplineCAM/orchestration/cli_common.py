@@ -96,6 +96,26 @@ def check_int(value: int, option: str, low: int, high: int) -> int:
     return value
 
 
+def add_retract_options(p: argparse.ArgumentParser) -> None:
+    """``--retract`` and ``--retract-margin`` of the finishing commands."""
+    p.add_argument("--retract", default="minimum", choices=["minimum", "full"],
+                   help="between finishing passes no stay-down feed joins: climb only as high "
+                        "as the model and the stock left need (minimum, default) or to the "
+                        "clearance height (full)")
+    p.add_argument("--retract-margin", type=float, default=1.0,
+                   help="how far a minimum retract's rapids clear the model and the stock "
+                        "(mm, default 1)")
+
+
+def check_retract_options(args: argparse.Namespace) -> None:
+    """``--retract-margin`` within the core's range (mm)."""
+    from ..core.toolpath.retracts import MARGIN_RANGE
+    from ..core.validation import check_range
+
+    args.retract_margin = check_range(args.retract_margin, "--retract-margin", "mm",
+                                      *MARGIN_RANGE)
+
+
 def check_output(out_dir: str | Path, option: str = "--out") -> None:
     """Refuse, before any work, an output folder that cannot be made or written: empty, an
     existing file, a path under a file, or a place without write permission."""

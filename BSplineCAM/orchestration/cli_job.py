@@ -46,7 +46,9 @@ from . import report as pictures
 from .cli_common import (
     EXIT_CHECK_FAILED,
     _safe_name,
+    add_retract_options,
     check_output,
+    check_retract_options,
     emit,
     json_text,
     staged_output,
@@ -116,6 +118,7 @@ def register(sub) -> None:
     p.add_argument("--angle", type=float, default=0.0, help="raster direction from +X (degrees)")
     p.add_argument("--arcs", default="on", choices=["on", "off"],
                    help="fit finishing passes with one-sided G2/G3 arcs (default on)")
+    add_retract_options(p)
     p.add_argument("--post", default="linuxcnc",
                    help="FreeCAD post-processor(s), comma-separated: the first writes NAME.ngc "
                         "(verified), each other NAME-POST.ngc; every one checked by rs274")
@@ -188,6 +191,7 @@ def cmd_job(args: argparse.Namespace) -> int:
         if text is not None:
             parse_limit_fields(text, option)
     check_machine_limits(args)
+    check_retract_options(args)
     posts = [p.strip() for p in args.post.split(",")]
     if not all(posts) or len(set(posts)) != len(posts):
         raise ParameterError(f"--post {args.post}: give post-processor names once each, "
@@ -220,7 +224,8 @@ def cmd_job(args: argparse.Namespace) -> int:
     check_posts(posts)
     params = pipeline.FinishingParameters(
         tool_diameter=tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
-        strategy=strategy.value, angle=angle, arcs=args.arcs == "on", rest_limit=rest_limit)
+        strategy=strategy.value, angle=angle, arcs=args.arcs == "on", rest_limit=rest_limit,
+        retract=args.retract, retract_margin=args.retract_margin)
     cutting = freecad_cutting(cutting_params)
     with staged_output(Path(args.out)) as stage:
         program = stage / f"{name}.ngc"

@@ -28,7 +28,9 @@ from . import parts
 from .cli_common import (
     EXIT_CHECK_FAILED,
     _safe_name,
+    add_retract_options,
     check_output,
+    check_retract_options,
     emit,
     json_text,
     staged_output,
@@ -61,6 +63,7 @@ def register(sub) -> None:
     p.add_argument("--iso-direction", default="u", choices=[d.value for d in IsoDirection])
     p.add_argument("--arcs", default="on", choices=["on", "off"],
                    help="fit passes with one-sided G2/G3 arcs in their plane (default on)")
+    add_retract_options(p)
     p.add_argument("--post", default="linuxcnc", help="FreeCAD post-processor (linuxcnc, grbl, fanuc, mach3_mach4, ...)")
     p.add_argument("--feed", type=float, default=1200.0, help="cutting feed (mm/min)")
     p.add_argument("--plunge-feed", type=float, default=400.0, help="vertical feed (mm/min)")
@@ -75,6 +78,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
     # Everything the FreeCAD op would refuse is refused here first, with the core's own checks,
     # so that no refusal happens inside a recompute (whose traceback FreeCAD prints).
     cutting_params = cutting_parameters(args)
+    check_retract_options(args)
     check_output(args.out)
     if parts.is_part(args.net):
         return cmd_toolpath_part(args, cutting_params)
@@ -88,7 +92,8 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
     params = pipeline.FinishingParameters(
         tool_diameter=tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, direction=args.direction,
-        iso_direction=args.iso_direction, arcs=args.arcs == "on")
+        iso_direction=args.iso_direction, arcs=args.arcs == "on", retract=args.retract,
+        retract_margin=args.retract_margin)
     cutting = freecad_cutting(cutting_params)
     name = _safe_name(surface.name)
     with staged_output(Path(args.out)) as stage:
@@ -100,6 +105,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
         report["parameters"] = {
             "strategy": strategy.value, "angle_deg": angle, "direction": args.direction,
             "iso_direction": args.iso_direction, "arcs": args.arcs,
+            "retract": args.retract, "retract_margin_mm": args.retract_margin,
             "tool_diameter_mm": tool.diameter,
             "scallop_mm": tool.scallop, "tolerance_mm": tool.tolerance}
         report["angle_deg"] = angle

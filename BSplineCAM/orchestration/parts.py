@@ -42,6 +42,7 @@ from ..core.program import rs274
 from ..core.simulation.measures import toolpath_lengths
 from ..core.toolpath import faces_program_moves, generate_faces, program_moves
 from ..core.toolpath.faceset import FaceSet
+from ..core.toolpath.retracts import faces_hops
 from .cli_common import (
     EXIT_CHECK_FAILED,
     _safe_name,
@@ -470,7 +471,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
             commands, clearance, safe = post_toolpath(
                 args.net, toolpath, tool.diameter, cutting, args.post, program,
                 stage / f"{name}-job.FCStd", arcs=getattr(args, "arcs", "off") == "on",
-                faceset=faceset)
+                faceset=faceset, retract_margin=(args.retract_margin if getattr(
+                    args, "retract", "full") == "minimum" else None))
         check_interrupted()
         text = program.read_text()
         stats = toolpath.stats
@@ -490,6 +492,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                            "direction": getattr(args, "direction", "zigzag"),
                            "iso_direction": getattr(args, "iso_direction", "u"),
                            "arcs": getattr(args, "arcs", "off"),
+                           "retract": getattr(args, "retract", "full"),
+                           "retract_margin_mm": getattr(args, "retract_margin", None),
                            "tool_diameter_mm": tool.diameter, "scallop_mm": tool.scallop,
                            "tolerance_mm": tool.tolerance}}
         lengths = toolpath_lengths(toolpath)
@@ -509,12 +513,15 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
 
 def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: Any,
                   post: str, program: Path, document: Path | None = None,
-                  arcs: bool = False, faceset: Any = None) -> int:
+                  arcs: bool = False, faceset: Any = None,
+                  retract_margin: float | None = None) -> int:
     """In FreeCAD: a document with the part (Part::Feature), a job around it with a ball-end
     tool controller, the toolpath as a path operation of that controller; posted by ``post``
     to ``program`` (and saved to ``document``), with one-sided arcs if ``arcs`` (waterline
     contours in G17 only with ``faceset``, the core FaceSet whose drop-cutter tells their free
-    side).  Returns the number of path commands, the clearance and the safe height (mm)
+    side); with ``retract_margin`` (mm) and ``faceset`` the tool climbs between passes only
+    ``retract_margin`` over the model and the job's raw stock block
+    (:func:`~BSplineCAM.core.toolpath.retracts.faces_hops`), else to the clearance height.  Returns the number of path commands, the clearance and the safe height (mm)
     of the program."""
     import FreeCAD
     import Path as FreeCADPath
@@ -549,7 +556,13 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
                         stock_top + float(sheet.ClearanceHeightOffset.Value))
         safe = min(clearance, stock_top + float(sheet.SafeHeightOffset.Value))
         if faceset is not None:
-            moves = faces_program_moves(toolpath, faceset, clearance, safe, arcs=arcs)
+            hops = None
+            if retract_margin is not None:
+                from ..app.retract import job_stock_map
+                hops = faces_hops(toolpath, faceset, clearance, retract_margin,
+                                  job_stock_map(job, op, 0.5 * tool_diameter))
+            moves = faces_program_moves(toolpath, faceset, clearance, safe, arcs=arcs,
+                                        hops=hops)
         else:
             moves = program_moves(toolpath, clearance, safe, arcs=arcs)
         commands = moves_to_commands(moves, tc.HorizFeed.Value, tc.VertFeed.Value, clearance)

@@ -119,13 +119,14 @@ def generate_for_tool(
 
 def program_moves(toolpath: Toolpath, clearance_height: float | None = None,
                   safe_height: float | None = None, arcs: bool = False,
-                  surface: Any = None) -> list:
+                  surface: Any = None, hops: Any = None) -> list:
     """:func:`to_moves`, with every pass and link fitted by one-sided G2/G3 arcs when
     ``arcs`` (:func:`arcs.fit_arcs`, within half the toolpath's chordal tolerance of the
     polyline, which lies within the other half of the exact cutter-location curve).
     Waterline contours (G17) are fitted only with ``surface`` (a core Surface), whose
-    drop-cutter tells their free side; without it they stay lines."""
-    moves = to_moves(toolpath, clearance_height, safe_height)
+    drop-cutter tells their free side; without it they stay lines.  ``hops``
+    (:func:`.retracts.surface_hops`) lifts the tool between passes only as high as needed."""
+    moves = to_moves(toolpath, clearance_height, safe_height, hops)
     if not arcs:
         return moves
     side17 = None
@@ -224,12 +225,14 @@ def no_pass_hint(toolpath) -> str:
 
 
 def faces_program_moves(toolpath, faceset, clearance_height: float,
-                        safe_height: float | None = None, arcs: bool = False) -> list:
+                        safe_height: float | None = None, arcs: bool = False,
+                        hops: Any = None) -> list:
     """Program moves (:func:`to_moves`) of a toolpath on faces; with
     ``arcs``, fitted by one-sided G2/G3 arcs within half the toolpath's tolerance, as for
     nets (:func:`program_moves`): waterline contours in G17, their
-    free side told by the certified drop-cutter over all of ``faceset``'s faces."""
-    moves = to_moves(toolpath, clearance_height, safe_height)
+    free side told by the certified drop-cutter over all of ``faceset``'s faces.  ``hops``
+    (:func:`.retracts.faces_hops`) lifts the tool between passes only as high as needed."""
+    moves = to_moves(toolpath, clearance_height, safe_height, hops)
     if not arcs:
         return moves
     side17 = None

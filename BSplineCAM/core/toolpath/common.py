@@ -485,11 +485,13 @@ class Move(NamedTuple):
 
 
 def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
-             safe_height: float | None = None) -> list[Move]:
+             safe_height: float | None = None, hops: Any = None) -> list[Move]:
     """Flat list of moves: per pass rapid to clearance above the start, rapid down to the safe
     height, feed down to the start, feed along the pass, rapid back up to clearance.  Where the
     toolpath has a stay-down link to the next pass, the tool feeds along it instead of
-    retracting.
+    retracting; where ``hops`` (:class:`.retracts.Hops`) gives a gap a travel height, the tool
+    climbs only to it, crosses, comes down rapidly to the hop's approach height and feeds
+    from there.
 
     ``clearance_height`` (absolute Z, mm; default the toolpath's) must clear every pass;
     ``safe_height`` (absolute Z, mm) is where the rapid descent stops and the plunge feed starts
@@ -513,13 +515,23 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
     links = [None if lk is None else np.array(lk, dtype=float) for lk in
              (toolpath.links or [None] * max(len(passes) - 1, 0))]
     join_links(passes, links[: max(len(passes) - 1, 0)])
+    travel = approach_at = None
+    if hops is not None:
+        travel, approach_at = np.asarray(hops.travel, float), np.asarray(hops.approach, float)
+        if len(travel) != max(len(passes) - 1, 0):
+            raise ParameterError(f"hops: {len(travel)} gaps given for {len(passes)} passes")
     linked = False
+    hop = math.nan
     for k, p in enumerate(passes):
         x0, y0, z0 = (float(v) for v in p[0])
         if not linked:
-            moves.append(Move("rapid", x0, y0, clear))
-            approach = min(clear, z0 + 1.0) if safe_height is None else max(safe_height, z0)
-            if approach < clear:
+            top = clear if math.isnan(hop) else hop
+            moves.append(Move("rapid", x0, y0, top))
+            if not math.isnan(hop):
+                approach = float(approach_at[k - 1])
+            else:
+                approach = min(clear, z0 + 1.0) if safe_height is None else max(safe_height, z0)
+            if approach < top:
                 moves.append(Move("rapid", x0, y0, approach))
             if approach > z0:
                 moves.append(Move("feed", x0, y0, z0))
@@ -527,10 +539,14 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
         moves.extend(Move("feed", x, y, z) for x, y, z in p[1:].tolist())
         link = links[k] if k < len(links) else None
         linked = link is not None
+        hop = math.nan
         if linked:
             moves.extend(Move("feed", x, y, z) for x, y, z in link[1:].tolist())
         else:
-            moves.append(Move("rapid", float(p[-1, 0]), float(p[-1, 1]), clear))
+            if travel is not None and k < len(travel) and math.isfinite(travel[k]):
+                hop = max(float(travel[k]), float(p[-1, 2]))
+            moves.append(Move("rapid", float(p[-1, 0]), float(p[-1, 1]),
+                              clear if math.isnan(hop) else hop))
     return moves
 
 

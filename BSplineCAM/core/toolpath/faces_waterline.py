@@ -37,6 +37,10 @@ of that field.
   finishes nothing of the face.  Where a contour leaves the selected faces between two grid
   crossings, its end is carried on along the level (midpoints projected onto the level set by
   Newton steps on the exact height) by bisection to 1/128 of the grid edge.
+* The contours are cut in the order of short moves, upper levels first where they lie over
+  lower ones (:func:`.order.order_contours`; open contours run either way), and joined by
+  stay-down feeds (:func:`.links.stay_down_links`) where the next one starts within
+  ``STAY_DOWN_LINK`` radii.
 """
 
 from __future__ import annotations
@@ -60,8 +64,10 @@ from .common import (
     normal_curvature,
     simplify,
 )
-from .faces_raster import FaceQuery
+from .faces_raster import STAY_DOWN_LINK, FaceQuery
 from .faceset import FaceSet
+from .links import stay_down_links
+from .order import order_contours
 from .waterline import (
     _chain,
     _crossings,
@@ -488,8 +494,8 @@ def waterline_faces(faceset: FaceSet, tool: ToolParameters, progress: ProgressFn
 
     ``tool`` is validated (:meth:`ToolParameters.validate`); ``min_slope`` in degrees: walls
     shallower than this are spaced by the flat stepover only (pair the waterline with a
-    raster pass there).  Contours are closed or open polylines at constant Z, top level
-    first, never below the certified drop-cutter height over every face.
+    raster pass there).  Contours are closed or open polylines at constant Z, never below
+    the certified drop-cutter height over every face, each after the contours above it.
     """
     started = time.perf_counter()
     slope_deg = check_finite(min_slope, "min_slope", "degrees")
@@ -542,8 +548,12 @@ def waterline_faces(faceset: FaceSet, tool: ToolParameters, progress: ProgressFn
         extra.update(more)
     if not passes:
         notes.append("no waterline touches a selected face")
+    # contours in the order of short moves (upper levels first over lower ones, open ones
+    # either way), joined by stay-down feeds where the next starts within STAY_DOWN_LINK R
+    passes = order_contours(passes, tool.diameter, reversible=True)
+    links = stay_down_links(query, passes, STAY_DOWN_LINK * R, tool.tolerance) if passes else []
     extra["dropcutter"] = dict(faceset.stats)
-    toolpath = Toolpath("waterline", passes, parameters, [], stats, extra=extra)
+    toolpath = Toolpath("waterline", passes, parameters, [], stats, extra=extra, links=links)
     toolpath.finish(started, None)
     monitor(1.0)
     return toolpath

@@ -35,6 +35,7 @@ from .common import (
 from .dropcutter import DropCutter
 from .isoparametric import isoparametric
 from .links import stay_down_links
+from .order import order_contours
 from .raster import raster
 from .waterline import waterline
 
@@ -175,10 +176,15 @@ def run_strategy(started: float, surface: Any, strategy: Strategy, tool: ToolPar
         stepover_max_mm=extra.pop("stepover_max_mm", float("nan")),
         notes=extra.pop("notes", []),
     )
+    if strategy is Strategy.WATERLINE:
+        # contours in the order of short moves, upper levels first over lower ones; zigzag
+        # lets an open contour run either way
+        passes = order_contours(passes, tool.diameter,
+                                reversible=direction is Direction.ZIGZAG)
     toolpath = Toolpath(strategy.value, passes, parameters,
                         unreachable_regions(surface, tool.radius, dc.sign), stats, extra=extra)
     toolpath.finish(started, clearance_height)
-    if direction is Direction.ZIGZAG and strategy is not Strategy.WATERLINE:
+    if direction is Direction.ZIGZAG or strategy is Strategy.WATERLINE:
         toolpath.links = stay_down_links(dc, toolpath.passes, STAY_DOWN_LINK * tool.radius, tool.tolerance)
         toolpath.finish(started, clearance_height)
     return toolpath

@@ -37,6 +37,7 @@ from .faces_waterline import waterline_faces
 from .generator import STAY_DOWN_LINK as RASTER_LINK
 from .generator import generate_single, request_tool
 from .links import stay_down_links
+from .order import order_contours
 from .rest import _cell_index, _dilate, _tool_radius
 
 
@@ -154,16 +155,16 @@ def _steep_shallow(raster: Toolpath, water: Toolpath, split: SlopeSplit, query: 
                    overlap: float, wall: float, max_link: float, started: float,
                    clearance_height: float | None) -> Toolpath:
     """Raster passes kept on the shallow zone and contours on the steep one, each grown by
-    ``overlap`` mm; raster pieces linked by stay-down feeds up to ``max_link`` mm over the
-    exact heights of ``query`` (a DropCutter or FaceQuery), contours retract."""
+    ``overlap`` mm; the contour pieces after the raster in the order of short moves
+    (:func:`.order.order_contours`), every gap up to ``max_link`` mm a stay-down feed over
+    the exact heights of ``query`` (a DropCutter or FaceQuery)."""
     step = 0.5 * split.grid.cell
     shallow = clip_polylines(raster.passes, split.grid, split.zone("shallow", overlap), step)
     steep = clip_polylines(water.passes, split.grid, split.zone("steep", overlap), step)
+    steep = order_contours(steep, float(raster.parameters["tool_diameter"]),
+                           start=shallow[-1][-1] if shallow else None, reversible=True)
     tol = float(raster.parameters["tolerance"])
-    links = stay_down_links(query, shallow, max_link, tol) if shallow else []
-    if shallow and steep:
-        links.append(None)
-    links.extend([None] * max(len(steep) - 1, 0))
+    links = stay_down_links(query, shallow + steep, max_link, tol) if shallow or steep else []
     parameters = dict(raster.parameters)
     parameters.update({"strategy": "steep_shallow", "threshold_deg": split.threshold_deg,
                        "overlap": overlap, "waterline_min_slope": wall})
@@ -218,8 +219,8 @@ def steep_shallow(surface: Any, tool: ToolParameters, threshold_deg: float = 45.
     """Raster passes (direction ``angle`` degrees) on the shallow part of a core Surface and
     waterline contours on the steep part, split at ``threshold_deg`` by
     :func:`split_by_slope`; each kept where its zone grown by ``overlap`` (mm, default R/2)
-    holds, so the two overlap and leave no seam.  Raster pieces are linked by stay-down
-    feeds where short (:func:`links.stay_down_links`), contours retract.  ``extra`` holds
+    holds, so the two overlap and leave no seam.  Passes and contours are linked by stay-down
+    feeds where short (:func:`links.stay_down_links`).  ``extra`` holds
     the split and how many passes of each kind were kept.  ``tool`` is validated."""
     started, threshold, overlap, monitor = _steep_shallow_request(
         threshold_deg, tool, overlap, progress, cancel)
