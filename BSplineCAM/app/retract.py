@@ -41,7 +41,7 @@ def stock_cell(radius: float) -> float:
 
 def _block_map(stock) -> retracts.StockMap:
     """The whole stock as one column at its top: conservative over its box."""
-    x0, x1, y0, y1, _z0, z1 = stock.bounds()
+    x0, x1, y0, y1, _z0, z1 = stock.bounds
     size = max(x1 - x0, y1 - y0)
     if isinstance(stock, CylinderStock):
         size = max(size, 2.0 * stock.radius)
