@@ -125,13 +125,23 @@ def test_forced_restores_the_setting():
     assert parallel.setting() == before
 
 
-def test_chunk_size():
-    q = faceset.QUERY_CHUNK
-    assert faceset.chunk_size(100_000, 1) == q
-    assert faceset.chunk_size(100_000, 2) == q
-    assert faceset.chunk_size(10, 2) == faceset.PARALLEL_CHUNK
-    m = 3000  # a raster pass: two threads get two chunks each
-    assert faceset.chunk_size(m, 2) == math.ceil(m / (2 * faceset.CHUNKS_PER_THREAD))
+@pytest.mark.parametrize("m", [1, 10, 255, 256, 370, 600, 1000, 3000, 17_020, 100_000])
+@pytest.mark.parametrize("threads", [1, 2, 3, 4, 8])
+def test_chunk_size(m, threads):
+    size = faceset.chunk_size(m, threads)
+    n = -(-m // size)
+    assert 1 <= size <= faceset.QUERY_CHUNK
+    if threads == 1:
+        assert size == faceset.QUERY_CHUNK
+        return
+    # no chunk below PARALLEL_CHUNK unless the call is one chunk; a call of several
+    # PARALLEL_CHUNKs split among the threads; the chunks as equal as they come
+    assert n == 1 or size >= faceset.PARALLEL_CHUNK
+    if m >= 2 * faceset.PARALLEL_CHUNK:
+        assert n >= 2
+    if m >= faceset.CHUNKS_PER_THREAD * threads * faceset.PARALLEL_CHUNK:
+        assert n >= faceset.CHUNKS_PER_THREAD * threads and n % threads == 0
+    assert m - (n - 1) * size <= size
 
 
 # -- the pool ----------------------------------------------------------------------------------

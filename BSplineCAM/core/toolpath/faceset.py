@@ -124,13 +124,18 @@ _WARM: set = set()
 
 def chunk_size(m: int, threads: int) -> int:
     """Queries per chunk of a call of ``m`` queries on ``threads`` threads: QUERY_CHUNK on one
-    thread; on more, small enough that every thread gets CHUNKS_PER_THREAD chunks (a pass of a
-    raster, a few thousand queries, keeps them all busy), but at least PARALLEL_CHUNK (each
-    chunk has a fixed cost, and the queries of a chunk share their sub-patches)."""
+    thread.  On more, the call is cut into equal chunks of at most QUERY_CHUNK, at least
+    CHUNKS_PER_THREAD per thread where each still holds PARALLEL_CHUNK queries (a pass of a
+    raster, a few hundred to a few thousand queries, keeps the threads busy; each chunk has a
+    fixed cost, and the queries of a chunk share their sub-patches), their number a multiple
+    of the threads where that holds too."""
     if threads <= 1:
         return QUERY_CHUNK
-    share = -(-m // (CHUNKS_PER_THREAD * threads))
-    return max(1, min(QUERY_CHUNK, max(PARALLEL_CHUNK, share)))
+    n = max(-(-m // QUERY_CHUNK), min(CHUNKS_PER_THREAD * threads, m // PARALLEL_CHUNK), 1)
+    even = -(-n // threads) * threads
+    if m // even >= PARALLEL_CHUNK:
+        n = even
+    return -(-m // n)
 
 
 @dataclass

@@ -19,7 +19,7 @@ QUERY_CHUNK = 2048
 CHUNKS_PER_THREAD = 2
 #: ... of at least this many queries (each chunk has a fixed cost per level and face, and the
 #: queries of a chunk share their sub-patches).
-PARALLEL_CHUNK = 256
+PARALLEL_CHUNK = 512
 #: Most halvings of a root patch; a pair still open then keeps its upper bound as its gap.
 MAX_DEPTH = 48
 #: A point this factor of R^2 away (squared) still touches the ball: a ball whose rim just
