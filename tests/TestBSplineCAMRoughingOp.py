@@ -147,6 +147,33 @@ class TestRoughingJob(RoughingFixture):
                                                        ROUGH.radial_allowance) - 0.09)
         self.assertLessEqual(float(np.percentile(left, 50)), ROUGH.stepdown + 0.3)
 
+    def test_finishing_hops_over_the_stock_the_roughing_left(self):
+        """Retract minimum (a new op's): gaps between the finishing op's passes hop, below
+        the clearance height and above the stock the roughing left (the job simulation of the
+        roughing: no rapid of the whole program touches the stock, see
+        test_whole_program_from_the_block), and the program takes less time than with full
+        retracts."""
+        report = json.loads(self.finish.Report)
+        self.assertEqual(self.finish.Retract, "minimum")
+        self.assertGreater(report["retract_hops"], 0)
+        clearance = self.finish.ClearanceHeight.Value
+        rapids = [c for c in self.finish.Path.Commands if c.Name in ("G0", "G00")
+                  and "Z" in c.Parameters]
+        low = [c for c in rapids if c.Parameters["Z"] < clearance - 1e-6]
+        self.assertGreaterEqual(len(low), report["retract_hops"])
+        self.finish.Retract = "full"
+        try:
+            self.doc.recompute()
+            full = json.loads(self.finish.Report)
+            self.assertEqual(full["retract_hops"], 0)
+            self.assertLess(report["machining_time_with_acceleration_s"],
+                            full["machining_time_with_acceleration_s"])
+            self.assertLess(report["rapid_length_mm"], full["rapid_length_mm"])
+        finally:
+            self.finish.Retract = "minimum"
+            self.doc.recompute()
+            self.programs.clear()
+
     def test_verify_feature_follows_the_tool_changes(self):
         """The workbench's Verify on a job with roughing: both tools from the stock block, the
         per-tool figures in Metrics and the stock after T1 as a mesh of its own."""
@@ -321,6 +348,39 @@ class TestRoughingBadInput(RoughingFixture):
             self.assertLess(worst, 1e-6)
         finally:
             FreeCAD.closeDocument(older.Name)
+
+    def test_document_saved_before_retract_opens_with_full_retracts(self):
+        """A finishing op saved before Retract existed opens with Retract full (its program
+        unchanged: climbs to the clearance height) and RetractMargin at 1 mm."""
+        path = Path(self.tmp.name) / "before-retract.FCStd"
+        for name in ("Retract", "RetractMargin"):
+            self.finish.removeProperty(name)
+        try:
+            self.doc.saveCopy(str(path))
+        finally:
+            self.finish.Proxy.ensure_properties(self.finish)
+            self.finish.Retract = "minimum"
+        older = FreeCAD.openDocument(str(path))
+        try:
+            op = older.getObject(self.finish.Name)
+            self.assertEqual(op.Retract, "full")
+            self.assertAlmostEqual(float(op.RetractMargin.Value), 1.0)
+        finally:
+            FreeCAD.closeDocument(older.Name)
+
+    def test_retract_margin_out_of_range_is_the_ops_error(self):
+        before = [(c.Name, dict(c.Parameters)) for c in self.finish.Path.Commands]
+        self.finish.RetractMargin = 0.01
+        try:
+            self.doc.recompute()
+            report = json.loads(self.finish.Report)
+            self.assertIn("RetractMargin", report["error"])
+            self.assertIn("mm", report["error"])
+            self.assertEqual([(c.Name, dict(c.Parameters)) for c in self.finish.Path.Commands],
+                             before)
+        finally:
+            self.finish.RetractMargin = 1.0
+            self.doc.recompute()
 
     def test_ramp_angle_out_of_range(self):
         for bad in (0.0, 45.0):
