@@ -69,6 +69,7 @@ def drop(faces, xy, R, threads, chunk, monkeypatch, fs=None, selected_only=False
     monkeypatch.setattr(faceset, "QUERY_CHUNK", chunk)
     # a call of a few hundred queries splits too
     monkeypatch.setattr(faceset, "PARALLEL_CHUNK", 64)
+    monkeypatch.setattr(faceset, "PARALLEL_CHUNK_NUMPY", 64)
     fs = FaceSet(faces) if fs is None else fs
     before = dict(fs.stats)
     with parallel.forced(threads) as s:
@@ -127,20 +128,25 @@ def test_forced_restores_the_setting():
 
 @pytest.mark.parametrize("m", [1, 10, 255, 256, 370, 600, 1000, 3000, 17_020, 100_000])
 @pytest.mark.parametrize("threads", [1, 2, 3, 4, 8])
-def test_chunk_size(m, threads):
-    size = faceset.chunk_size(m, threads)
+@pytest.mark.parametrize("least", [256, 512, 2048])
+def test_chunk_size(m, threads, least):
+    spread = faceset.spread(m, threads, least)
+    assert spread == (threads if m >= 2 * least else 1)
+    size = faceset.chunk_size(m, spread, least)
     n = -(-m // size)
     assert 1 <= size <= faceset.QUERY_CHUNK
-    if threads == 1:
+    if spread == 1:
         assert size == faceset.QUERY_CHUNK
         return
-    # no chunk below PARALLEL_CHUNK unless the call is one chunk; a call of several
-    # PARALLEL_CHUNKs split among the threads; the chunks as equal as they come
-    assert n == 1 or size >= faceset.PARALLEL_CHUNK
-    if m >= 2 * faceset.PARALLEL_CHUNK:
-        assert n >= 2
-    if m >= faceset.CHUNKS_PER_THREAD * threads * faceset.PARALLEL_CHUNK:
-        assert n >= faceset.CHUNKS_PER_THREAD * threads and n % threads == 0
+    # two chunks or more of at least ``least`` queries (unless QUERY_CHUNK asks for more
+    # chunks); as many as the threads or more, a multiple of them where the call is large
+    # enough; the chunks as equal as they come
+    assert n >= 2
+    assert size >= least or n == -(-m // faceset.QUERY_CHUNK)  # QUERY_CHUNK bounds them
+    if m >= faceset.CHUNKS_PER_THREAD * threads * least:
+        assert n >= faceset.CHUNKS_PER_THREAD * threads
+    if m // (-(-n // threads) * threads) >= least:
+        assert n % threads == 0
     assert m - (n - 1) * size <= size
 
 
@@ -194,7 +200,10 @@ def test_an_exception_in_a_chunk_reaches_the_caller(monkeypatch):
     real = faceset.drop_chunk
     marker = xy[300, 0]
 
+    ran_on = set()
+
     def failing(*args):
+        ran_on.add(threading.get_ident())
         q = args[3]
         if np.any(q[:, 0] == marker):
             raise RuntimeError("chunk failed")
@@ -202,10 +211,13 @@ def test_an_exception_in_a_chunk_reaches_the_caller(monkeypatch):
 
     monkeypatch.setattr(faceset, "drop_chunk", failing)
     monkeypatch.setattr(faceset, "QUERY_CHUNK", 64)
+    monkeypatch.setattr(faceset, "PARALLEL_CHUNK", 64)
+    monkeypatch.setattr(faceset, "PARALLEL_CHUNK_NUMPY", 64)
     fs = FaceSet(faces)
     with parallel.forced(2), hang_guard(60.0, "a failing drop"):
         with pytest.raises(RuntimeError, match="chunk failed"):
             fs.centre_heights(xy, 3.0)
+        assert ran_on - {threading.get_ident()}  # on the pool
         monkeypatch.setattr(faceset, "drop_chunk", real)
         # the set and the pool serve the next call, with its answers
         a = FaceSet(faces).centre_heights(xy, 3.0)

@@ -89,6 +89,7 @@ from .faceset_params import (
     CHUNKS_PER_THREAD,
     MAX_CROWDED,
     PARALLEL_CHUNK,
+    PARALLEL_CHUNK_NUMPY,
     QUERY_CHUNK,
 )
 from .faceset_params import CLASSIFY_CACHE as CLASSIFY_CACHE
@@ -122,18 +123,24 @@ _PEAK_STATS = frozenset({"levels"})
 _WARM: set = set()
 
 
-def chunk_size(m: int, threads: int) -> int:
+def spread(m: int, threads: int, least: int) -> int:
+    """The threads a call of ``m`` queries runs on: ``threads`` if it holds at least two
+    chunks of ``least`` queries, else 1."""
+    return threads if m >= 2 * least else 1
+
+
+def chunk_size(m: int, threads: int, least: int) -> int:
     """Queries per chunk of a call of ``m`` queries on ``threads`` threads: QUERY_CHUNK on one
     thread.  On more, the call is cut into equal chunks of at most QUERY_CHUNK, at least
-    CHUNKS_PER_THREAD per thread where each still holds PARALLEL_CHUNK queries (a pass of a
-    raster, a few hundred to a few thousand queries, keeps the threads busy; each chunk has a
-    fixed cost, and the queries of a chunk share their sub-patches), their number a multiple
-    of the threads where that holds too."""
+    CHUNKS_PER_THREAD per thread where each still holds ``least`` queries (a call of a few
+    thousand queries keeps the threads busy; each chunk has a fixed cost, and the queries of
+    a chunk share their sub-patches), their number a multiple of the threads where that holds
+    too."""
     if threads <= 1:
         return QUERY_CHUNK
-    n = max(-(-m // QUERY_CHUNK), min(CHUNKS_PER_THREAD * threads, m // PARALLEL_CHUNK), 1)
+    n = max(-(-m // QUERY_CHUNK), min(CHUNKS_PER_THREAD * threads, m // least), 1)
     even = -(-n // threads) * threads
-    if m // even >= PARALLEL_CHUNK:
+    if m // even >= least:
         n = even
     return -(-m // n)
 
@@ -232,7 +239,7 @@ class FaceSet:
         with more than one thread (:mod:`.parallel`) they run on the shared pool, each
         writing its own slice and counting into its own counters, added to ``stats`` in the
         chunks' order afterwards; the answers and counters are those of one thread, bit for
-        bit, whatever the chunk size (:func:`chunk_size`)."""
+        bit, whatever the chunk size (:func:`spread`, :func:`chunk_size`)."""
         m = len(q)
         if m == 0:
             e = np.zeros(0)
@@ -240,7 +247,10 @@ class FaceSet:
         out = DropResult(np.full(m, -np.inf), np.full(m, -1), np.zeros(m), np.zeros(m),
                          np.zeros(m))
         data = [d for d in self.data if d.selected or not selected_only]
-        size = chunk_size(m, parallel.threads())
+        # the numpy engine's small array operations hold the GIL: only large calls gain
+        least = PARALLEL_CHUNK if kernels.engine().name == "numba" else PARALLEL_CHUNK_NUMPY
+        threads = spread(m, parallel.threads(), least)
+        size = chunk_size(m, threads, least)
         starts = range(0, m, size)
 
         def one(k: int) -> dict:
@@ -253,7 +263,7 @@ class FaceSet:
         # the process's first drop under the numba engine compiles its kernels: on one
         # thread, before the others start
         cold = kernels.engine().name == "numba" and not _WARM
-        counts = parallel.run(one, len(starts), first_here=cold)
+        counts = parallel.run(one, len(starts), first_here=cold, alone=threads <= 1)
         if cold:
             _WARM.add("numba")
         for stats in counts:

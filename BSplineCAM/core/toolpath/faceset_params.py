@@ -17,9 +17,13 @@ QUERY_CHUNK = 2048
 #: On more than one thread (:mod:`.parallel`) a call is cut into at least this many chunks
 #: per thread (queries differ in cost: a thread done early takes the next chunk) ...
 CHUNKS_PER_THREAD = 2
-#: ... of at least this many queries (each chunk has a fixed cost per level and face, and the
-#: queries of a chunk share their sub-patches).
+#: ... of at least this many queries under the numba engine (each chunk has a fixed cost per
+#: level and face, and the queries of a chunk share their sub-patches); a call of fewer than
+#: two such chunks runs on one thread.
 PARALLEL_CHUNK = 512
+#: The same under the numpy engine, whose many small array operations hold the GIL: there a
+#: call of a few thousand queries gains nothing from a second thread (benchmarks.md).
+PARALLEL_CHUNK_NUMPY = 2048
 #: Most halvings of a root patch; a pair still open then keeps its upper bound as its gap.
 MAX_DEPTH = 48
 #: A point this factor of R^2 away (squared) still touches the ball: a ball whose rim just

@@ -142,9 +142,11 @@ def _pool() -> ThreadPoolExecutor:
         return _state.pool
 
 
-def run(work: Callable[[int], T], count: int, first_here: bool = False) -> list[T]:
+def run(work: Callable[[int], T], count: int, first_here: bool = False,
+        alone: bool = False) -> list[T]:
     """``[work(0), ..., work(count - 1)]``, the pieces on the shared pool when it has more
-    than one thread and there is more than one piece (else in order on the caller's thread).
+    than one thread and there is more than one piece (else, or if ``alone``, in order on the
+    caller's thread).
 
     ``first_here`` runs ``work(0)`` on the caller's thread before the others start (what it
     does once, such as compiling a kernel, then happens on one thread).  An exception of a
@@ -152,7 +154,7 @@ def run(work: Callable[[int], T], count: int, first_here: bool = False) -> list[
     first failed piece's, in the order of the pieces)."""
     if count <= 0:
         return []
-    if threads() <= 1 or count == 1 or in_pool():
+    if alone or threads() <= 1 or count == 1 or in_pool():
         return [work(k) for k in range(count)]
     results: list = [None] * count
     start = 0
