@@ -11,7 +11,9 @@ the same HorizFeed, VertFeed and rapid rate).  Our op is recomputed with each st
 ``--strategies`` (raster with partial passes, steep_shallow, scallop by default), then
 FreeCAD's op at the flat stepover 2 sqrt(2Rh - h^2) and, with the secant search of
 ``benchmarks/toolpath.py`` (``--match-scallop``), at the stepover where its simulated largest
-scallop is at most the one of our fastest strategy.
+scallop is at most the one of our fastest strategy; when no stepover gets there (its samples
+along the passes, SampleInterval apart, cut chords across concave fillets), the search runs
+again with SampleInterval halved (``--match-sample-halvings``).
 
 Each program is posted alone (linuxcnc), checked by rs274 and measured on its text: the time
 with acceleration on the default machine (:func:`BSplineCAM.core.simulation.measures.
@@ -149,8 +151,10 @@ def run_part(name: str, bench, args: argparse.Namespace, out: Path) -> dict:
     from BSplineCAM.app import pipeline, surface3d
 
     FreeCAD = bench.FreeCAD
-    part = part_file(name, out)
     stem = Path(name).stem
+    out = out / stem
+    out.mkdir(parents=True, exist_ok=True)
+    part = part_file(name, out)
     params = pipeline.FinishingParameters(
         tool_diameter=args.diameter, scallop=args.scallop, tolerance=args.tolerance,
         strategy=args.strategies[0], angle=args.angle)
@@ -203,16 +207,46 @@ def run_part(name: str, bench, args: argparse.Namespace, out: Path) -> dict:
             figures["freecad_matched"] = {"matched": False, "reason": "no strategy of ours"}
             return figures
         target = figures["ours"][best]["scallop_max_mm"]
-        ns.out = out
-        matched = bench.match_scallop(job, theirs, doc, faces, ns, out, flat, target)
-        if matched["matched"]:
-            program = Path(matched["program"])
-            matched.update(measure_program(faces, program.read_text(), program, args))
-            print(f"{name}: FreeCAD matched: {summary(matched)}", flush=True)
+        matched = retune(bench, job, theirs, doc, faces, ns, args, out, flat, target, name)
         figures["freecad_matched"] = matched
         return figures
     finally:
         FreeCAD.closeDocument(doc.Name)
+
+
+def retune(bench, job, theirs, doc, faces, ns, args, out: Path, flat: dict, target: float,
+           name: str) -> dict:
+    """FreeCAD's op retuned to ``target`` (mm): its StepOver by ``benchmarks/toolpath.py``'s
+    search from its ``flat`` run; when no StepOver reaches the target (the samples along the
+    passes, SampleInterval apart, cut chords across concave fillets), the search again from
+    the flat StepOver with SampleInterval halved, up to ``--match-sample-halvings`` times.
+    The result is the matching run (measured as the others) with every stage's trials."""
+    stages = []
+    interval = theirs.SampleInterval.Value
+    first = flat
+    for stage in range(args.match_sample_halvings + 1):
+        folder = out / f"sample{stage}"
+        folder.mkdir(exist_ok=True)
+        if stage:
+            interval /= 2.0
+            theirs.SampleInterval = interval
+            seconds = bench.timed_recompute(doc, theirs)
+            path = folder / "freecad_3d_surface.ngc"
+            text = bench.post_alone(job, theirs, path)
+            first = {"seconds": seconds, **measure_program(faces, text, path, args),
+                     "stepover_mm": args.diameter * theirs.StepOver / 100.0}
+            print(f"{name}: FreeCAD flat, SampleInterval {interval:.3f} mm: {summary(first)}",
+                  flush=True)
+        matched = bench.match_scallop(job, theirs, doc, faces, ns, folder, first, target)
+        stages.append({"sample_interval_mm": interval, "trials": matched["trials"]})
+        if matched["matched"]:
+            program = Path(matched["program"])
+            matched.update(measure_program(faces, program.read_text(), program, args))
+            matched["sample_interval_mm"] = interval
+            print(f"{name}: FreeCAD matched: {summary(matched)}", flush=True)
+            break
+    matched["stages"] = stages
+    return matched
 
 
 def summary(result: dict) -> str:
@@ -297,17 +331,20 @@ def table(results: list[dict]) -> str:
         lines += [row(k, v) for k, v in figures["ours"].items()]
         flat = figures.get("freecad_flat")
         if flat:
-            lines.append(row(f"FreeCAD 3D Surface, flat stepover {flat['stepover_mm']:.3f} mm",
-                             flat))
+            lines.append(row(f"FreeCAD 3D Surface, flat stepover {flat['stepover_mm']:.3f} mm, "
+                             f"SampleInterval {figures['freecad_op']['SampleInterval_mm']:.3f}"
+                             " mm", flat))
         matched = figures.get("freecad_matched", {})
         if matched.get("matched"):
             lines.append(row(f"FreeCAD 3D Surface, retuned stepover "
-                             f"{matched['stepover_mm']:.3f} mm", matched))
-        if matched.get("trials"):
+                             f"{matched['stepover_mm']:.3f} mm, SampleInterval "
+                             f"{matched['sample_interval_mm']:.3f} mm", matched))
+        for stage in matched.get("stages", []):
             lines.append("")
-            lines.append("FreeCAD's retuning (stepover -> largest scallop): " + "; ".join(
-                f"{t['stepover_mm']:.3f} -> {t['scallop_max_mm']:.4f} mm"
-                for t in matched["trials"]))
+            lines.append(f"FreeCAD's retuning at SampleInterval {stage['sample_interval_mm']:.3f}"
+                         " mm (stepover -> largest scallop): " + "; ".join(
+                             f"{t['stepover_mm']:.3f} -> {t['scallop_max_mm']:.4f} mm"
+                             for t in stage["trials"]))
         lines.append("")
         lines += [f"- {line}" for line in targets(figures, s)]
         lines.append("")
@@ -332,6 +369,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="most reruns of the 3D Surface op when retuning it")
     parser.add_argument("--match-rtol", type=float, default=0.1,
                         help="retuning stops within this fraction below the target scallop")
+    parser.add_argument("--match-sample-halvings", type=int, default=2,
+                        help="when no StepOver reaches the target, halve the 3D Surface op's "
+                        "SampleInterval and search again, at most this many times")
     parser.add_argument("--gouge-limit", type=float, default=0.001,
                         help="deepest cut into the part that counts as no gouge (mm)")
     parser.add_argument("--raster-saving", type=float, default=0.3,
