@@ -183,14 +183,16 @@ def _cap_rough(split: np.ndarray, cid: np.ndarray, ends: FloatArray,
     return out
 
 
-def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS) -> ChordCheck:
+def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS,
+                 active: np.ndarray | None = None) -> ChordCheck:
     """Largest exact CL height above each chord (see the module docstring); inserts into
-    ``s`` the samples it had to evaluate."""
+    ``s`` the samples it had to evaluate.  With ``active`` (bool per vertex rank) only those
+    chords are examined; the others report -inf."""
     nvert = int(s.vertex.sum())
     done_excess = np.full(nvert, -np.inf)
     done_where = np.full((nvert, 2), np.nan)
     done_grad = np.full((nvert, 2), np.nan)
-    resolved = np.zeros(nvert, bool)
+    resolved = np.zeros(nvert, bool) if active is None else ~np.asarray(active, bool)
     unresolved = 0
     # Samples where the Hermite model of a steep interval failed: their intervals are cut
     # like rough ones from then on (the model converges slowly near a vertical tangent).
@@ -385,8 +387,11 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
     it = 0
     unresolved = 0
     added = 0
+    # after the first check only the chords a lift changed (a lifted end vertex) are
+    # examined again: the others, their samples and end heights unchanged, keep their verdict
+    active = None
     for it in range(1, iterations + 1):
-        check = chord_excess(query, s)
+        check = chord_excess(query, s, active=active)
         exc = check.excess
         unresolved = check.unresolved
         worst = float(np.max(exc, initial=-np.inf))
@@ -398,6 +403,7 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
                 new = _split_worst(s, big, 0.75 * max_lift)
                 added += new
                 if new:
+                    active = None  # new vertices: the ranks moved, examine every chord
                     continue
         lift = np.where(np.isfinite(exc) & (exc > NEGLIGIBLE), exc + CLEARANCE, 0.0)
         vertex_lift = lift.copy()
@@ -407,6 +413,9 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
         if not vertex_lift.any():
             break
         s.zv[s.vertex] += vertex_lift
+        changed = vertex_lift > 0
+        active = changed.copy()
+        active[:-1] |= changed[1:] & same
     v = s.vertex & np.isfinite(s.z)
     return {"max_lift_mm": float(np.max(s.zv[v] - s.z[v], initial=0.0)),
             "worst_dip_mm": worst, "iterations": it, "unresolved_chords": unresolved,
