@@ -11,25 +11,31 @@ third of the flat stepover over the selected faces' extent grown by R:
   a ball hanging on a trim edge or a face's outer edge finishes nothing).  On every grid edge
   between a region node and one outside, the border is bisected with the same test to 1/1024
   of the edge: the region's border, to that precision, as polylines.
-* **Stepover field.**  At each region node the contact's jet gives, for each of the 16
-  neighbourhood's 8 axes, the XY distance between passes that run perpendicular to the axis
-  leaving cusps of height h (:func:`.raster.cross_section_stepover`: the normal curvature of
-  the face across the pass, the offset of the ball centres from the contacts, the slopes across
-  and along the pass, a vertical cusp as the verification measures it), clamped to
-  [0.02 s_flat, R].
+* **Stepover field.**  At each region node the contact's jet gives, for 36 across directions
+  and the 32-neighbourhood's 16 axes, the XY distance s(n) between passes whose across
+  direction is n leaving cusps of height h (:func:`.raster.cross_section_stepover`: the
+  normal curvature of the face across the pass, the offset of the ball centres from the
+  contacts, the slopes across and along the pass, a vertical cusp as the verification
+  measures it), clamped to [0.02 s_flat, R].  The cost per mm along each axis a is the dual
+  max_n |n . a| / s(n) (:func:`.scallop_metric.dual_costs`: the level sets of a field are
+  s(n) apart across n only if moving along a costs at least that), then the largest within
+  half a stepover along the axis (:func:`.scallop_metric.band_costs`: a cusp depends on the
+  surface between its two contacts, as the raster's band rule has it).
 * **Scallop distance.**  D, the distance from the border counted in stepovers: a least-cost
-  path over the grid whose edges cost their XY length over the stepover across them
-  (:func:`.scallop_field.propagate`), started from the exact XY distance of the nodes next to
-  the border.  Where the faces allow wide steps D grows slowly, where they need close passes
-  fast, so its level sets 1 apart are passes a stepover apart, measured across each pass at
-  each point.  Loops that meet merge and open ones end at the border by construction (they
-  are level sets).
+  path over the grid whose edges cost their XY length at those costs
+  (:func:`.scallop_field.propagate`), started at the nodes within a cell of the border from
+  the XY vector to it at the cost along it.  Where the faces allow wide steps D grows slowly,
+  where they need close passes fast, so its level sets 1 apart are passes a stepover apart,
+  measured across each pass at each point.  Loops that meet merge and open ones end at the
+  border by construction (they are level sets).
 * **Passes.**  The levels 0.05, 1.05, 2.05, ... (the first runs along the border, 0.05 of a
-  stepover inside it); marching squares gives their polylines.  **Gaps**: a point more than
-  half a stepover from every pass (:data:`GAP`, its distance E from the passes propagated the
-  same way) lies between passes too far apart, on a ridge of D whose height passes the last
-  level by more than a half; there the contour of D half-way between two levels is added,
-  the parts of it within :data:`GAP_REACH` stepovers of such a point.
+  stepover inside it); marching squares gives their polylines.  **Gaps**
+  (:mod:`.scallop_gaps`): on a grid of surface points three times finer, E, the distance
+  from the passes' contact lines counted so that 1/2 is where the ball's gap reaches h; where
+  it passes the limit the tolerance leaves, the contour round that region moved to the ball
+  centres is a pass (a thin one its midline); rounds until none is left.  Fronts that meet
+  (ridges of D, the corners of nested loops) leave such regions, and so do slopes, where a
+  pass's contacts run uphill of its centres and its cusp grows faster downhill.
 * **Certified cutter locations.**  Each polyline is sampled every sqrt(8 R tol) mm (its
   vertices kept), the tip is the drop-cutter height over all faces, midpoints are added where
   the height departs from the chord by more than tol / 2 (unless the Hermite model of the
@@ -70,13 +76,20 @@ from .raster import cross_section_stepover
 from .scallop_field import (
     AXES,
     axis_vectors,
-    bilinear,
     contour_keys,
     contours,
     edge_ends,
     edge_points,
     near_distance,
+    near_vector,
     propagate,
+)
+from .scallop_gaps import SurfaceGrid, gap_limit, gap_passes
+from .scallop_metric import (
+    across_directions,
+    band_costs,
+    directional_cost,
+    dual_costs,
 )
 
 #: Grid spacing as a share of the flat stepover (at most R / 4).
@@ -85,13 +98,8 @@ GRID_SHARE = 1.0 / 3.0
 MAX_NODES = 2_000_000
 #: Level of the first pass (stepovers inside the border).
 FIRST_LEVEL = 0.05
-#: A region point further than this (stepovers) from every pass is a gap to close.
-GAP = 0.51
-#: A gap pass is the part of a half-way contour within this many stepovers of a gap: a
-#: ridge of D whose height passes a level by d in (1/2, 1) has that contour d - 1/2 from it.
-GAP_REACH = 0.6
-#: The gaps are looked for on a grid this many times finer than the field's.
-FINE = 3
+#: A gap loop narrower than this share of the flat stepover is cut as its midline.
+THIN = 0.25
 #: Bisection steps of the region's border on a grid edge.
 BORDER_STEPS = 10
 #: Rounds of midpoint refinement along a pass.
@@ -123,12 +131,32 @@ class _Grid:
         self.faceset, self.tool, self.query, self.signs = faceset, tool, query, signs
         tip, face, u, v, sel = query.heights(self.xy)
         self.inside, jets = surface_contacts(faceset, signs, self.xy, tip, face, u, v, sel, R)
+        self.axes = axis_vectors(self.dx, self.dy)
+        across = across_directions(self.axes)
         self.cost = np.full((len(AXES), len(self.xy)), np.inf)
-        across = axis_vectors(self.dx, self.dy)
         for idx, jet in jets:
-            self.cost[:, idx] = 1.0 / stepovers(jet, tool, across)
+            self.cost[:, idx] = dual_costs(stepovers(jet, tool, across), across, self.axes)
         self.inside = self.inside.reshape(self.shape)
-        self.cost = self.cost.reshape((len(AXES),) + self.shape)
+        self.cost = band_costs(self.cost.reshape((len(AXES),) + self.shape), AXES, self.dx,
+                               self.dy)
+
+    def contacts(self, polylines: list) -> list[FloatArray]:
+        """XY of the contacts (exact drop-cutter) along XY ``polylines`` of ball centres, split
+        where a point has no surface contact on a selected face."""
+        if not polylines:
+            return []
+        xy = np.concatenate([np.asarray(p, dtype=float)[:, :2] for p in polylines])
+        tip, face, u, v, sel = self.query.heights(xy)
+        ok, jets = surface_contacts(self.faceset, self.signs, xy, tip, face, u, v, sel,
+                                    self.tool.radius)
+        c = np.full((len(xy), 2), np.nan)
+        for idx, jet in jets:
+            c[idx] = jet.p[:, :2]
+        out = []
+        for piece, good in zip(np.split(c, np.cumsum([len(p) for p in polylines])[:-1]),
+                               np.split(ok, np.cumsum([len(p) for p in polylines])[:-1])):
+            out += [piece[run] for run in _true_runs(good, False)]
+        return out
 
     def region(self, xy: FloatArray) -> np.ndarray:
         """Whether the ball centred over xy has a surface contact on a selected face."""
@@ -158,10 +186,15 @@ class _Grid:
         return [edge_points(mask, self.xs, self.ys, ch, 0.5,
                             np.array([t_of[k] for k in ch.tolist()])) for ch in chains]
 
-    def distance(self, polylines: list, cost_scale: FloatArray) -> FloatArray:
-        """Least cost (stepovers) from ``polylines`` to every region node (inf where none)."""
-        near = near_distance(polylines, self.xs, self.ys)
-        start = np.where(self.inside & np.isfinite(near), near * cost_scale, np.inf)
+    def distance(self, polylines: list) -> FloatArray:
+        """Least cost (stepovers) from ``polylines`` to every region node (inf where none),
+        started at the nodes within a cell of them from the XY vector from their nearest
+        point at the node's cost along it (further out the cost between falls short of the
+        node's where it rises towards the polylines, as on a fillet that steepens)."""
+        near, vec = near_vector(polylines, self.xs, self.ys)
+        ok = self.inside & (near <= max(self.dx, self.dy))
+        start = np.full(self.shape, np.inf)
+        start[ok] = directional_cost(self.cost[:, ok], self.axes, vec[ok])
         return propagate(start, self.cost, self.dx, self.dy, self.inside)
 
 
@@ -226,15 +259,7 @@ def scallop_faces(faceset: FaceSet, tool: ToolParameters,
     grid = _Grid(faceset, tool, query, _upward_signs(faceset))
     monitor(0.3)
     border = grid.border()
-    finite = np.isfinite(grid.cost)
-    count = finite.sum(axis=0)
-    # the mean cost over the axes: the gap test's
-    scale = np.where(count > 0, np.where(finite, grid.cost, 0.0).sum(axis=0)
-                     / np.maximum(count, 1), 1.0 / tool.flat_stepover)
-    # next to the border the distance is started from the XY distance at the largest cost
-    # over the axes (the one across the border is not known there): passes no further apart
-    worst = np.where(count > 0, np.where(finite, grid.cost, 0.0).max(axis=0), scale)
-    d = grid.distance(border, worst)
+    d = grid.distance(border)
     monitor(0.4)
     # outside the region the field falls below zero (the XY distance to the border in flat
     # stepovers): the first level's contour runs along the border, not the grid's staircase
@@ -248,8 +273,10 @@ def scallop_faces(faceset: FaceSet, tool: ToolParameters,
         if top >= FIRST_LEVEL else []
     polylines = [(lv, p) for lv in levels for p in contours(field, grid.xs, grid.ys, lv)]
     monitor(0.5)
-    gap_fill, gaps = _close_gaps(grid, field, levels, [p for _, p in polylines], scale)
-    polylines += gap_fill
+    surface = SurfaceGrid(faceset.faces, grid.signs, tool, grid.xs, grid.ys, grid.inside)
+    gap_fill, gaps = gap_passes(surface, [p for _, p in polylines], grid.contacts,
+                                gap_limit(tool), THIN * tool.flat_stepover)
+    polylines += [(math.inf, p) for p in gap_fill]
     monitor(0.55)
     passes, lift_stats = _cut_passes(query, tool, polylines, monitor)
     ordered = _order(passes)
@@ -272,62 +299,6 @@ def scallop_faces(faceset: FaceSet, tool: ToolParameters,
     toolpath.finish(started, None)
     monitor(1.0)
     return toolpath
-
-
-def _gaps(grid: _Grid, polylines: list, scale: FloatArray) -> np.ndarray:
-    """Region nodes of ``grid`` near a point more than :data:`GAP` stepovers from every one of
-    ``polylines``.  The distance is taken on a grid :data:`FINE` times finer (the XY distance
-    to the polylines over the local stepover, within reach of the widest stepover): between
-    two passes that meet at a corner its largest value lies between the coarse nodes."""
-    if not polylines:
-        return grid.inside.copy()
-    xs = np.linspace(grid.xs[0], grid.xs[-1], FINE * (len(grid.xs) - 1) + 1)
-    ys = np.linspace(grid.ys[0], grid.ys[-1], FINE * (len(grid.ys) - 1) + 1)
-    widest = float(np.max(1.0 / scale[grid.inside], initial=grid.dx))
-    reach = min(int(math.ceil(0.6 * widest / (xs[1] - xs[0]))) + 1, 4 * FINE)
-    near = near_distance(polylines, xs, ys, reach)
-    X, Y = np.meshgrid(xs, ys, indexing="ij")
-    pts = np.column_stack([X.ravel(), Y.ravel()])
-    inside = bilinear(grid.inside.astype(float), grid.xs, grid.ys, pts) > 0.999
-    local = bilinear(np.where(grid.inside, scale, 0.0), grid.xs, grid.ys, pts)
-    with np.errstate(invalid="ignore"):
-        far = inside & (near.ravel() * local > GAP)
-    # each fine point flags the coarse nodes of its cell
-    fi = np.clip(np.floor((pts[far, 0] - grid.xs[0]) / grid.dx).astype(int), 0,
-                 len(grid.xs) - 2)
-    fj = np.clip(np.floor((pts[far, 1] - grid.ys[0]) / grid.dy).astype(int), 0,
-                 len(grid.ys) - 2)
-    gap = np.zeros(grid.shape, bool)
-    for oi in (0, 1):
-        for oj in (0, 1):
-            gap[fi + oi, fj + oj] = True
-    return gap & grid.inside
-
-
-def _close_gaps(grid: _Grid, field: FloatArray, levels: list, polylines: list,
-                scale: FloatArray) -> tuple[list, float]:
-    """Contours of ``field`` half-way between two levels, the parts near a
-    gap (a region node more than :data:`GAP` stepovers from every pass); and the area (mm^2)
-    of the gap left after adding them."""
-    if not polylines:
-        return [], 0.0
-    gap = _gaps(grid, polylines, scale)
-    if not gap.any():
-        return [], 0.0
-    reach = propagate(np.where(gap, 0.0, np.inf), grid.cost, grid.dx, grid.dy, grid.inside)
-    reach = np.where(np.isfinite(reach), reach, 1e9)
-    added = []
-    for lv in levels:
-        half = lv + 0.5
-        for p in contours(field, grid.xs, grid.ys, half):
-            near = bilinear(reach, grid.xs, grid.ys, p) <= GAP_REACH
-            closed = len(p) > 2 and np.allclose(p[0], p[-1])
-            for run in _true_runs(near, closed):
-                added.append((half, p[run]))
-    if added:
-        gap = _gaps(grid, polylines + [p for _, p in added], scale)
-    left = float(np.count_nonzero(gap)) * grid.dx * grid.dy
-    return added, left
 
 
 def _true_runs(mask: np.ndarray, closed: bool) -> list[np.ndarray]:
