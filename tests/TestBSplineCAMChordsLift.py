@@ -92,3 +92,34 @@ def test_split_worst_leaves_no_sample_above_its_target():
     s2 = sample_chords(_query, [line, line + [0, 1]], [_cl(line[:, 0])] * 2, 0.05)
     _split_worst(s2, np.array([1]), 0.002)
     assert s2.vertex[s2.line == 0].sum() == 2
+
+
+def test_checking_only_the_lifted_chords_lines_gives_the_full_checks_answer(monkeypatch):
+    """After the first check lift_chords examines only the lines holding a chord a lift
+    changed; every vertex height, sample and statistic equals what checking every chord at
+    every iteration gives."""
+    from BSplineCAM.core.toolpath import chords
+
+    rng = np.random.default_rng(11)
+    lines = []
+    for k in range(12):  # crowns, shoulders, flat stretches off the cylinder's top
+        x0 = rng.uniform(-9.0, 4.0)
+        xs = np.sort(np.concatenate([[x0, x0 + rng.uniform(2.0, 8.0)],
+                                     rng.uniform(x0, x0 + 2.0, rng.integers(0, 3))]))
+        lines.append(np.column_stack([xs, np.full(len(xs), float(k))]))
+    for k in range(4):  # vertices 0.2 um apart: no chord sags, no lift
+        xs = rng.uniform(-8.0, 8.0) + 2e-4 * np.arange(11)
+        lines.append(np.column_stack([xs, np.full(len(xs), 20.0 + k)]))
+    results = []
+    for full in (False, True):
+        if full:
+            monkeypatch.setattr(chords, "_check_lines",
+                                lambda query, s, active: chords.chord_excess(query, s))
+        s = sample_chords(_query, lines, [_cl(p[:, 0]) for p in lines], 0.2)
+        stats = lift_chords(_query, s, 0.01)
+        results.append((s, stats))
+    (a, sa), (b, sb) = results
+    assert sa["iterations"] > 2  # lifts happened and were checked again on some lines
+    for name in ("pos", "xy", "z", "zv", "line", "vertex"):
+        assert np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True), name
+    assert sa == sb

@@ -27,7 +27,7 @@ vertices outwards instead (:mod:`waterline`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Callable
 
 import numpy as np
@@ -132,6 +132,8 @@ class ChordCheck:
     where: FloatArray
     grad: FloatArray
     unresolved: int
+    #: per vertex rank, the chords left unresolved after the last round (None: none)
+    unresolved_at: np.ndarray | None = None
 
 
 def _hermite_max(z0, z1, m0, m1, c0, c1):
@@ -194,6 +196,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS,
     done_grad = np.full((nvert, 2), np.nan)
     resolved = np.zeros(nvert, bool) if active is None else ~np.asarray(active, bool)
     unresolved = 0
+    unresolved_at = np.zeros(nvert, bool)
     # Samples where the Hermite model of a steep interval failed: their intervals are cut
     # like rough ones from then on (the model converges slowly near a vertical tangent).
     failed_steep = np.zeros(len(s.pos), bool)
@@ -315,7 +318,8 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS,
         chords[cid] = True
         finish = chords & ~resolved & ~has_cand & ~has_split
         if r == rounds:
-            unresolved = int((chords & ~resolved & ~finish).sum())
+            unresolved_at = chords & ~resolved & ~finish
+            unresolved = int(unresolved_at.sum())
             finish = chords & ~resolved
         done_excess[finish] = best_excess[finish]
         resolved[finish] = True
@@ -330,7 +334,7 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS,
         failed_steep = marks
         if resolved[chords].all():
             break
-    return ChordCheck(done_excess, done_where, done_grad, unresolved)
+    return ChordCheck(done_excess, done_where, done_grad, unresolved, unresolved_at)
 
 
 def _split_worst(s: ChordSamples, chords: np.ndarray, target: float) -> int:
@@ -371,6 +375,35 @@ def _split_worst(s: ChordSamples, chords: np.ndarray, target: float) -> int:
     return added
 
 
+def _check_lines(query: QueryFn, s: ChordSamples, active: np.ndarray | None) -> ChordCheck:
+    """:func:`chord_excess` of the ``active`` chords (bool per vertex rank; None: all), run
+    on the lines that hold one only: each round of the check passes over all samples it is
+    given, so a few chords left of a large job are not checked at the cost of all of it.
+    The samples it adds go back into ``s``; chords of other lines report -inf."""
+    if active is None:
+        return chord_excess(query, s)
+    line_v = s.line[s.vertex]
+    mask = np.isin(s.line, np.unique(line_v[active]))
+    if mask.all():
+        return chord_excess(query, s, active=active)
+    names = [f.name for f in fields(ChordSamples)]
+    sub = ChordSamples(*(getattr(s, n)[mask] for n in names))
+    mine = mask[s.vertex]
+    check = chord_excess(query, sub, active=active[mine])
+    keep = ~mask
+    order = np.argsort(np.concatenate([s.line[keep], sub.line]), kind="stable")
+    for n in names:
+        setattr(s, n, np.concatenate([getattr(s, n)[keep], getattr(sub, n)])[order])
+    nvert = len(line_v)
+    excess = np.full(nvert, -np.inf)
+    where = np.full((nvert, 2), np.nan)
+    grad = np.full((nvert, 2), np.nan)
+    excess[mine], where[mine], grad[mine] = check.excess, check.where, check.grad
+    unresolved_at = np.zeros(nvert, bool)
+    unresolved_at[mine] = check.unresolved_at
+    return ChordCheck(excess, where, grad, check.unresolved, unresolved_at)
+
+
 def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
                 iterations: int = 8) -> dict:
     """Raise the vertices in ``s.zv`` until every chord clears the exact CL height.
@@ -388,12 +421,16 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
     unresolved = 0
     added = 0
     # after the first check only the chords a lift changed (a lifted end vertex) are
-    # examined again: the others, their samples and end heights unchanged, keep their verdict
+    # examined again, on their lines alone (:func:`_check_lines`): the others, their samples
+    # and end heights unchanged, keep their verdict
     active = None
     for it in range(1, iterations + 1):
-        check = chord_excess(query, s, active=active)
-        exc = check.excess
-        unresolved = check.unresolved
+        check = _check_lines(query, s, active)
+        if active is None:
+            exc, stuck = check.excess.copy(), check.unresolved_at.copy()
+        else:  # the chords not examined keep their last verdict
+            exc[active], stuck[active] = check.excess[active], check.unresolved_at[active]
+        unresolved = int(stuck.sum())
         worst = float(np.max(exc, initial=-np.inf))
         if worst <= NEGLIGIBLE or (worst <= DIP_LIMIT and it == iterations):
             break
@@ -414,7 +451,7 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
             break
         s.zv[s.vertex] += vertex_lift
         changed = vertex_lift > 0
-        active = changed.copy()
+        active = changed | stuck  # a chord left unresolved is examined again too
         active[:-1] |= changed[1:] & same
     v = s.vertex & np.isfinite(s.z)
     return {"max_lift_mm": float(np.max(s.zv[v] - s.z[v], initial=0.0)),
