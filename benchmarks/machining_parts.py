@@ -40,6 +40,7 @@ import argparse
 import importlib.util
 import json
 import math
+import subprocess
 import sys
 import tempfile
 import time
@@ -51,7 +52,7 @@ if str(ROOT) not in sys.path:
 
 #: Part names with a meaning here; any other name is a part file.
 PART_NAMES = {"part": ROOT / "examples" / "part.step", "step": None}
-DEFAULT_PARTS = "part,step,tests/parts/mal_vis.brep"
+DEFAULT_PARTS = "part,step,tests/parts/mal_vis.brep,tests/parts/MODERN_Exhaust_1.brep"
 #: Parts made of flats and fillets, where the evenness target applies.
 FLAT_AND_FILLET = ("part", "step")
 DEFAULT_STRATEGIES = "raster,steep_shallow,scallop"
@@ -104,6 +105,16 @@ def step_part(folder: Path) -> Path:
     path = folder / "step.step"
     solid.exportStep(str(path))
     return path
+
+
+def source_version() -> str:
+    """``git describe --always --dirty`` of the checkout this file is in, or why not."""
+    try:
+        done = subprocess.run(["git", "-C", str(ROOT), "describe", "--always", "--dirty"],
+                              capture_output=True, text=True, timeout=30, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return "not a git checkout"
+    return done.stdout.strip()
 
 
 def part_file(name: str, folder: Path) -> Path:
@@ -408,7 +419,9 @@ def main(argv: list[str] | None = None) -> None:
                 "tolerance_mm": args.tolerance, "cell_mm": args.cell,
                 "gouge_limit_mm": args.gouge_limit, "raster_saving": args.raster_saving,
                 "evenness": args.evenness,
-                "freecad": ".".join(map(str, compat.freecad_version()))}
+                "freecad": ".".join(map(str, compat.freecad_version())),
+                "source": source_version(), "date": time.strftime("%Y-%m-%d %H:%M UTC",
+                                                                  time.gmtime())}
     results = []
     for name in (p for p in args.parts.split(",") if p):
         started = time.perf_counter()
