@@ -99,7 +99,7 @@ MAX_NODES = 2_000_000
 #: Level of the first pass (stepovers inside the border).
 FIRST_LEVEL = 0.05
 #: A gap loop narrower than this share of the flat stepover is cut as its midline.
-THIN = 0.25
+THIN = 0.5
 #: Bisection steps of the region's border on a grid edge.
 BORDER_STEPS = 10
 #: Rounds of midpoint refinement along a pass.
