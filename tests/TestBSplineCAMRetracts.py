@@ -243,3 +243,38 @@ def test_waterline_contours_are_linked_down_the_wall_and_the_program_is_shorter(
             drop = fs.drop_ball(line[:, :2], R)[0]
             ok = np.isfinite(drop)
             assert np.all(line[ok, 2] >= drop[ok] - 1e-7)
+
+
+def circle_loop(r, z, ccw=True, n=64):
+    t = np.linspace(0.0, 2 * np.pi, n + 1)
+    t[-1] = 0.0
+    if not ccw:
+        t = -t
+    return np.column_stack([r * np.cos(t), r * np.sin(t), np.full(n + 1, z)])
+
+
+def test_climb_puts_the_material_on_the_right():
+    """A boss (height falling outwards): its loops run clockwise; a pocket (height rising
+    outwards): counter-clockwise; an open contour along a wall: the wall on its right."""
+    from BSplineCAM.core.toolpath.order import orient_climb
+
+    boss = lambda xy: 10.0 - np.hypot(xy[:, 0], xy[:, 1])  # noqa: E731
+    pocket = lambda xy: np.hypot(xy[:, 0], xy[:, 1])  # noqa: E731
+    loops = [circle_loop(5.0, 5.0, True), circle_loop(4.0, 6.0, False)]
+    assert all(signed_area(p) < 0 for p in orient_climb(loops, boss, 0.1))
+    assert all(signed_area(p) > 0 for p in orient_climb(loops, pocket, 0.1))
+    wall = lambda xy: np.where(xy[:, 1] > 0.0, 5.0 + xy[:, 1], np.nan)  # noqa: E731
+    line = np.array([[0.0, 0.0, 5.0], [10.0, 0.0, 5.0]])
+    (out,) = orient_climb([line], wall, 0.1)
+    assert out[0, 0] == 10.0  # running -x, the wall (+y) on its right
+    (kept,) = orient_climb([line[::-1]], wall, 0.1)
+    assert kept[0, 0] == 10.0
+
+
+def test_waterline_contours_around_a_boss_run_climb():
+    fs = FaceSet(ring_wall_faces())
+    for direction in ("oneway", "zigzag"):
+        tp = generate_faces(fs, "waterline", 6.0, 0.2, 0.01, direction=direction)
+        loops = [p for p in tp.passes if is_closed(p)]
+        assert loops, direction
+        assert all(signed_area(p) < 0 for p in loops), direction

@@ -76,7 +76,7 @@ PROPERTIES = (
     ("App::PropertyLength", "ScallopHeight", "Surface", "Largest scallop left between passes; the stepover follows the curvature", 0, 0.01),
     ("App::PropertyLength", "Tolerance", "Surface", "Chordal tolerance along a pass", 0, 0.002),
     ("App::PropertyAngle", "Angle", "Surface", "Raster direction in the XY plane", 0, None),
-    ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes", 0, DIRECTIONS),
+    ("App::PropertyEnumeration", "Direction", "Surface", "zigzag or one-way raster passes; waterline: every contour climbs (material on the right), zigzag lets open ones run back and forth", 0, DIRECTIONS),
     ("App::PropertyEnumeration", "IsoDirection", "Surface", "Parameter followed by iso-parametric passes", 0, ISO_DIRECTIONS),
     ("App::PropertyBool", "Arcs", "Surface", "Fit passes with G2/G3 arcs (one-sided, within the tolerance) in the plane holding them", 0, True),
     ("App::PropertyLength", "RestLimit", "Surface",

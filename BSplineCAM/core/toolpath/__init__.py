@@ -209,7 +209,7 @@ def _faces_toolpath(faceset, strategy: str, tool: ToolParameters, angle: float,
     if strategy == Strategy.STEEP_SHALLOW.value:
         return steep_shallow_faces(faceset, tool, threshold, angle, progress=progress)
     if strategy == Strategy.WATERLINE.value:
-        return waterline_faces(faceset, tool, progress)
+        return waterline_faces(faceset, tool, progress, direction=direction)
     if strategy == Strategy.ISOPARAMETRIC.value:
         return iso_faces(faceset, tool, iso_direction, progress)
     if strategy == Strategy.SCALLOP.value:

@@ -37,8 +37,9 @@ of that field.
   finishes nothing of the face.  Where a contour leaves the selected faces between two grid
   crossings, its end is carried on along the level (midpoints projected onto the level set by
   Newton steps on the exact height) by bisection to 1/128 of the grid edge.
-* The contours are cut in the order of short moves, upper levels first where they lie over
-  lower ones (:func:`.order.order_contours`; open contours run either way), and joined by
+* Every contour runs climb, the material on the tool's right (:func:`.order.orient_climb`);
+  the contours are cut in the order of short moves, upper levels first where they lie over
+  lower ones (:func:`.order.order_contours`; zigzag lets open ones run either way), joined by
   stay-down feeds (:func:`.links.stay_down_links`) where the next one starts within
   ``STAY_DOWN_LINK`` radii.
 """
@@ -67,7 +68,7 @@ from .common import (
 from .faces_raster import STAY_DOWN_LINK, FaceQuery
 from .faceset import FaceSet
 from .links import stay_down_links
-from .order import order_contours
+from .order import order_contours, orient_climb
 from .waterline import (
     _chain,
     _crossings,
@@ -489,13 +490,15 @@ def generate_faces_waterline(faceset: FaceSet, tool_diameter: float, scallop: fl
 
 
 def waterline_faces(faceset: FaceSet, tool: ToolParameters, progress: ProgressFn = None,
-                    min_slope: float = 30.0) -> Toolpath:
+                    min_slope: float = 30.0, direction: str = "zigzag") -> Toolpath:
     """Waterline toolpath (tool-tip positions, mm) of the selected faces of ``faceset``.
 
     ``tool`` is validated (:meth:`ToolParameters.validate`); ``min_slope`` in degrees: walls
     shallower than this are spaced by the flat stepover only (pair the waterline with a
     raster pass there).  Contours are closed or open polylines at constant Z, never below
-    the certified drop-cutter height over every face, each after the contours above it.
+    the certified drop-cutter height over every face, each after the contours above it, each
+    climb (the material on the tool's right); ``direction`` "zigzag" lets an open contour run
+    the other way when that shortens the move to it, "oneway" keeps every one climb.
     """
     started = time.perf_counter()
     slope_deg = check_finite(min_slope, "min_slope", "degrees")
@@ -550,7 +553,11 @@ def waterline_faces(faceset: FaceSet, tool: ToolParameters, progress: ProgressFn
         notes.append("no waterline touches a selected face")
     # contours in the order of short moves (upper levels first over lower ones, open ones
     # either way), joined by stay-down feeds where the next starts within STAY_DOWN_LINK R
-    passes = order_contours(passes, tool.diameter, reversible=True)
+    if direction not in ("zigzag", "oneway"):
+        raise ParameterError(f"direction must be zigzag or oneway, got {direction!r}")
+    passes = orient_climb(passes, lambda xy: query.heights(xy)[0],
+                          max(0.05 * R, 4.0 * tool.tolerance))
+    passes = order_contours(passes, tool.diameter, reversible=direction == "zigzag")
     links = stay_down_links(query, passes, STAY_DOWN_LINK * R, tool.tolerance) if passes else []
     extra["dropcutter"] = dict(faceset.stats)
     toolpath = Toolpath("waterline", passes, parameters, [], stats, extra=extra, links=links)

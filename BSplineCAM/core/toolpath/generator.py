@@ -35,7 +35,7 @@ from .common import (
 from .dropcutter import DropCutter
 from .isoparametric import isoparametric
 from .links import stay_down_links
-from .order import order_contours
+from .order import order_contours, orient_climb
 from .raster import raster
 from .waterline import waterline
 
@@ -177,8 +177,10 @@ def run_strategy(started: float, surface: Any, strategy: Strategy, tool: ToolPar
         notes=extra.pop("notes", []),
     )
     if strategy is Strategy.WATERLINE:
-        # contours in the order of short moves, upper levels first over lower ones; zigzag
-        # lets an open contour run either way
+        # every contour climb (material on the right), then in the order of short moves,
+        # upper levels first over lower ones; zigzag lets an open contour run either way
+        passes = orient_climb(passes, lambda xy: dc.heights(xy)[0],
+                              max(0.05 * tool.radius, 4.0 * tool.tolerance))
         passes = order_contours(passes, tool.diameter,
                                 reversible=direction is Direction.ZIGZAG)
     toolpath = Toolpath(strategy.value, passes, parameters,
