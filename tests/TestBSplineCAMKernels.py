@@ -65,6 +65,27 @@ def test_kernel_under_numba_and_its_compile_time():
         assert e.to_dict()["engine"] == "numba"
 
 
+def test_first_use_is_told_once_per_kernel_and_a_failing_listener_is_dropped():
+    pytest.importorskip("numba")
+    heard = []
+    try:
+        kernels.on_first_use(heard.append)
+        with kernels.forced("numba"):
+            assert TOTAL(np.arange(3.0)) == 3.0
+            assert TOTAL(np.arange(4.0)) == 6.0
+            assert heard == ["_total"]
+
+        def broken(name):
+            raise RuntimeError("display gone")
+
+        kernels.on_first_use(broken)
+        with kernels.forced("numba"):  # a new engine: the first use again
+            assert TOTAL(np.arange(5.0)) == 10.0  # runs anyway
+        assert kernels._first_use_listener is None
+    finally:
+        kernels.on_first_use(None)
+
+
 def test_missing_numba_falls_back_with_one_line():
     code = ("import sys; sys.modules['numba'] = None\n"
             "import numpy as np\n"

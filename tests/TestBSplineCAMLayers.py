@@ -59,6 +59,7 @@ LAZY = {
     ("orchestration.parts", "app.cam"): FREECAD,
     ("orchestration.parts", "app.faces"): FREECAD,
     ("orchestration.parts", "app.finishing_op"): FREECAD,
+    ("orchestration.parts", "app.retract"): FREECAD,
     ("orchestration.parts", "ocp.occ"): OPTIONAL,
     ("orchestration.pipeline_run", "app.cam"): FREECAD,
     ("orchestration.worker", "app.faces"): FREECAD,

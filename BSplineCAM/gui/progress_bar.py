@@ -17,6 +17,7 @@ want to abort?" after the computation and fail the next recompute.
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 
 import FreeCAD
@@ -24,6 +25,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from ..app import progress as app_progress
+from ..core import kernels
 from ..core.toolpath.common import ToolpathCancelled
 
 #: Longest time between two looks at the event queue (s).
@@ -117,6 +119,7 @@ class ProgressBar:
         self.events = 0  # times the event queue was processed
         self.calls = 0
         self.calls_at_cancel = 0
+        self.noted = False
         self.last_call = self.last_events = time.monotonic()
         previous = ProgressBar.active  # one bar at a time (the widgets are shared)
         if previous is not None:
@@ -144,6 +147,9 @@ class ProgressBar:
         if not self.open:  # done (or closed from outside): no more events, input is let through
             return
         self.fraction = min(max(float(fraction), self.fraction), 1.0)
+        if self.noted:
+            self.label.setText(self.message)
+            self.noted = False
         self.last_call = now = time.monotonic()
         if now - self.last_events >= INTERVAL or self.fraction >= 1.0:
             self._process()
@@ -151,6 +157,17 @@ class ProgressBar:
             self._stop()
         if self.fraction >= 1.0:
             self.close()
+
+    def note(self, text: str) -> None:
+        """Show ``text`` beside the message until the next report (a kernel compiling on its
+        first use: the bar stands still meanwhile).  Never raises: a Cancel clicked now stops
+        the computation at its next report."""
+        if not self.open:
+            return
+        self.label.setText(f"{self.message} ({text})")
+        self.noted = True
+        QtGui.QApplication.processEvents()
+        self.events += 1
 
     def _process(self) -> None:
         if self.open:
@@ -245,9 +262,20 @@ def finish() -> None:
         ProgressBar.active.close()
 
 
+def first_use(name: str) -> None:
+    """A compiled kernel's first use this session (it loads or compiles, seconds on a first
+    start): said on the running bar, if any, when it happens on the GUI's thread (the
+    drop-cutter's worker threads touch no widget)."""
+    bar = ProgressBar.active
+    if bar is not None and threading.current_thread() is threading.main_thread():
+        with contextlib.suppress(RuntimeError):  # the widgets went with FreeCAD's window
+            bar.note(f"preparing the compiled kernel {name}, first use this session")
+
+
 def install() -> None:
-    """Make the app layer's long computations report here."""
+    """Make the app layer's long computations report here, and the kernels' first use."""
     app_progress.install(ProgressBar)
+    kernels.on_first_use(first_use)
 
 
 install()

@@ -25,6 +25,8 @@ from typing import Any
 from ..app import runtime
 from ..core import BSplineCAMError, kernels
 from ..core.errors import ParameterError
+from ..core.toolpath.retracts import MARGIN_RANGE
+from ..core.validation import check_range
 
 EXIT_INPUT_ERROR = 2
 EXIT_CHECK_FAILED = 1
@@ -109,9 +111,6 @@ def add_retract_options(p: argparse.ArgumentParser) -> None:
 
 def check_retract_options(args: argparse.Namespace) -> None:
     """``--retract-margin`` within the core's range (mm)."""
-    from ..core.toolpath.retracts import MARGIN_RANGE
-    from ..core.validation import check_range
-
     args.retract_margin = check_range(args.retract_margin, "--retract-margin", "mm",
                                       *MARGIN_RANGE)
 

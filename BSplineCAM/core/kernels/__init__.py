@@ -219,10 +219,11 @@ class Kernel:
     def __call__(self, *args):
         if not use_numba():
             raise KernelUnavailable(self.name)
-        compiled = self._get()
         e = engine()
         if self.name in e.compile_seconds:
-            return compiled(*args)
+            return self._get()(*args)
+        _tell_first_use(self.name)
+        compiled = self._get()
         start = time.perf_counter()
         try:
             out = compiled(*args)
@@ -234,6 +235,29 @@ class Kernel:
             raise
         e.compile_seconds[self.name] = time.perf_counter() - start
         return out
+
+
+#: Called with a kernel's name before its first call in the process, which loads it from the
+#: cache or compiles it (seconds on a first start): the GUI says so on its progress bar.
+_first_use_listener = None
+
+
+def on_first_use(listener) -> None:
+    """Call ``listener(kernel name)`` before each kernel's first call in this process (None:
+    nobody).  A listener that fails is dropped; the kernel runs anyway."""
+    global _first_use_listener
+    _first_use_listener = listener
+
+
+def _tell_first_use(name: str) -> None:
+    global _first_use_listener
+    listener = _first_use_listener
+    if listener is None:
+        return
+    try:
+        listener(name)
+    except Exception:  # noqa: BLE001  (a display hook never stops a computation)
+        _first_use_listener = None
 
 
 _HELPER = "_bsplinecam_kernel_helper"
@@ -319,4 +343,4 @@ def forced(choice: str):
 
 
 __all__ = ["Engine", "Kernel", "KernelUnavailable", "engine", "fall_back", "forced", "helper",
-           "notice", "use_numba"]
+           "notice", "on_first_use", "use_numba"]
