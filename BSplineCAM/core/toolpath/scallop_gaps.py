@@ -40,8 +40,10 @@ from .scallop_metric import band_costs, cover_costs, directional_cost
 
 #: Beyond reach of every pass (stepovers).
 FAR = 1.0
-#: The surface grid is this many times finer than the field's.
+#: The surface grid is this many times finer than the field's, less where that would pass
+#: MAX_SURFACE_NODES (each holds 2 COVER_DIRECTIONS costs).
 FINE = 3
+MAX_SURFACE_NODES = 1_000_000
 #: Rounds of gap passes at most.
 ROUNDS = 5
 #: E is measured out to this many times the widest half stepover (the
@@ -61,8 +63,12 @@ class SurfaceGrid:
 
     def __init__(self, faces: list, signs: FloatArray, tool: ToolParameters, xs: FloatArray,
                  ys: FloatArray, inside: np.ndarray):
-        self.xs = np.linspace(xs[0], xs[-1], FINE * (len(xs) - 1) + 1)
-        self.ys = np.linspace(ys[0], ys[-1], FINE * (len(ys) - 1) + 1)
+        fine = FINE
+        while fine > 1 and (fine * (len(xs) - 1) + 1) * (fine * (len(ys) - 1) + 1) \
+                > MAX_SURFACE_NODES:
+            fine -= 1
+        self.xs = np.linspace(xs[0], xs[-1], fine * (len(xs) - 1) + 1)
+        self.ys = np.linspace(ys[0], ys[-1], fine * (len(ys) - 1) + 1)
         self.dx, self.dy = self.xs[1] - self.xs[0], self.ys[1] - self.ys[0]
         self.shape = (len(self.xs), len(self.ys))
         t = np.arange(COVER_DIRECTIONS) * np.pi / COVER_DIRECTIONS
@@ -85,8 +91,10 @@ class SurfaceGrid:
         # along an axis, the largest cost over the half stepover behind the point, against
         # it over the half stepover ahead
         steps = axes * cell / np.array([self.dx, self.dy])
-        self.against = band_costs(self.cover, steps, self.dx, self.dy, sides=(1,))
-        self.cover = band_costs(self.cover, steps, self.dx, self.dy, sides=(-1,))
+        self.against = band_costs(self.cover, steps, self.dx, self.dy,
+                                  sides=(1,)).astype(np.float32)
+        self.cover = band_costs(self.cover, steps, self.dx, self.dy,
+                                sides=(-1,)).astype(np.float32)
         X, Y = np.meshgrid(self.xs, self.ys, indexing="ij")
         centre = np.column_stack([(X + tool.radius * self.normal[..., 0]).ravel(),
                                   (Y + tool.radius * self.normal[..., 1]).ravel()])
@@ -206,5 +214,5 @@ def gap_passes(surface: SurfaceGrid, polylines: list, contacts: Callable[[list],
     return added, float(left) * surface.dx * surface.dy
 
 
-__all__ = ["COVER_DIRECTIONS", "FAR", "FINE", "ROUNDS", "SurfaceGrid", "gap_limit",
+__all__ = ["COVER_DIRECTIONS", "FAR", "FINE", "MAX_SURFACE_NODES", "ROUNDS", "SurfaceGrid", "gap_limit",
            "gap_passes", "thin_midline"]
