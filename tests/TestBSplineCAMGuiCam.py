@@ -98,6 +98,32 @@ class TestCamCommands(CamTestCase):
         process_events()
         self.assertFalse(FreeCADGui.Control.activeDialog())
 
+    def test_a_kernels_first_use_is_said_on_the_running_bar(self) -> None:
+        """While a compiled kernel loads or compiles on its first use, the op's own bar says
+        which (the bar stands still meanwhile); the next report restores its message."""
+        from BSplineCAM.core import kernels
+        from BSplineCAM.gui import progress_bar
+
+        self.assertIs(kernels._first_use_listener, progress_bar.first_use)
+        label = progress_bar.StatusWidgets.get()[0]
+        bar = progress_bar.ProgressBar("SurfaceFinish: computing the toolpath")
+        try:
+            bar(0.3)
+            kernels._tell_first_use("halve")
+            noted = label.text()
+            mw = FreeCADGui.getMainWindow()
+            picture = DOCS / "first_use_bar.png"
+            if DOCS.name != "docs":  # a check picture, not one of the user guide's
+                QtGui.QApplication.primaryScreen().grabWindow(mw.winId()).save(
+                    str(picture), "PNG")
+            bar(0.4)
+            after = label.text()
+        finally:
+            bar.close()
+        self.assertEqual(noted, "SurfaceFinish: computing the toolpath (preparing the "
+                                "compiled kernel halve, first use this session)")
+        self.assertEqual(after, "SurfaceFinish: computing the toolpath")
+
     def test_job_post_verify(self) -> None:
         import numpy as np
         from pivy import coin
