@@ -67,6 +67,7 @@ over a chunk of queries), :mod:`.faceset_extent` (the faces' box) and :mod:`.fac
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -121,6 +122,9 @@ _PEAK_STATS = frozenset({"levels"})
 #: Holds "numba" once a drop-cutter of this process has run under the numba engine (its
 #: kernels compiled).
 _WARM: set = set()
+#: Guards the sets' counters and box memos against callers on several threads of their own.
+_STATS_LOCK = threading.Lock()
+_BOX_LOCK = threading.Lock()
 
 
 def spread(m: int, threads: int, least: int) -> int:
@@ -266,10 +270,11 @@ class FaceSet:
         counts = parallel.run(one, len(starts), first_here=cold, alone=threads <= 1)
         if cold:
             _WARM.add("numba")
-        for stats in counts:
-            for key, value in stats.items():
-                self.stats[key] = (max(self.stats[key], value) if key in _PEAK_STATS
-                                   else self.stats[key] + value)
+        with _STATS_LOCK:
+            for stats in counts:
+                for key, value in stats.items():
+                    self.stats[key] = (max(self.stats[key], value) if key in _PEAK_STATS
+                                       else self.stats[key] + value)
         return out
 
     def _chunk(self, q: FloatArray, R: float, data: list, walls: bool = True,
@@ -302,9 +307,10 @@ class FaceSet:
         found by branch and bound on the Bezier boxes to within 1e-6 of the set's size
         (computed once per ``selected_only``: the op's extent and its passes both ask)."""
         key = bool(selected_only)
-        if key not in self._box_memo:
-            self._box_memo[key] = extent(self.data, self.walls, self.size, key)
-        lo, hi = self._box_memo[key]
+        with _BOX_LOCK:
+            if key not in self._box_memo:
+                self._box_memo[key] = extent(self.data, self.walls, self.size, key)
+            lo, hi = self._box_memo[key]
         return lo.copy(), hi.copy()
 
 
