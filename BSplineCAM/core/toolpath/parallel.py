@@ -38,7 +38,8 @@ from typing import TypeVar
 
 ENV = "BSPLINECAM_THREADS"
 #: Most threads ``auto`` runs: a chunk's Python glue between its array operations holds the
-#: GIL, so many more threads than this wait on each other; a larger N can still be asked for.
+#: GIL (about a fifth of its time in docs/benchmarks.md), so threads beyond this add little;
+#: a larger N can still be asked for.
 AUTO_CAP = 8
 
 T = TypeVar("T")
