@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from toolpath_core import gcode  # noqa: E402
+from verify_die import die_net  # noqa: E402
 
 from BSplineCAM.core import Surface, kernels  # noqa: E402
 from BSplineCAM.core.kernels.warm import warm_up  # noqa: E402
@@ -42,19 +43,6 @@ from BSplineCAM.core.program.gcode import read_gcode  # noqa: E402
 from BSplineCAM.core.simulation.simulate import Tool  # noqa: E402
 from BSplineCAM.core.simulation.verify import verify  # noqa: E402
 from BSplineCAM.core.toolpath import generate  # noqa: E402
-
-
-def die_net(n: int, size: float) -> np.ndarray:
-    """verify_die's die at ``size`` mm (every length, heights included, scaled from 300 mm),
-    as an n x n net."""
-    s = size / 300.0
-    x, y = np.meshgrid(np.linspace(0, size, n), np.linspace(0, size, n), indexing="ij")
-    u, v = x / s, y / s  # the 300 mm die's coordinates
-    z = s * (40.0 + 0.03 * u
-             + 25.0 * np.exp(-((u - 90) ** 2 + (v - 100) ** 2) / 2500.0)
-             + 15.0 * np.exp(-((u - 210) ** 2 + (v - 220) ** 2) / 1800.0)
-             - 18.0 * np.exp(-((u - 200) ** 2 + (v - 80) ** 2) / 3000.0))
-    return np.stack([x, y, z], axis=-1)
 
 
 def peak_mb() -> float:

@@ -38,12 +38,15 @@ from BSplineCAM.core.toolpath import generate  # noqa: E402
 
 
 def die_net(n: int = 64, size: float = 300.0) -> np.ndarray:
-    """A die-like height field: two bosses, a hollow and a gentle draft over size x size mm."""
+    """A die-like height field: two bosses, a hollow and a gentle draft over size x size mm
+    (drawn at 300 mm; another size scales every length, heights included), as an n x n net."""
+    s = size / 300.0
     x, y = np.meshgrid(np.linspace(0, size, n), np.linspace(0, size, n), indexing="ij")
-    z = (40.0 + 0.03 * x
-         + 25.0 * np.exp(-((x - 90) ** 2 + (y - 100) ** 2) / 2500.0)
-         + 15.0 * np.exp(-((x - 210) ** 2 + (y - 220) ** 2) / 1800.0)
-         - 18.0 * np.exp(-((x - 200) ** 2 + (y - 80) ** 2) / 3000.0))
+    u, v = x / s, y / s  # the 300 mm die's coordinates
+    z = s * (40.0 + 0.03 * u
+             + 25.0 * np.exp(-((u - 90) ** 2 + (v - 100) ** 2) / 2500.0)
+             + 15.0 * np.exp(-((u - 210) ** 2 + (v - 220) ** 2) / 1800.0)
+             - 18.0 * np.exp(-((u - 200) ** 2 + (v - 80) ** 2) / 3000.0))
     return np.stack([x, y, z], axis=-1)
 
 
