@@ -7,8 +7,6 @@ on numpy-built faces (polynomial and rational, trimmed) and on examples/part.ste
 from __future__ import annotations
 
 import importlib.util
-import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +19,7 @@ from bsplinecam_helpers import (
     plane,
     plate_with_hole,
     rectangle,
+    step_part_queries,
     two_faces,
 )
 
@@ -30,8 +29,6 @@ from BSplineCAM.core.toolpath import faceset_bounds, faceset_subdivide, faceset_
 from BSplineCAM.core.toolpath.faceset import FaceSet
 from BSplineCAM.core.toolpath.faceset_branch import _root_pairs
 from BSplineCAM.core.toolpath.faceset_trims import _FaceData
-
-ROOT = Path(__file__).resolve().parent.parent
 
 needs_numba = pytest.mark.skipif(importlib.util.find_spec("numba") is None,
                                  reason="numba is not installed: no compiled engine to compare")
@@ -255,16 +252,8 @@ def test_drop_ball_agrees_on_numpy_faces(name):
 @needs_numba
 def test_drop_ball_agrees_on_the_step_part():
     pytest.importorskip("OCP")
-    from BSplineCAM.ocp import faces as ocp  # noqa: PLC0415
-
-    faces = ocp.faces_from_shape(ocp.read_part(str(ROOT / "examples" / "part.step")), "up")
-    lo, hi = FaceSet(faces).bounds(selected_only=True)
     R = 3.0
-    # raster passes along x, as the raster on faces lays its base samples
-    step = math.sqrt(8.0 * R * 0.002)
-    xs = np.arange(lo[0] - R, hi[0] + R, step)
-    ys = np.linspace(lo[1] - 1.0, hi[1] + 1.0, 7)
-    xy = np.column_stack([np.tile(xs, len(ys)), np.repeat(ys, len(xs))])
+    faces, xy = step_part_queries(7, R)
     a, b = drop_both(faces, xy, R)
     assert a[1]["pairs"] > 10_000
     assert_same_drop(a, b)

@@ -10,14 +10,12 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
-import math
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
-from bsplinecam_helpers import fillet_ring, plate_with_hole
+from bsplinecam_helpers import fillet_ring, plate_with_hole, step_part_queries
 from conftest import hang_guard
 
 from BSplineCAM.core import kernels
@@ -25,8 +23,6 @@ from BSplineCAM.core.geometry.faces import Face
 from BSplineCAM.core.geometry.nurbs import NurbsSurface
 from BSplineCAM.core.toolpath import faceset, parallel
 from BSplineCAM.core.toolpath.faceset import FaceSet
-
-ROOT = Path(__file__).resolve().parent.parent
 
 needs_numba = pytest.mark.skipif(importlib.util.find_spec("numba") is None,
                                  reason="numba is not installed: no compiled engine")
@@ -249,16 +245,8 @@ def test_threads_and_chunks_agree_on_trimmed_faces(name, monkeypatch):
 @pytest.mark.parametrize("name", ENGINES)
 def test_threads_and_chunks_agree_on_the_step_part(name, monkeypatch):
     pytest.importorskip("OCP")
-    from BSplineCAM.ocp import faces as ocp  # noqa: PLC0415
-
-    faces = ocp.faces_from_shape(ocp.read_part(str(ROOT / "examples" / "part.step")), "up")
-    lo, hi = FaceSet(faces).bounds(selected_only=True)
     R = 3.0
-    # raster passes along x, as the raster on faces lays its base samples
-    step = math.sqrt(8.0 * R * 0.002)
-    xs = np.arange(lo[0] - R, hi[0] + R, step)
-    ys = np.linspace(lo[1] - 1.0, hi[1] + 1.0, 4)
-    xy = np.column_stack([np.tile(xs, len(ys)), np.repeat(ys, len(xs))])
+    faces, xy = step_part_queries(4, R)
     with engine(name):
         ref = drop(faces, xy, R, 1, 2048, monkeypatch)
         assert ref[1]["pairs"] > 10_000

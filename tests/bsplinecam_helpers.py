@@ -140,6 +140,23 @@ def dome_faces(amplitude: float = 8.0):
     return [sel, Face(check, rectangle(check), index=2, selected=False)]
 
 
+def step_part_queries(rows: int, radius: float = R):
+    """examples/part.step's faces seen from above, and drop-cutter queries along ``rows``
+    raster passes in x across their box, spaced as the raster on faces lays its base samples
+    (sqrt(8 R 0.002) mm).  Needs OCP (the caller skips without it)."""
+    from pathlib import Path
+
+    from BSplineCAM.ocp import faces as ocp
+
+    part = Path(__file__).resolve().parent.parent / "examples" / "part.step"
+    faces = ocp.faces_from_shape(ocp.read_part(str(part)), "up")
+    lo, hi = FaceSet(faces).bounds(selected_only=True)
+    step = math.sqrt(8.0 * radius * 0.002)
+    xs = np.arange(lo[0] - radius, hi[0] + radius, step)
+    ys = np.linspace(lo[1] - 1.0, hi[1] + 1.0, rows)
+    return faces, np.column_stack([np.tile(xs, len(ys)), np.repeat(ys, len(xs))])
+
+
 def assert_above_drop(fs: FaceSet, tp):
     """Every cutter location at or above the certified drop-cutter height over all faces."""
     pts = np.concatenate(tp.passes + [lk for lk in tp.links if lk is not None])
