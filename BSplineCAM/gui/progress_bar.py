@@ -166,6 +166,7 @@ class ProgressBar:
             return
         self.label.setText(f"{self.message} ({text})")
         self.noted = True
+        hide_other_bars()
         QtGui.QApplication.processEvents()
         self.events += 1
 
