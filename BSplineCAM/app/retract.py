@@ -34,9 +34,10 @@ PROPERTIES = (
 
 
 def stock_cell(radius: float) -> float:
-    """Z-map cell (mm) of the stock a minimum retract clears: half the ball's radius, within
-    0.25 to 2 mm (the margin covers the map's resolution)."""
-    return float(min(max(0.5 * radius, 0.25), 2.0))
+    """Z-map cell (mm) of the stock a minimum retract clears: a quarter of the ball's
+    radius, within 0.25 to 1 mm (the hop takes the columns a cell's diagonal beyond the
+    ball's reach, :mod:`BSplineCAM.core.toolpath.retracts`)."""
+    return float(min(max(0.25 * radius, 0.25), 1.0))
 
 
 def _block_map(stock) -> retracts.StockMap:

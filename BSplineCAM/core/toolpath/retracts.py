@@ -24,8 +24,9 @@ tolerance is added.
 
 The stock is a Z-map (the job simulation of the operations before this one): a tip at height
 z clears every column whose centre lies within the ball's radius of its path when z is above
-them; the columns within R plus half a cell's diagonal of the line are taken, and ``margin``
-covers the Z-map's resolution between cell centres.  Without a stock the hop clears only the
+them.  The columns within R plus a whole cell's diagonal of the line are taken: the stock
+between two cell centres, which the map does not hold (a terrace's edge inside a cell whose
+centre was cut), lies next to a centre within that reach.  Without a stock the hop clears only the
 model: that is for programs run on a part already roughed to within ``margin`` of the model.
 """
 
@@ -142,7 +143,7 @@ def hop_heights(passes: list, links: list, drop: DropFn, radius: float, clearanc
     top = np.fmax(top, model_bound(drop, end[:, :2], start[:, :2], radius, reach, slack))
     land = start[:, 2].copy()
     if stock is not None:
-        reach = float(radius) + 0.5 * np.sqrt(2.0) * stock.cell
+        reach = float(radius) + np.sqrt(2.0) * stock.cell
         top = np.fmax(top, stock.top_near(end[:, :2], start[:, :2], reach))
         land = np.fmax(land, stock.top_near(start[:, :2], start[:, :2], reach))
     hop = top + margin
