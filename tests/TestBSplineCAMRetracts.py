@@ -262,6 +262,8 @@ def test_climb_puts_the_material_on_the_right():
     pocket = lambda xy: np.hypot(xy[:, 0], xy[:, 1])  # noqa: E731
     loops = [circle_loop(5.0, 5.0, True), circle_loop(4.0, 6.0, False)]
     assert all(signed_area(p) < 0 for p in orient_climb(loops, boss, 0.1))
+    # the pocket's waterlines at its own levels (h = r)
+    loops = [circle_loop(5.0, 5.0, True), circle_loop(4.0, 4.0, False)]
     assert all(signed_area(p) > 0 for p in orient_climb(loops, pocket, 0.1))
     wall = lambda xy: np.where(xy[:, 1] > 0.0, 5.0 + xy[:, 1], np.nan)  # noqa: E731
     line = np.array([[0.0, 0.0, 5.0], [10.0, 0.0, 5.0]])

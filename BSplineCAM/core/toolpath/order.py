@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..typing import FloatArray
+from .arcs import contour_side
 
 #: Levels closer than this (mm) count as one level.
 LEVEL_EPS = 1e-6
@@ -106,42 +107,14 @@ def order_contours(passes: list, grow: float, start: FloatArray | None = None,
     return out
 
 
-def orient_climb(passes: list, heights, offset: float, probes: int = 8) -> list:
+def orient_climb(passes: list, heights, offset: float) -> list:
     """Contours at constant Z (waterlines) each run so that the material lies on the tool's
-    right: climb milling with a clockwise (M3) spindle.  At up to ``probes`` segment midpoints
-    of each contour the cutter-location height is asked ``offset`` mm to either side
-    (``heights(xy (m, 2)) -> tip heights``, NaN where no face is under the ball): the side
-    whose height is the higher holds the material; the majority decides and a contour with
-    its material on the left is reversed."""
-    if not passes:
-        return []
-    mids, sides, owner = [], [], []
-    for k, p in enumerate(passes):
-        d = np.diff(p[:, :2], axis=0)
-        length = np.hypot(d[:, 0], d[:, 1])
-        seg = np.flatnonzero(length > 0)
-        if len(seg) == 0:
-            continue
-        pick = seg[np.linspace(0, len(seg) - 1, min(probes, len(seg))).round().astype(int)]
-        t = d[pick] / length[pick, None]
-        right = np.column_stack([t[:, 1], -t[:, 0]])
-        m = 0.5 * (p[pick, :2] + p[pick + 1, :2])
-        mids.append(np.concatenate([m + offset * right, m - offset * right]))
-        sides.append(len(pick))
-        owner.append(k)
-    out = [np.asarray(p, float) for p in passes]
-    if not mids:
-        return out
-    z = np.asarray(heights(np.concatenate(mids)), dtype=float)
-    z = np.where(np.isfinite(z), z, -np.inf)
-    at = 0
-    for k, n in zip(owner, sides):
-        block = z[at:at + 2 * n]
-        at += 2 * n
-        votes = int(np.sum(block[:n] > block[n:])) - int(np.sum(block[:n] < block[n:]))
-        if votes < 0:
-            out[k] = out[k][::-1].copy()
-    return out
+    right: climb milling with a clockwise (M3) spindle.  The free side of each is told by
+    :func:`.arcs.contour_side` (``heights(xy (m, 2)) -> tip heights``, NaN where no face is
+    under the ball, asked ``offset`` mm left of its chords); a contour whose left side holds
+    the material is reversed."""
+    side = contour_side(heights, offset)
+    return [p if side(p) > 0 else p[::-1].copy() for p in (np.asarray(q, float) for q in passes)]
 
 
 __all__ = ["LEVEL_EPS", "is_closed", "order_contours", "orient_climb"]
