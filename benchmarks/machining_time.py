@@ -39,12 +39,12 @@ from BSplineCAM.core.toolpath.faces_scallop import scallop_faces  # noqa: E402
 from BSplineCAM.core.toolpath.faceset import FaceSet  # noqa: E402
 
 
-def gcode(toolpath, feed: float, plunge: float) -> str:
-    """The program of the core's moves: rapids G0, vertical feeds at ``plunge``, others at
-    ``feed`` (mm/min)."""
+def gcode(toolpath, feed: float, plunge: float, hops=None) -> str:
+    """The program of the core's moves (with ``hops``, :mod:`.retracts`' minimum retracts):
+    rapids G0, vertical feeds at ``plunge``, others at ``feed`` (mm/min)."""
     lines = ["G21 G90 G17"]
     last = None
-    for m in to_moves(toolpath):
+    for m in to_moves(toolpath, hops=hops):
         if m.kind == "rapid":
             lines.append(f"G0 X{m.x:.4f} Y{m.y:.4f} Z{m.z:.4f}")
         else:
