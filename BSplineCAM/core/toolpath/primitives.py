@@ -37,9 +37,11 @@ class Jet:
 
     @classmethod
     def at(cls, surface: Any, u: FloatArray, w: FloatArray, sign: float = 1.0) -> Jet:
-        """Jet at parameters (u, w), clipped to [0, 1]."""
-        u = np.clip(np.asarray(u, dtype=float).ravel(), 0.0, 1.0)
-        w = np.clip(np.asarray(w, dtype=float).ravel(), 0.0, 1.0)
+        """Jet at parameters (u, w), clipped to the surface's parameter domain (its
+        ``domain`` where it has one, as a NURBS face's surface does; [0, 1] for a net)."""
+        (u0, u1), (w0, w1) = getattr(surface, "domain", ((0.0, 1.0), (0.0, 1.0)))
+        u = np.clip(np.asarray(u, dtype=float).ravel(), u0, u1)
+        w = np.clip(np.asarray(w, dtype=float).ravel(), w0, w1)
         d = surface.derivatives(u, w)
         return cls(u, w, d.point, d.su, d.sw, d.suu, d.suw, d.sww, sign)
 

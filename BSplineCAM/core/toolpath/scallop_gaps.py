@@ -83,8 +83,7 @@ class SurfaceGrid:
         self.normal = np.zeros(self.shape + (3,))
         for k in np.unique(face[on]).tolist():
             m = on & (face == k)
-            d = faces[k].surface.derivatives(u[m], v[m])  # (Jet.at clips to [0, 1])
-            jet = Jet(u[m], v[m], d.point, d.su, d.sw, d.suu, d.suw, d.sww, float(signs[k]))
+            jet = Jet.at(faces[k].surface, u[m], v[m], float(signs[k]))
             self.cover[:, m] = cover_costs(jet, tool, axes)
             self.normal[m] = jet.normal
         # the gap at a point depends on the surface between it and the contact: moving
