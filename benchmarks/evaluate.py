@@ -8,7 +8,8 @@ Also the cost of unit normals against points alone, for each evaluator: "points+
 points" is the time of the points plus that of the unit normals over the time of the points
 (ours timed in turns with the points, so a slow spell of the machine hits both alike).
 Set OPENBLAS_NUM_THREADS=1 and BSPLINECAM_GRID_THREADS=1 for single-core figures (our grid
-products are shared among our own threads, ``matrix.GRID_THREADS``).
+products are shared among our own threads: ``matrix.GRID_THREADS``, by default
+BSPLINECAM_THREADS capped at 2).
 Run with the project venv:  .venv/bin/python benchmarks/evaluate.py
 """
 
@@ -28,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from BSplineCAM import Surface  # noqa: E402
 from BSplineCAM.core.geometry import matrix  # noqa: E402
+from BSplineCAM.core.threads import numpy_threads  # noqa: E402
 
 
 def best_of(fn, repeat: int) -> float:
@@ -168,7 +170,7 @@ def main() -> None:
         "occt_per_point_points_and_normals": figures.get("occt_points_and_normals_s", float("nan")) / figures["ours_points_and_normals_s"],
     }
     print(f"grid {args.n} x {args.n} on a 16 x 16 net, best of {args.repeat}; numpy {np.__version__}, {platform.python_version()}; "
-          f"normals in {matrix.GRID_THREADS} thread(s)")
+          f"normals in {matrix.GRID_THREADS or min(2, numpy_threads())} thread(s)")
     print(f"  ours      points {ours_points * 1e3:9.1f} ms   points+normals {figures['ours_points_and_normals_s'] * 1e3:9.1f} ms")
     print(f"  FITPACK   points {figures['fitpack_points_s'] * 1e3:9.1f} ms   points+normals {figures['fitpack_points_and_normals_s'] * 1e3:9.1f} ms")
     print(f"  geomdl    points {figures['geomdl_points_s'] * 1e3:9.1f} ms   (extrapolated from {args.geomdl_points} points)")

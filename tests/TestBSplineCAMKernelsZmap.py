@@ -15,7 +15,7 @@ from conftest import CASE_STUDY
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM.core import Surface, kernels
+from BSplineCAM.core import Surface, kernels, threads
 from BSplineCAM.core.program.gcode import read_gcode
 from BSplineCAM.core.program.gcode_words import Segments
 from BSplineCAM.core.simulation import simulate as sim
@@ -108,11 +108,10 @@ def test_threads_split_rows(monkeypatch, tool):
         points += [[a, y, 3.0 + math.sin(a / 5.0) * math.cos(y / 7.0)] for a in xs]
     segments = _segments(points)
     grid = sim.Grid.covering(-5.0, 45.0, -5.0, 35.0, 0.1)
-    monkeypatch.setattr(sim, "THREADS", 1)
-    one = _agree(segments, tool, grid, 5.0)
-    monkeypatch.setattr(sim, "THREADS", 3)
+    with threads.forced(1):
+        one = _agree(segments, tool, grid, 5.0)
     monkeypatch.setattr(sim, "THREADED_CELLS", 1)
-    with kernels.forced("numba"):
+    with threads.forced(3), kernels.forced("numba"):
         _same(one, sim.simulate(segments, tool, grid, 5.0))
 
 

@@ -3,7 +3,7 @@
 FaceSet.centre_heights gives the same heights, contacts, gaps and counters, to the last bit, on
 1, 2 and 4 threads and with chunks of 64 or 2048 queries, under both kernel engines, on
 trimmed faces (a plate with a hole, a boss's fillet, a wall) and on examples/part.step; the
-setting BSPLINECAM_THREADS and its notice; an exception in a chunk reaches the caller and
+setting BSPLINECAM_THREADS (core.threads), its notice and its cap for numpy work; an exception in a chunk reaches the caller and
 nothing hangs.  No test asserts a time."""
 
 from __future__ import annotations
@@ -120,6 +120,19 @@ def test_forced_restores_the_setting():
     with parallel.forced(3):
         assert parallel.threads() == 3
     assert parallel.setting() == before
+
+
+@pytest.mark.parametrize(("value", "expected"), [("1", 1), ("3", 3), ("9", 4)])
+def test_numpy_work_follows_the_setting(value, expected):
+    """The numpy work split into parts (net drop-cutter, Z-map, height grids) takes
+    BSPLINECAM_THREADS too, at most four; the evaluator's grid products at most two."""
+    from BSplineCAM.core import threads
+    from BSplineCAM.core.geometry import matrix
+
+    with threads.forced(value):
+        assert threads.numpy_threads() == expected
+        assert matrix._grid_threads(1 << 30, 64) == min(2, expected)
+    assert parallel.setting is threads.setting
 
 
 @pytest.mark.parametrize("m", [1, 10, 255, 256, 370, 600, 1000, 3000, 17_020, 100_000])

@@ -16,7 +16,7 @@ from conftest import CASE_STUDY
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from BSplineCAM.core import ParameterError, Surface
+from BSplineCAM.core import ParameterError, Surface, threads
 from BSplineCAM.core.toolpath import (
     DropCutter,
     ToolpathCancelled,
@@ -163,9 +163,9 @@ def test_dropcutter_threads_answer_as_one_thread(case, rng, monkeypatch):
     dc = DropCutter(case, 3.0)
     xy = np.concatenate([rng.uniform(-4.0, 104.0, (997, 2)), [[0.0, 0.0], [50.0, 0.2]]])
     alone = dc._centre_heights(xy)
-    monkeypatch.setattr(dropcutter, "THREADS", 3)
     monkeypatch.setattr(dropcutter, "THREAD_QUERIES", 100)
-    split = dc.centre_heights(xy)
+    with threads.forced(3):
+        split = dc.centre_heights(xy)
     for a, b in zip(alone, split):
         np.testing.assert_array_equal(a, b)
     tip = dc.heights(xy[::50])[0]

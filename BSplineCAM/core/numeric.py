@@ -3,13 +3,7 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
-
-#: Worker threads for numpy work split into independent parts (the machine's cores, at most
-#: 4): numpy releases the GIL inside its loops, so such parts run at once.
-THREADS = max(1, min(4, os.cpu_count() or 1))
 
 
 def clamp(a, lo, hi):
@@ -22,4 +16,4 @@ def clamp(a, lo, hi):
     return np.minimum(np.maximum(a, lo), hi)
 
 
-__all__ = ["THREADS", "clamp"]
+__all__ = ["clamp"]

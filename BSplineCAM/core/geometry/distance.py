@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..numeric import THREADS
+from ..threads import numpy_threads
 from ..typing import FloatArray
 
 
@@ -86,7 +86,7 @@ def squared_distance(mask: np.ndarray) -> FloatArray:
     g = _row_distances(mask)
     f = np.where(np.isfinite(g), g * g, big)
     # columns are independent: one block of columns per thread (numpy releases the GIL)
-    threads = max(1, min(THREADS, nx // 256))
+    threads = max(1, min(numpy_threads(), nx // 256))
     if threads == 1:
         return np.minimum(_parabola_envelope(f), big)
     edges = np.linspace(0, nx, threads + 1).astype(int)

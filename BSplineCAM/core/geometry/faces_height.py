@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BSplineCAMError
-from ..numeric import THREADS
+from ..threads import numpy_threads
 from ..typing import FloatArray
 from .faces import Face
 from .footprint import fill_empty_cells
@@ -372,10 +372,10 @@ class FacesHeight:
         z[face < 0] = np.nan
         return HeightMap(z, face, u, v)
 
-    def grid(self, xs: FloatArray, ys: FloatArray, threads: int = THREADS) -> HeightMap:
+    def grid(self, xs: FloatArray, ys: FloatArray, threads: int | None = None) -> HeightMap:
         """Top-most face above each point (xs[j], ys[i]): arrays (len(ys), len(xs)).
 
-        Bands of rows go to ``threads`` worker threads."""
+        Bands of rows go to ``threads`` worker threads (``threads.numpy_threads()`` if None)."""
         xs = np.asarray(xs, dtype=float)
         ys = np.asarray(ys, dtype=float)
         ny, nx = len(ys), len(xs)
@@ -394,7 +394,7 @@ class FacesHeight:
             z[sl], face[sl] = hm.z.reshape(shape), hm.face.reshape(shape)
             u[sl], v[sl] = hm.u.reshape(shape), hm.v.reshape(shape)
 
-        workers = max(1, min(threads, len(starts)))
+        workers = max(1, min(numpy_threads() if threads is None else threads, len(starts)))
         if workers == 1:
             for i0 in starts:
                 run(i0)

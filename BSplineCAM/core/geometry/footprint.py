@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..numeric import THREADS
+from ..threads import numpy_threads
 from ..typing import ArrayLike, FloatArray
 from .matrix import evaluate_patch_orders
 from .surface import Surface
@@ -49,7 +49,7 @@ def surface_height(surface: Surface, x: ArrayLike,
 
     # chunks are independent and write disjoint slices; numpy releases the GIL in its loops
     starts = range(0, px.size, _CHUNK)
-    threads = min(THREADS, len(starts))
+    threads = min(numpy_threads(), len(starts))
     if threads <= 1:
         for lo in starts:
             run(lo)

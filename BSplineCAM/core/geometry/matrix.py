@@ -16,7 +16,6 @@ of degree (5, 5) built once per net (:func:`normal_form`), by the same two stage
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from math import comb
 
 import numpy as np
 
+from ..threads import numpy_threads
 from ..typing import ArrayLike, FloatArray, IntArray
 from .basis import DEGREE, KnotLayout, cox_de_boor, knot_vector
 
@@ -139,8 +139,8 @@ def _contract_rows(index: IntArray, weights: FloatArray, net: FloatArray) -> Flo
 
 #: Threads that share the products of a large grid (:func:`grid_planes`,
 #: :func:`grid_unit_normals`; numpy and BLAS release the GIL), and the grid points per thread
-#: below which one thread does it all.
-GRID_THREADS = max(1, min(2, os.cpu_count() or 1))
+#: below which one thread does it all.  None: :func:`..threads.numpy_threads`, at most 2.
+GRID_THREADS: int | None = None
 GRID_THREAD_POINTS = 1 << 17
 
 #: Multiply-adds of one BLAS product below which OpenBLAS computes it in the calling thread
@@ -153,7 +153,8 @@ BLAS_ONE_THREAD_MACS = 65536 * 4
 
 def _grid_threads(points: int, blocks: int) -> int:
     """Threads for a grid of ``points`` cut into ``blocks`` blocks."""
-    return max(1, min(GRID_THREADS, points // GRID_THREAD_POINTS, blocks))
+    cap = min(2, numpy_threads()) if GRID_THREADS is None else GRID_THREADS
+    return max(1, min(cap, points // GRID_THREAD_POINTS, blocks))
 
 
 def _shared_stages(stages: Sequence, threads: int) -> None:

@@ -31,8 +31,8 @@ import numpy as np
 from .. import kernels
 from ..errors import ParameterError
 from ..kernels import zmap_kernels
-from ..numeric import THREADS
 from ..program.gcode import Program, Segments, linearise, simulation_chord_tolerance
+from ..threads import numpy_threads
 from ..typing import FloatArray
 
 #: Cells evaluated per batch: (K, H, W) temporaries stay in the processor's cache.
@@ -334,7 +334,7 @@ def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArr
          collision_tolerance: float | None) -> tuple[float, float, float] | None:
     """Lower ``height`` by the envelopes of segments ``index``; for a rapid, report its cut.
 
-    Batches run on up to THREADS threads: numpy releases the GIL inside its loops, and the
+    Batches run on up to ``threads.numpy_threads()`` threads: numpy releases the GIL inside its loops, and the
     merge into ``height`` (a minimum, so order-free) is serialised by a lock.
     """
     w = window[index, 1] - window[index, 0] + 1
@@ -380,7 +380,7 @@ def _cut(height: FloatArray, index: np.ndarray, start: FloatArray, end: FloatArr
                                            grid.y0 + (y + cy + 0.5) * grid.cell))
                     np.fmin(view, env[k], out=view)
 
-    threads = min(THREADS, len(batches))
+    threads = min(numpy_threads(), len(batches))
     if threads <= 1:
         run(batches)
     else:
@@ -456,7 +456,7 @@ def _cut_compiled(height: FloatArray, index: np.ndarray, start: FloatArray, end:
             wide, np.ascontiguousarray(L, dtype=float),
             *(np.ascontiguousarray(v).astype(f32) for v in (L, m, slope, zf)), bisect,
             int(shape), consts, collision_tolerance is not None]
-    threads = 1 if collision_tolerance is not None else min(THREADS, max(
+    threads = 1 if collision_tolerance is not None else min(numpy_threads(), max(
         1, int(np.sum(hb * wb.astype(np.int64))) // THREADED_CELLS))
     depth = np.zeros((threads, 3))
     if threads <= 1:

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..geometry import matrix
-from ..numeric import THREADS
+from ..threads import numpy_threads
 from ..typing import FloatArray
 from .primitives import Jet, upward_sign
 
@@ -315,10 +315,10 @@ class DropCutter:
         """Ball-centre heights c(x, y) (mm; -inf where no surface within R) and contact (u, w).
 
         Each query is answered on its own, so a large call is split into consecutive parts
-        answered on up to ``THREADS`` threads at once (numpy releases the GIL in its loops):
+        answered on up to ``threads.numpy_threads()`` threads at once (numpy releases the GIL in its loops):
         the same values as on one thread, bit for bit."""
         q = np.ascontiguousarray(np.asarray(xy, dtype=float).reshape(-1, 2))
-        threads = max(1, min(THREADS, len(q) // THREAD_QUERIES))
+        threads = max(1, min(numpy_threads(), len(q) // THREAD_QUERIES))
         if threads == 1:
             return self._centre_heights(q)
         with ThreadPoolExecutor(threads, thread_name_prefix="bsplinecam-drop") as pool:

@@ -8,15 +8,8 @@ several threads at once overlap on several cores.  Each piece writes only its ow
 answer and keeps its own counters, so the answer is the same, bit for bit, on any number of
 threads.
 
-The number of threads is read once, at the first :func:`threads`:
-
-* ``BSPLINECAM_THREADS=N`` (an integer >= 1) runs N threads; 1 runs everything on the
-  caller's thread;
-* ``BSPLINECAM_THREADS=auto`` (the default) runs one thread per core this process may use,
-  at most :data:`AUTO_CAP`.
-
-Any other value never stops a job: the default runs and one notice line on standard error
-names the variable and the value (:func:`notice`).
+The number of threads is this process's setting (:mod:`..threads`, ``BSPLINECAM_THREADS``);
+its names are re-exported here for the pool's callers.
 
 :func:`run` runs ``work(0), ..., work(n - 1)`` on the pool and returns their results in order.
 When a piece raises, the pieces not started are cancelled, the running ones are waited for
@@ -27,41 +20,22 @@ thread, so the pool never waits on itself.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import FIRST_EXCEPTION, Future, ThreadPoolExecutor, wait
-from dataclasses import dataclass
 from typing import TypeVar
 
-ENV = "BSPLINECAM_THREADS"
-#: Most threads ``auto`` runs: a chunk's Python glue between its array operations holds the
-#: GIL (about a fifth of its time in docs/benchmarks.md), so threads beyond this add little;
-#: a larger N can still be asked for.
-AUTO_CAP = 8
+from ..threads import AUTO_CAP, ENV, Setting, cores, forced, notice, setting, threads
 
 T = TypeVar("T")
 
 
-@dataclass(frozen=True)
-class Setting:
-    """The threads this process runs and how they were chosen."""
-
-    threads: int
-    #: the value read ("auto" or a count) or, for a value not understood, why the default runs
-    source: str
-    #: whether BSPLINECAM_THREADS held a value not understood
-    bad: bool = False
-
-
 class _State:
-    """The chosen setting and the shared pool (one per process; rebuilt after a fork)."""
+    """The shared pool (one per process; rebuilt after a fork or a new thread count)."""
 
     def __init__(self):
         self.lock = threading.RLock()
-        self.setting: Setting | None = None
         self.pool: ThreadPoolExecutor | None = None
         self.pool_pid = 0
         self.pool_size = 0
@@ -69,54 +43,6 @@ class _State:
 
 _state = _State()
 _local = threading.local()
-
-
-def cores() -> int:
-    """The cores this process may run on (its CPU affinity where the system tells it)."""
-    count = getattr(os, "process_cpu_count", None)  # Python 3.13+
-    if count is not None:
-        return max(1, count() or 1)
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
-
-
-def _choose() -> Setting:
-    raw = os.environ.get(ENV)
-    text = (raw or "").strip().lower() or "auto"
-    auto = max(1, min(AUTO_CAP, cores()))
-    if text == "auto":
-        return Setting(auto, "auto")
-    if text.isdigit() and int(text) >= 1:
-        return Setting(int(text), text)
-    return Setting(auto, f"{ENV}={raw!r} is not an integer >= 1 or 'auto'", bad=True)
-
-
-def setting() -> Setting:
-    """The setting of this process, read from ``BSPLINECAM_THREADS`` at the first call (a
-    value not understood is said once on standard error)."""
-    if _state.setting is None:
-        with _state.lock:
-            if _state.setting is None:
-                chosen = _choose()
-                _state.setting = chosen
-                if chosen.bad:
-                    print(notice(), file=sys.stderr)
-    return _state.setting
-
-
-def threads() -> int:
-    """The number of threads :func:`run` uses (1: the caller's thread alone)."""
-    return setting().threads
-
-
-def notice() -> str:
-    """The one-line notice when ``BSPLINECAM_THREADS`` holds a value not understood ("" else)."""
-    s = setting()
-    if not s.bad:
-        return ""
-    return (f"BSplineCAM: {s.source}; {s.threads} thread{'s' if s.threads > 1 else ''} "
-            f"run (auto)")
 
 
 def in_pool() -> bool:
@@ -179,26 +105,6 @@ def run(work: Callable[[int], T], count: int, first_here: bool = False,
     for k, f in enumerate(futures, start):
         results[k] = f.result()
     return results
-
-
-@contextlib.contextmanager
-def forced(value: int | str) -> Iterator[Setting]:
-    """Run a block with ``BSPLINECAM_THREADS=value`` read afresh (tests and benchmarks compare
-    thread counts in one process), then restore the setting chosen before."""
-    with _state.lock:
-        before_env = os.environ.get(ENV)
-        before = _state.setting
-        os.environ[ENV] = str(value)
-        _state.setting = None
-    try:
-        yield setting()
-    finally:
-        with _state.lock:
-            if before_env is None:
-                os.environ.pop(ENV, None)
-            else:
-                os.environ[ENV] = before_env
-            _state.setting = before
 
 
 __all__ = ["AUTO_CAP", "ENV", "Setting", "cores", "forced", "in_pool", "notice", "run",
