@@ -27,7 +27,6 @@ maximum over the polished seeds is taken.
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -35,6 +34,7 @@ import numpy as np
 from ..geometry import matrix
 from ..threads import numpy_threads
 from ..typing import FloatArray
+from . import parallel
 from .primitives import Jet, upward_sign
 
 #: Queries handled per chunk: bounds the (queries x candidates) temporaries.
@@ -315,14 +315,15 @@ class DropCutter:
         """Ball-centre heights c(x, y) (mm; -inf where no surface within R) and contact (u, w).
 
         Each query is answered on its own, so a large call is split into consecutive parts
-        answered on up to ``threads.numpy_threads()`` threads at once (numpy releases the GIL in its loops):
-        the same values as on one thread, bit for bit."""
+        answered on the shared pool (:mod:`.parallel`), up to ``threads.numpy_threads()`` at
+        once (numpy releases the GIL in its loops): the same values as on one thread, bit for
+        bit."""
         q = np.ascontiguousarray(np.asarray(xy, dtype=float).reshape(-1, 2))
         threads = max(1, min(numpy_threads(), len(q) // THREAD_QUERIES))
         if threads == 1:
             return self._centre_heights(q)
-        with ThreadPoolExecutor(threads, thread_name_prefix="bsplinecam-drop") as pool:
-            parts = list(pool.map(self._centre_heights, np.array_split(q, threads)))
+        chunks = np.array_split(q, threads)
+        parts = parallel.run(lambda k: self._centre_heights(chunks[k]), threads)
         return tuple(np.concatenate(column) for column in zip(*parts))
 
     def _centre_heights(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
