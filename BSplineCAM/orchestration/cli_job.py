@@ -25,6 +25,7 @@ from ..core.errors import ParameterError
 from ..core.program import rs274
 from ..core.program.gcode import read_gcode_file
 from ..core.program.tooltable import MAX_LINE_CHARS, parse_tool_spec
+from ..core.simulation.gouge_normal import gouge_gate_mm
 from ..core.simulation.load_limits import (
     ENGAGEMENT_RATIO,
     LoadLimits,
@@ -289,7 +290,9 @@ SUMMARY = ("ok", "checks", "targets", "gouge_max_mm", "scallop_max_mm", "scallop
            "tools")
 
 
-#: Largest gouge (mm) the job accepts.
+#: Largest gouge (mm) the job accepts: on a part's faces the intrusion along the normal of
+#: the cells the Z-map flags (those left unmeasured at their vertical depth), on a surface
+#: the vertical depth (:func:`core.simulation.gouge_normal.gouge_gate_mm`).
 GOUGE_LIMIT_MM = 0.001
 
 
@@ -352,9 +355,9 @@ def verify_program(args, model, program_path, tools, stock, stage,
                **result.metrics, **machine_time_metrics(args, program)}
     rough = metrics["tools"]["1"]
     stepover = 0.01 * args.stepover * tools[1].diameter
+    gouge = gouge_gate_mm(metrics)
     checks = {  # the program is safe and meets the design: these decide the exit status
-        "gouge_max_mm": [metrics["gouge_max_mm"], GOUGE_LIMIT_MM,
-                         metrics["gouge_max_mm"] <= GOUGE_LIMIT_MM],
+        "gouge_max_mm": [gouge, GOUGE_LIMIT_MM, gouge <= GOUGE_LIMIT_MM],
         "scallop_max_mm": [metrics["scallop_max_mm"], args.scallop + args.tolerance,
                            metrics["scallop_max_mm"] <= args.scallop + args.tolerance],
         "rapid_collisions": [len(metrics["rapid_collisions"]), 0,

@@ -39,10 +39,12 @@ from ..geometry.faces_height import FacesHeight
 from ..geometry.footprint import footprint_bounds, surface_height
 from ..geometry.surface import Surface
 from ..program.gcode import MoveKind, Program, linearise, simulation_chord_tolerance
+from ..program.gcode_words import Segments
 from ..program.tooltable import check_program_tools
 from ..toolpath.common import check_tool_fits
 from ..typing import FloatArray
 from .evenness import scallop_evenness
+from .gouge_normal import measure as measure_normal_gouge
 from .job_simulation import JobSimulation, check_stock_form, simulate_job
 from .load_limits import LoadCheck, LoadLimits, check_loads, default_limits
 from .simulate import Grid, Simulation, Tool, simulate
@@ -108,7 +110,7 @@ def verify(surface: Surface, program: Program, tool: Tool, cell: float = 0.1,
     ``progress(fraction)``, if given, is called at least every 50 ms while the simulation runs
     (so a GUI stays responsive) and may raise to abandon it (see :func:`run_reporting`).
     """
-    def run(grid: Grid, top: float) -> tuple[Simulation, int, None]:
+    def run(grid: Grid, top: float) -> tuple[Simulation, Segments, None]:
         return (*_simulate(program, tool, grid, top, chord_tolerance, progress), None)
 
     return _verify_surface(surface, program, tool, cell, stock_top, stock_margin, rapid_rate,
@@ -139,6 +141,7 @@ def _verify_surface(surface: Surface, program: Program, tool: Tool, cell: float,
         )
     metrics = _metrics(program, sim, design, inside, inner, inner, inside & ~inner, inside, tool,
                        rapid_rate, coverage_tolerance)
+    metrics["gouge_normal_measured"] = False  # a surface, not faces: the gouge is vertical
     _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
     _describe_job(metrics, job, inside)
     if progress is not None:
@@ -173,11 +176,15 @@ def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: floa
     * scallop and coverage are taken on the selected faces away from their borders: the cells
       of selected faces whose distance from any cell not on a selected face is more than the
       tool radius (the selection's union, so a seam between two selected faces is no border);
-      the band within the radius is the edge band (``edge_*``).
+      the band within the radius is the edge band (``edge_*``);
+    * the gouged cells (over GOUGE_TOLERANCE_MM) are measured again along the design's
+      normal, as the depth the ball and its shank enter the faces (:mod:`.gouge_normal`:
+      ``gouge_normal_max_mm``, where and by which move in ``gouge_normal_at``, cells left at
+      their vertical depth in ``gouge_normal_unmeasured_*``).
 
     ``verification.inside`` is the model's mask, ``inner`` the measured part of the selection.
     """
-    def run(grid: Grid, top: float) -> tuple[Simulation, int, None]:
+    def run(grid: Grid, top: float) -> tuple[Simulation, Segments, None]:
         return (*_simulate(program, tool, grid, top, chord_tolerance, progress), None)
 
     return _verify_faces(faces, program, tool, cell, stock_top, stock_margin, rapid_rate,
@@ -187,8 +194,10 @@ def verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: floa
 def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: float,
                   stock_top: str | StockTop, stock_margin: float, rapid_rate: float,
                   coverage_tolerance: float, progress: Callable[[float], None] | None,
-                  run: Callable, stock_xy: tuple | None = None) -> Verification:
-    """:func:`verify_faces` with the simulation ``run`` (see :func:`_verify_surface`)."""
+                  run: Callable, stock_xy: tuple | None = None,
+                  tools: dict[int, Tool] | None = None) -> Verification:
+    """:func:`verify_faces` with the simulation ``run`` (see :func:`_verify_surface`) and
+    the tools of a whole program (``tools``, by number; else ``tool`` for every move)."""
     _check_arguments(cell, rapid_rate, coverage_tolerance, stock_margin, program)
     stock_top = StockTop.parse(stock_top)
     faces = list(faces)
@@ -234,6 +243,9 @@ def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: flo
                     zip(faces, np.bincount(hm.face[model], minlength=len(faces)))},
     )
     metrics.pop("footprint_cells", None)
+    moved = [tool] if job is None else [tools.get(int(n), tool) for n in job.tool]
+    metrics.update(gouge_normal_measured=True, **measure_normal_gouge(
+        faces, segments, moved, grid, design, sim.height, model, GOUGE_TOLERANCE_MM).metrics())
     _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
     _describe_job(metrics, job, model)
     if progress is not None:
@@ -277,7 +289,7 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
         raise ParameterError(f"{program.source}: no tool T{last} given for the last feed move")
     finishing = tools[last]
 
-    def run(grid: Grid, top: float) -> tuple[Simulation, int, JobSimulation]:
+    def run(grid: Grid, top: float) -> tuple[Simulation, Segments, JobSimulation]:
         box = block or (grid.x0, grid.x0 + grid.nx * grid.cell, grid.y0,
                         grid.y0 + grid.ny * grid.cell, -math.inf, top)
         report = None if progress is None else (lambda f: progress(0.1 + 0.85 * f))
@@ -285,7 +297,7 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
             progress(0.1)
         job = simulate_job(program, tools, grid, box, feed_default=feed_default,
                            progress=report, chord_tolerance=chord_tolerance)
-        return job.simulation(), len(job.segments), job
+        return job.simulation(), job.segments, job
 
     limits = dict(load_limits or {})
     for n in limits:
@@ -300,7 +312,7 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
                                  rapid_rate, coverage_tolerance, progress, run, xy)
     else:
         result = _verify_faces(model, program, finishing, cell, stock_top, stock_margin,
-                               rapid_rate, coverage_tolerance, progress, run, xy)
+                               rapid_rate, coverage_tolerance, progress, run, xy, tools)
     loads = check_loads(result.job, limits, result.design)
     result.metrics["loads"] = loads.to_dict()
     return replace(result, loads=loads)
@@ -361,7 +373,7 @@ def _stock_top(program: Program, stock_top: StockTop, design_top: float) -> floa
 
 def _simulate(program: Program, tool: Tool, grid: Grid, top: float,
               chord_tolerance: float | None,
-              progress: Callable[[float], None] | None) -> tuple[Simulation, int]:
+              progress: Callable[[float], None] | None) -> tuple[Simulation, Segments]:
     segments = linearise(program, simulation_chord_tolerance(grid.cell)
                          if chord_tolerance is None else chord_tolerance)
     if progress is None:
@@ -369,15 +381,15 @@ def _simulate(program: Program, tool: Tool, grid: Grid, top: float,
     else:
         progress(0.1)
         sim = run_reporting(lambda: simulate(segments, tool, grid, top), progress, 0.1, 0.95)
-    return sim, len(segments)
+    return sim, segments
 
 
-def _describe(metrics: dict, program: Program, sim: Simulation, segments: int, tool: Tool,
+def _describe(metrics: dict, program: Program, sim: Simulation, segments: Segments, tool: Tool,
               stock_top: StockTop, footprint: tuple[float, float, float, float]) -> None:
     grid = sim.grid
     metrics.update(
         cell_mm=grid.cell, grid_cells=[grid.ny, grid.nx], stock_top_mm=sim.top,
-        stock_top=stock_top.value, moves=len(program), segments=segments,
+        stock_top=stock_top.value, moves=len(program), segments=len(segments),
         source_units=program.source_units, converted_from_inches=program.converted_from_inches,
         tool={"shape": tool.shape.value, "diameter_mm": tool.diameter,
               "corner_radius_mm": tool.corner_radius},
