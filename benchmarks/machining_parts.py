@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Machining time per part and finishing strategy: our op's strategies against FreeCAD's own
-3D Surface op (OpenCAMLib) at its flat stepover and retuned to our best strategy's scallop.
+3D Surface op (OpenCAMLib) as it comes and retuned to our best strategy's scallop.
 
 For each part (``--parts``; ``part`` is examples/part.step, ``step`` the plane-with-fillets
 step of tests/TestBSplineCAMPartialPasses.py built here with FreeCAD's Part module and written
@@ -8,12 +8,23 @@ as STEP: a flat top, a 4 mm convex fillet, a 60 degree ramp, a 4 mm concave fill
 floor, 20 mm long), one job holds our finishing op on the faces reached from above and, after
 it, FreeCAD's 3D Surface op on the same faces (both on the job's one ball-end tool controller:
 the same HorizFeed, VertFeed and rapid rate).  Our op is recomputed with each strategy of
-``--strategies`` (raster with partial passes, steep_shallow, scallop by default), then
-FreeCAD's op at the flat stepover 2 sqrt(2Rh - h^2) and, with the secant search of
-``benchmarks/toolpath.py`` (``--match-scallop``), at the stepover where its simulated largest
-scallop is at most the one of our fastest strategy; when no stepover gets there (its samples
-along the passes, SampleInterval apart, cut chords across concave fillets), the search runs
-again with SampleInterval halved (``--match-sample-halvings``).
+``--strategies`` (raster with partial passes, steep_shallow, scallop by default; minimum
+retracts), then as the raster issue 44 measured (:func:`baseline_raster`: whole passes,
+full retracts, at each of ``--baseline-angles``; the op has no property for whole passes, so
+the core's raster is called with ``partial=False`` as benchmarks/machining_time.py calls it).
+FreeCAD's op runs at the flat stepover 2 sqrt(2Rh - h^2) with BoundaryAdjustment R (as it
+comes), then is retuned twice from there (:func:`retune`: the secant of
+``benchmarks/toolpath.py`` on StepOver, then again with SampleInterval halved when no StepOver
+gets there, ``--match-sample-halvings``):
+
+* away from the borders: until its largest scallop away from the selection's border is at
+  most our fastest strategy's;
+* on the whole selection, the fair comparison: its BoundaryAdjustment first
+  (:func:`adjust_boundary`, ``--boundary-adjustments``) so that its ball centres may leave the
+  faces' outline as ours do, then StepOver and SampleInterval until its largest scallop away
+  from the border and in the edge band are both at most ours.  As it comes, the op stops the
+  ball centre on the outline and so leaves the edge band (fillets down to side walls)
+  unfinished, which the first retune does not ask of it.
 
 Each program is posted alone (linuxcnc), checked by rs274 and measured on its text: the time
 with acceleration on the default machine (:func:`BSplineCAM.core.simulation.measures.
@@ -21,9 +32,10 @@ program_measures`: 500 mm/s^2 per axis, rapids 5000 mm/min, junction deviation 0
 feed and rapid lengths, the vertical feeds among the feeds (plunges and retracts at the feed),
 and the simulation against the part's exact faces (:func:`BSplineCAM.core.simulation.verify.
 verify_faces`): gouge, largest and mean scallop, evenness and coverage away from the faces'
-borders, and the largest scallop in the edge band (within the tool radius of a border).  The targets of issue 44
-are checked per part: our fastest strategy (without gouge) no slower than FreeCAD's retuned
-op, at least ``--raster-saving`` (30 %) faster than the raster, no gouge over
+borders, and the largest scallop in the edge band (within the tool radius of a border).  The
+targets of issue 44 are checked per part: our fastest strategy (without gouge) no slower than
+FreeCAD's retuned op, at least ``--raster-saving`` (30 %) faster than issue 44's raster at the
+first of ``--baseline-angles`` (0, the command line's default), no gouge over
 ``--gouge-limit``, and an evenness of at least ``--evenness`` on the flat-and-fillet parts.
 
 Run inside freecadcmd 0.20 with OpenCAMLib (as benchmarks/toolpath.py), one part per process
@@ -297,7 +309,8 @@ def search_stepover(bench, job, theirs, doc, faces, args, folder: Path, first: d
                     targets: dict, name: str) -> list[dict]:
     """FreeCAD's op rerun at other StepOvers from ``first`` (its run at the op's StepOver)
     until :func:`worst_ratio` is within [1 - ``--match-rtol``, 1], after ``--match-steps``
-    reruns or when the StepOver stops changing (the op's least): ``benchmarks/toolpath.py``'s :func:`next_stepover` on the worst ratio.  Returns
+    reruns or when the StepOver stops changing (``--match-min-stepover``, or the op's
+    least): ``benchmarks/toolpath.py``'s :func:`next_stepover` on the worst ratio.  Returns
     every run (``first`` first), measured; the op keeps the last run's StepOver."""
     runs = [first]
     for index in range(1, args.match_steps + 1):
@@ -306,7 +319,8 @@ def search_stepover(bench, job, theirs, doc, faces, args, folder: Path, first: d
             break
         trials = [{"stepover_mm": r["stepover_mm"], "scallop_max_mm": worst_ratio(r, targets)}
                   for r in runs]
-        step = bench.next_stepover(trials, 1.0, 1.0 - args.match_rtol / 2.0)
+        step = max(bench.next_stepover(trials, 1.0, 1.0 - args.match_rtol / 2.0),
+                   args.match_min_stepover)
         theirs.StepOver = 100.0 * step / args.diameter
         run = freecad_run(bench, job, theirs, doc, faces, args,
                           folder / f"freecad_3d_surface-match{index}.ngc")
@@ -315,7 +329,7 @@ def search_stepover(bench, job, theirs, doc, faces, args, folder: Path, first: d
         print(f"{name}: match {index}: stepover {run['stepover_mm']:.4f} mm, "
               + ", ".join(f"{k} {run[k]:.4f} (target {v:.4f})" for k, v in targets.items()),
               flush=True)
-        if repeated:  # the op's least StepOver (1 %): smaller ones would rerun the same
+        if repeated:  # --match-min-stepover or the op's least (1 %): no other run
             break
     return runs
 
@@ -340,21 +354,25 @@ def adjust_boundary(bench, job, theirs, doc, faces, args, out: Path, flat: dict,
     outline by BoundaryAdjustment - R - LinearDeflection for the ball centre when
     BoundaryEnforcement is on: BoundaryAdjustment = R (:mod:`BSplineCAM.app.surface3d`)
     keeps the centre on the outline, where a ball cannot finish a fillet down to a side
-    wall (its contact there lies R outside the outline).  The trials are
-    ``--boundary-adjustments`` (multiples of R), in order, stopping at the first that meets
-    ``edge``; the chosen one is that, or else the one with the least edge band scallop (the
-    smaller adjustment among those within 2 % of it).  The op keeps the chosen adjustment."""
+    wall (its contact there lies R outside the outline), and its first pass runs on the
+    offset outline.  The trials are ``--boundary-adjustments`` (mm; by default 1.5 R, then
+    2 R less 0.4, 0.3, 0.2 and 0.1 mm, then 2 R: the first pass R less that beyond the
+    outline, where the ball reaches a fillet's foot at a side wall), in order, stopping at the
+    first that meets ``edge``; the chosen one is that, or else the one with the least edge
+    band scallop (the first within 2 % of it).  The op keeps the chosen adjustment."""
     radius = args.diameter / 2.0
     out.mkdir(parents=True, exist_ok=True)
     trials = [flat]
-    for factor in args.boundary_adjustments:
+    adjustments = args.boundary_adjustments or [
+        1.5 * radius, *(2.0 * radius - d for d in (0.4, 0.3, 0.2, 0.1, 0.0))]
+    for adjustment in adjustments:
         if trials[-1]["edge_scallop_max_mm"] <= edge:
             break
-        theirs.BoundaryAdjustment = factor * radius
+        theirs.BoundaryAdjustment = adjustment
         run = freecad_run(bench, job, theirs, doc, faces, args,
-                          out / f"freecad_3d_surface-boundary{factor:g}R.ngc")
+                          out / f"freecad_3d_surface-boundary{adjustment:g}.ngc")
         trials.append(run)
-        print(f"{name}: FreeCAD BoundaryAdjustment {factor:g} R: {summary(run)}, edge band "
+        print(f"{name}: FreeCAD BoundaryAdjustment {adjustment:g} mm: {summary(run)}, edge band "
               f"{run['edge_scallop_max_mm']:.4f} mm (ours {edge:.4f})", flush=True)
     meeting = [t for t in trials if t["edge_scallop_max_mm"] <= edge]
     if meeting:
@@ -597,9 +615,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--match-sample-halvings", type=int, default=2,
                         help="when no StepOver reaches the target, halve the 3D Surface op's "
                         "SampleInterval and search again, at most this many times")
-    parser.add_argument("--boundary-adjustments", default="1.5,2,2.5",
+    parser.add_argument("--boundary-adjustments", default="",
                         help="the 3D Surface op's BoundaryAdjustment trials on the whole "
-                        "selection, multiples of the ball radius, comma-separated")
+                        "selection (mm, comma-separated; default 1.5 R, 2 R - 0.4 ... 2 R)")
+    parser.add_argument("--match-min-stepover", type=float, default=0.3,
+                        help="the least StepOver (mm) the retuning tries")
     parser.add_argument("--baseline-angles", default="0,90",
                         help="angles (deg) of issue 44's raster (whole passes, full "
                         "retracts); the first one is the raster-saving target's")
