@@ -21,6 +21,7 @@ import math
 import numpy as np
 import pytest
 
+from BSplineCAM.core.geometry.face_distance import FaceDistance, golden_min
 from BSplineCAM.core.geometry.faces import Face
 from BSplineCAM.core.geometry.faces_height import FacesHeight
 from BSplineCAM.core.geometry.nurbs import NurbsSurface
@@ -92,7 +93,7 @@ def box_sdf(p: np.ndarray) -> np.ndarray:
 def test_signed_distance_to_box_closed_form():
     rng = np.random.default_rng(3)
     p = rng.uniform([-4, -4, -4], [24, 24, 14], (400, 3))
-    near = gn.FaceDistance(box(*BOX)).signed(p, 40.0)
+    near = FaceDistance(box(*BOX)).signed(p, 40.0)
     np.testing.assert_allclose(near.distance, box_sdf(p), atol=1e-9)
 
 
@@ -101,13 +102,13 @@ def test_signed_distance_to_cylinder_closed_form():
     angle = rng.uniform(0.05, math.pi - 0.05, 200)  # within the face's arc
     r = rng.uniform(6.0, 14.0, 200)
     p = np.stack([r * np.cos(angle), rng.uniform(1.0, 19.0, 200), r * np.sin(angle)], axis=1)
-    near = gn.FaceDistance([half_cylinder(10.0, 20.0)]).signed(p, 10.0)
+    near = FaceDistance([half_cylinder(10.0, 20.0)]).signed(p, 10.0)
     np.testing.assert_allclose(near.distance, r - 10.0, atol=1e-9)
     assert not near.edge.any()
 
 
 def test_golden_min_closed_form():
-    t = gn.golden_min(lambda x: (x - 0.3) ** 2, np.zeros(3), np.array([1.0, 0.5, 2.0]))
+    t = golden_min(lambda x: (x - 0.3) ** 2, np.zeros(3), np.array([1.0, 0.5, 2.0]))
     np.testing.assert_allclose(t, 0.3, atol=1e-6)
 
 
