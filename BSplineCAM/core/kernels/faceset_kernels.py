@@ -1,7 +1,9 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Loop-style twins of the drop-cutter's per-level computations over (query, sub-patch) pairs
-(:mod:`..toolpath.faceset_bounds`, :mod:`..toolpath.faceset_subdivide`,
-:mod:`..toolpath.faceset_trims`), compiled by :class:`BSplineCAM.core.kernels.Kernel`.
+"""Loop-style twins of the drop-cutter's per-level computations on sub-patches' nets
+(:mod:`..toolpath.faceset_bounds`, :mod:`..toolpath.faceset_subdivide`): their coordinate
+planes and boxes, the halving and the splits; compiled by
+:class:`BSplineCAM.core.kernels.Kernel`, and :func:`~BSplineCAM.core.kernels.helper` functions
+of :mod:`.faceset_round_kernels`' fused level.
 
 Each function computes what its numpy twin computes, element by element in the same order of
 operations, so both engines give the same bits: sums over a control net follow numpy's
@@ -12,15 +14,16 @@ return contiguous float64, int64 and bool arrays only.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+
+from . import helper
 
 #: Most control points of a net whose centroid :func:`net_coords` sums (numpy's pairwise sum
 #: of up to 128 terms is one 8-way block; larger nets take the numpy engine).
 MAX_NET = 128
 
 
+@helper
 def net_coords(flat, rational):
     """The control points' coordinate planes PX, PY, PZ (N, K) of homogeneous nets ``flat``
     (N, 4, K) (divided by the weights if ``rational``), their centroids (N, 3) (numpy's
@@ -113,88 +116,7 @@ def net_coords(flat, rational):
     return PX, PY, PZ, cen, G, box
 
 
-def pair_bounds(nd, qq, R2, box, cen, C, RS):
-    """Per pair (query ``qq`` (n, 2), sub-patch ``nd`` (n,)): the box bound ``ub`` (-inf out
-    of reach), the squared xy distance ``dd`` of the net's box and ``reach``; and the parts of
-    the tangent-plane bound at the centroid: its z, s0 = sqrt(R^2 - d0^2), ``lin_ok``, the
-    affine part's coefficients (n, 3), the largest residual and the affine part's largest
-    value on the box (``faceset_bounds._box_bound`` and ``_tangent_plane``)."""
-    n = nd.shape[0]
-    K = RS.shape[2]
-    ub = np.empty(n)
-    dd = np.empty(n)
-    reach = np.empty(n, np.bool_)
-    cz = np.empty(n)
-    s0 = np.empty(n)
-    lin_ok = np.empty(n, np.bool_)
-    coef = np.empty((n, 3))
-    resid = np.empty(n)
-    amax = np.empty(n)
-    lim = 0.999 * R2
-    for i in range(n):
-        j = nd[i]
-        qx = qq[i, 0]
-        qy = qq[i, 1]
-        dx = max(max(box[j, 0] - qx, qx - box[j, 1]), 0.0)
-        dy = max(max(box[j, 2] - qy, qy - box[j, 3]), 0.0)
-        d2 = dx * dx + dy * dy
-        dd[i] = d2
-        ok = d2 <= R2
-        reach[i] = ok
-        if ok:
-            ub[i] = box[j, 4] + math.sqrt(max(R2 - d2, 0.0))
-        else:
-            ub[i] = -np.inf
-        cz[i] = cen[j, 2]
-        ox = cen[j, 0] - qx
-        oy = cen[j, 1] - qy
-        d0 = ox * ox + oy * oy
-        lin_ok[i] = d0 < lim
-        s = math.sqrt(max(R2 - d0, 1e-300))
-        s0[i] = s
-        a = ox / s
-        b = oy / s
-        for c in range(3):
-            coef[i, c] = C[0, j, c] - a * C[1, j, c] - b * C[2, j, c]
-        r = RS[0, j, 0] - a * RS[1, j, 0] - b * RS[2, j, 0]
-        for k in range(1, K):
-            x = RS[0, j, k] - a * RS[1, j, k] - b * RS[2, j, k]
-            if x > r or x != x:
-                r = x
-        resid[i] = r
-        amax[i] = coef[i, 0] + max(coef[i, 1], 0.0) + max(coef[i, 2], 0.0)
-    return ub, dd, reach, cz, s0, lin_ok, coef, resid, amax
-
-
-def corner_lower(nd, qq, touch_R2, R2, PX, PY, PZ, cidx, cok):
-    """The best f at each pair's corner control points inside the trim (``cok`` (n, 4)) and
-    within the ball's reach, -inf if none, and which corner (the first of equals)
-    (the corners part of ``faceset_bounds._lower_bounds``)."""
-    n = nd.shape[0]
-    lb = np.empty(n)
-    kk = np.zeros(n, np.int64)
-    for i in range(n):
-        j = nd[i]
-        best = -np.inf
-        arg = 0
-        for c in range(4):
-            k = cidx[c]
-            dx = PX[j, k] - qq[i, 0]
-            dy = PY[j, k] - qq[i, 1]
-            d2 = dx * dx + dy * dy
-            f = -np.inf
-            if d2 <= touch_R2 and cok[i, c]:
-                f = PZ[j, k] + math.sqrt(max(R2 - d2, 0.0))
-            if c == 0:
-                best = f
-            elif f > best:
-                best = f
-                arg = c
-        lb[i] = best
-        kk[i] = arg
-    return lb, kk
-
-
+@helper
 def halve(nets, rational):
     """de Casteljau halving of nets (U, 4, p+1, q+1) along the longer side (the sum of the
     corners' xy distances, u on ties): (along u (U,), left halves, right halves)
@@ -256,6 +178,7 @@ def halve(nets, rational):
     return along, left, right
 
 
+@helper
 def split_at(nets, along_u, t):
     """Both sides of de Casteljau's split of nets (n, 4, p+1, q+1) at local parameters t (n,)
     along u (``along_u``) or v (``faceset_bezier._split_at``, kept left and right)."""

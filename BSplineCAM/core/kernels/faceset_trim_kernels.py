@@ -9,10 +9,10 @@ operations, so both engines give the same bits and the same decisions; ``np.maxi
 ``np.minimum`` are written out with their NaN rule (a NaN operand gives NaN).  They take and
 return contiguous float64, int64 and bool arrays only.
 
-The clipping of one segment (:func:`clip_one`) and the trim test of one point
-(:func:`inside_one`) are :func:`~BSplineCAM.core.kernels.helper` functions, compiled once and
-called by every kernel that needs them (here and in :mod:`.regions_kernels`,
-:mod:`.faceset_kernels`).
+The clipping of one segment (:func:`clip_one`), the trim test of one point
+(:func:`inside_one`) and one box's clipped segment ends (:func:`vertices_into`) are
+:func:`~BSplineCAM.core.kernels.helper` functions, compiled once and called by every kernel
+that needs them (here and in :mod:`.regions_kernels`, :mod:`.faceset_round_kernels`).
 """
 
 from __future__ import annotations
@@ -243,57 +243,3 @@ def vertices(edges, box, ps):
         vertices_into(edges, box[i, 0], box[i, 1], box[i, 2], box[i, 3], ps[i], st[i], ok[i],
                       0)
     return st, ok
-
-
-def straddling(edges, box, segs, strad, table, v0, h, inner, coef, drift, rational, amax,
-               reach, cok):
-    """The straddling pairs ``strad`` (s,) of ``faceset_bounds._straddling``: their material's
-    vertices (:func:`vertices`, the corners tested by :func:`inside_one` in the domain's
-    inside ``inner``), the affine part a = c0 + c1 s + c2 t (``coef`` (n, 3)) there, and in
-    place the pairs' largest affine value ``amax`` (the vertices' largest where the segments
-    are listed; a rational patch's plus its ``drift`` (s,), where smaller), ``reach`` (False
-    where no vertex is valid) and the corners' validity ``cok`` (n, 4): (st (s, 4 + 2K, 2),
-    ok (s, 4 + 2K), aval (s, 4 + 2K), listed (s,))."""
-    s = strad.shape[0]
-    K = segs.shape[1]
-    V = 4 + 2 * K
-    st = np.zeros((s, V, 2))
-    ok = np.zeros((s, V), np.bool_)
-    aval = np.empty((s, V))
-    listed = np.empty(s, np.bool_)
-    for r in range(s):
-        i = strad[r]
-        b0 = box[i, 0]
-        b1 = box[i, 1]
-        b2 = box[i, 2]
-        b3 = box[i, 3]
-        vertices_into(edges, b0, b1, b2, b3, segs[i], st[r], ok[r], 4)
-        ok[r, 0] = inside_one(table, v0, h, b0, b2, inner[0], inner[1], inner[2], inner[3])
-        ok[r, 1] = inside_one(table, v0, h, b1, b2, inner[0], inner[1], inner[2], inner[3])
-        ok[r, 2] = inside_one(table, v0, h, b0, b3, inner[0], inner[1], inner[2], inner[3])
-        ok[r, 3] = inside_one(table, v0, h, b1, b3, inner[0], inner[1], inner[2], inner[3])
-        c0 = coef[i, 0]
-        c1 = coef[i, 1]
-        c2 = coef[i, 2]
-        top = -np.inf
-        some = False
-        for v in range(V):
-            a = c0 + c1 * st[r, v, 0] + c2 * st[r, v, 1]
-            aval[r, v] = a
-            x = a if ok[r, v] else -np.inf
-            top = top if (top >= x or top != top) else x
-            some = some or ok[r, v]
-        for c in range(4):
-            cok[i, c] = ok[r, c]
-        lst = segs[i, 0] != -2
-        listed[r] = lst
-        if lst:
-            if rational:
-                top = top + drift[r]
-                a = amax[i]
-                amax[i] = a if (a <= top or a != a) else top
-            else:
-                amax[i] = top
-            if not some:
-                reach[i] = False
-    return st, ok, aval, listed

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Compile the kernels before the first real job: a small drop-cutter over two faces (a
-rational quarter cylinder trimmed by a hole and a bicubic bump), the scattered NURBS
-evaluation with derivatives, short Z-map simulations (one tool, and a job with two) and the roughing of a small pocketed
+rational quarter cylinder trimmed by a hole and a bicubic bump) and one beside a wall, the
+scattered NURBS evaluation with derivatives, short Z-map simulations (one tool, and a job with two) and the roughing of a small pocketed
 plate, all run through the public paths
 so that every kernel they reach is compiled (or loaded from the cache folder) with the
 argument types real jobs pass.
@@ -63,6 +63,19 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         fs.drop_ball(q, 3.0)
         fs.drop_ball(q[:2] + 0.5, 3.0)
 
+    def walls():
+        # a plate beside a vertical check face: the walls' drop
+        plate = NurbsSurface(np.array([[[0.0, 0.0, 1.0], [0.0, 10.0, 1.0]],
+                                       [[10.0, 0.0, 1.0], [10.0, 10.0, 1.0]]]),
+                             [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
+        wall = NurbsSurface(np.array([[[10.0, 0.0, 0.0], [10.0, 10.0, 0.0]],
+                                      [[10.0, 0.0, 5.0], [10.0, 10.0, 5.0]]]),
+                            [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
+        square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]])
+        fs = FaceSet([Face(plate, square, index=1),
+                      Face(wall, square, index=2, selected=False)])
+        fs.drop_ball(np.array([[5.0, 5.0], [9.0, 5.0]]), 3.0)
+
     def simulate():
         grid = sim.Grid.covering(-5.0, 25.0, -5.0, 25.0, 0.5)
         pts = np.array([[0.0, 0.0, 5.0], [20.0, 0.0, 4.0], [20.0, 20.0, 3.0]])
@@ -86,7 +99,7 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         generate_roughing(plate, Stock(-14.0, 14.0, -14.0, 14.0, 0.0, 8.0),
                           sim.Tool(6.0, "flat"), 3.0, 2.4, 0.2, 0.2, cell=0.5)
 
-    return [("NURBS evaluation", evaluate), ("drop-cutter", drop),
+    return [("NURBS evaluation", evaluate), ("drop-cutter", drop), ("walls", walls),
             ("Z-map simulation", simulate), ("roughing", rough)]
 
 

@@ -8,10 +8,11 @@ near the ball's rim also the material's own reach) and a lower bound from surfac
 inside the trim (corners, trim vertices, and on shallow sub-patches the point below the
 control point nearest the query).
 
-Under the numba engine (:mod:`..kernels`) the net planes, the box and tangent-plane bounds and
-the corners' lower bounds run as compiled loops (:mod:`..kernels.faceset_kernels`), the same
-arithmetic in the same order (the affine parts' products stay numpy's), so the same bounds to
-the last bit."""
+Under the numba engine (:mod:`..kernels`) the net planes, the box and tangent-plane bounds,
+the straddling sub-patches' material and the corners' lower bounds run in one compiled call
+(:func:`..kernels.faceset_round_kernels.bound_pairs`), the same arithmetic in the same order
+but for the nets' affine parts, whose products numpy leaves to its BLAS: the same bounds to
+rounding, the same lower bounds and contacts."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import numpy as np
 
 from .. import kernels
 from ..kernels import faceset_kernels as fk
-from ..kernels import faceset_trim_kernels as tk
+from ..kernels import faceset_round_kernels as rk
 from ..typing import FloatArray
 from .faceset_bezier import _corner_index, _material_reach, _rational_drift
 from .faceset_params import CORNERS, MAX_SEGMENTS, RIM_DEPTH, RIM_FRACTION, SEED_DEPTH, TOUCH
@@ -35,7 +36,7 @@ def sub_patch_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
     at most ``floor`` (per pair: they will be dropped) are not bounded more tightly."""
     if kernels.use_numba() and it.nets.shape[2] * it.nets.shape[3] <= fk.MAX_NET:
         try:
-            return _compiled_bounds(d, it, q, R, floor)
+            return _fused_bounds(d, it, q, R, floor)
         except kernels.KernelUnavailable:
             pass
     n = len(it.query)
@@ -55,36 +56,57 @@ def sub_patch_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
     return ub, lb, lu, lv
 
 
-_net_coords = kernels.Kernel(fk.net_coords)
-_pair_bounds = kernels.Kernel(fk.pair_bounds)
-_corner_lower = kernels.Kernel(fk.corner_lower)
-
-
-def _compiled_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
-                     floor: FloatArray | float):
-    """:func:`sub_patch_bounds` with the per-node and per-pair loops compiled."""
+def _fused_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
+                  floor: FloatArray | float):
+    """:func:`sub_patch_bounds` in one compiled call (the nets' planes and every pair's
+    bounds, :func:`..kernels.faceset_round_kernels.bound_pairs`), and numpy for the rarer
+    steps that evaluate the surface or bound the rim."""
     n = len(it.query)
     R2 = R * R
     N = len(it.nets)
     flat = np.ascontiguousarray(it.nets.reshape(N, 4, -1))
-    PX, PY, PZ, cen, G, box = _net_coords(flat, bool(d.face.surface.rational))
-    C = G @ d.pinv.T  # (3, N, 3)
-    RS = G - C @ d.design.T  # (3, N, K)
-    P = _NetPlanes(flat, PX, PY, PZ, cen[:, 0], cen[:, 1], cen[:, 2], C, RS)
-    nd = np.ascontiguousarray(it.node, dtype=np.int64)
     qq = np.ascontiguousarray(q[it.query], dtype=float)
-    ub, dd, reach, cz, s0, lin_ok, coef, resid, amax = _pair_bounds(nd, qq, R2, box, cen, C,
-                                                                    RS)
-    cok = np.ones((n, 4), bool)
-    m = _straddling_compiled(d, it, P, coef, amax, reach, cok)
-    lin = cz + s0 + amax + resid
-    ub = np.where(lin_ok & (lin < ub), lin, ub)
-    ub[~reach] = -np.inf
-    _rim_bound(d, it, P, qq, R, ub, dd, floor, m)
-    cidx = _corner_index(d.p, d.q).astype(np.int64)
-    lb, k = _corner_lower(nd, qq, TOUCH * R2, R2, PX, PY, PZ, cidx, cok)
-    lb, lu, lv = _lower_rest(d, it, P, qq, R2, reach, m, lb, k)
+    fl = (np.full(n, float(floor)) if np.ndim(floor) == 0
+          else np.ascontiguousarray(floor, dtype=float))
+    bands = d._bands
+    (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv, rim, PX, PY, PZ, cen, C,
+     RS) = rk.bound_pairs(
+        np.ascontiguousarray(it.node, dtype=np.int64), qq, R2, flat,
+        bool(d.face.surface.rational), d._pinv, d._design, TOUCH * R2, d._corners, CORNERS,
+        np.ascontiguousarray(it.box, dtype=float), np.ascontiguousarray(it.segs, dtype=np.int64),
+        np.ascontiguousarray(it.status, dtype=np.int8), d.edges, bands.table, float(bands.v0),
+        float(bands.h), d._inner, fl, np.ascontiguousarray(it.depth, dtype=np.int64),
+        (RIM_FRACTION * R) ** 2, RIM_DEPTH)
+    m = (_Straddling(strad, st, ok, aval, listed) if len(strad)
+         else _Straddling(strad, None, None, None, None))
+    P = _NetPlanes(flat, PX, PY, PZ, cen[:, 0], cen[:, 1], cen[:, 2], C, RS)
+    if rim:
+        _rim_bound(d, it, P, qq, R, ub, dd, floor, m)
+    # straddling sub-patches: the best trim vertex, evaluated on the surface
+    rows = np.flatnonzero(kv >= 0)
+    if len(rows):
+        sel = strad[rows]
+        loc = st[rows, kv[rows]]
+        _raise_contact(it, lb, lu, lv, sel, loc, _ball_at(d, it, qq, R2, sel, loc)[2])
+    # shallow sub-patches: the point at the control point nearest the query
+    sel = np.flatnonzero((it.depth <= SEED_DEPTH) & reach)
+    if len(sel):
+        loc, fv = _seed_points(d, it, P, qq, R2, sel)
+        _raise_contact(it, lb, lu, lv, sel, loc, fv)
     return ub, lb, lu, lv
+
+
+def _raise_contact(it: _Items, lb: FloatArray, lu: FloatArray, lv: FloatArray,
+                   sel: np.ndarray, loc: FloatArray, fv: FloatArray) -> None:
+    """Raise the lower bounds ``lb`` of pairs ``sel`` to ``fv`` where larger, and their
+    contacts (``lu``, ``lv``) to the points at local ``loc``, in place."""
+    better = fv > lb[sel]
+    s = sel[better]
+    lb[s] = fv[better]
+    b = it.box[s]
+    loc = loc[better]
+    lu[s] = b[:, 0] + loc[:, 0] * (b[:, 1] - b[:, 0])
+    lv[s] = b[:, 2] + loc[:, 1] * (b[:, 3] - b[:, 2])
 
 
 @dataclass
@@ -201,31 +223,6 @@ def _straddling(d: _FaceData, it: _Items, P: _NetPlanes, coef: FloatArray, amax:
     return _Straddling(strad, st, ok, aval, listed)
 
 
-_straddling_kernel = kernels.Kernel(tk.straddling)
-
-
-def _straddling_compiled(d: _FaceData, it: _Items, P: _NetPlanes, coef: FloatArray,
-                         amax: FloatArray, reach: np.ndarray, cok: np.ndarray) -> _Straddling:
-    """:func:`_straddling` in one compiled call (vertices, corners' trim test, affine values,
-    ``amax``, ``reach`` and ``cok`` in place), the same bits."""
-    strad = np.flatnonzero(it.status == 2)
-    if not len(strad):
-        return _Straddling(strad, None, None, None, None)
-    rational = bool(d.face.surface.rational)
-    drift = (_rational_drift(P.flat[:, 3][it.node[strad]], coef[strad]) if rational
-             else np.zeros(0))
-    bands = d._bands
-    try:
-        st, ok, aval, listed = _straddling_kernel(
-            d.edges, np.ascontiguousarray(it.box, dtype=float),
-            np.ascontiguousarray(it.segs, dtype=np.int64), strad.astype(np.int64),
-            bands.table, float(bands.v0), float(bands.h), d._inner,
-            np.ascontiguousarray(coef), drift, rational, amax, reach, cok)
-    except kernels.KernelUnavailable:
-        return _straddling(d, it, P, coef, amax, reach, cok)
-    return _Straddling(strad, st, ok, aval, listed)
-
-
 def _rim_bound(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R: float,
                ub: FloatArray, dd: FloatArray, floor: FloatArray | float,
                m: _Straddling) -> None:
@@ -299,8 +296,6 @@ def _lower_rest(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R2: flo
                 k: np.ndarray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """:func:`_lower_bounds` past the corners (``lb``, the best of them, at corner ``k``):
     the trim vertices and the shallow sub-patches' points, and the points' (u, v)."""
-    nd = it.node
-    qx, qy = qq[:, :1], qq[:, 1:]
     sloc = CORNERS[k]
     strad = m.strad
     # straddling sub-patches: the best trim vertex, evaluated on the surface
@@ -317,19 +312,29 @@ def _lower_rest(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R2: flo
     # where the ball comes down, so that an early lower bound prunes the other faces
     sel = np.flatnonzero((it.depth <= SEED_DEPTH) & reach)
     if len(sel):
-        ns = nd[sel]
-        kn = np.argmin((P.PX[ns] - qx[sel]) ** 2 + (P.PY[ns] - qy[sel]) ** 2, axis=1)
-        loc = d.design[kn, 1:]
-        uu, vv, fv = _ball_at(d, it, qq, R2, sel, loc)
-        strad_sel = it.status[sel] == 2
-        if strad_sel.any():
-            fv[strad_sel] = np.where(d.inside(uu[strad_sel], vv[strad_sel]),
-                                     fv[strad_sel], -np.inf)
+        loc, fv = _seed_points(d, it, P, qq, R2, sel)
         _raise_bound(lb, sloc, sel, loc, fv)
     b = it.box
     lu = b[:, 0] + sloc[:, 0] * (b[:, 1] - b[:, 0])
     lv = b[:, 2] + sloc[:, 1] * (b[:, 3] - b[:, 2])
     return lb, lu, lv
+
+
+def _seed_points(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R2: float,
+                 sel: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    """The local points of shallow sub-patches ``sel`` below their control point nearest
+    the query (its Greville abscissae) and the centre height of the ball resting there
+    (-inf outside the trim or the ball's reach)."""
+    ns = it.node[sel]
+    qs = qq[sel]
+    kn = np.argmin((P.PX[ns] - qs[:, :1]) ** 2 + (P.PY[ns] - qs[:, 1:]) ** 2, axis=1)
+    loc = d.design[kn, 1:]
+    uu, vv, fv = _ball_at(d, it, qq, R2, sel, loc)
+    strad_sel = it.status[sel] == 2
+    if strad_sel.any():
+        fv[strad_sel] = np.where(d.inside(uu[strad_sel], vv[strad_sel]),
+                                 fv[strad_sel], -np.inf)
+    return loc, fv
 
 
 def _ball_at(d: _FaceData, it: _Items, qq: FloatArray, R2: float, sel: np.ndarray,

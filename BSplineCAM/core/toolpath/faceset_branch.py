@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import faceset_round_kernels as rk
 from ..typing import FloatArray
 from .faceset_bounds import sub_patch_bounds
 from .faceset_contacts import merge, polish
@@ -22,7 +24,7 @@ from .faceset_params import (
     REGION_EVERY,
 )
 from .faceset_regions import certify_faces
-from .faceset_subdivide import children, region_cuts
+from .faceset_subdivide import children, open_children, region_cuts
 from .faceset_trims import _Items
 from .faceset_walls import _Walls
 
@@ -53,6 +55,8 @@ def drop_chunk(all_data: list, walls: _Walls, stats: dict, q: FloatArray, R: flo
     reg_val = np.full((nf, m), np.inf)
     sought = np.full((nf, m), np.nan)  # fb when a region was last sought
     crowded_levels = np.zeros(m, int)
+    fused = kernels.use_numba()
+    touched = np.zeros(m, bool)  # scratch of the compiled _record_contacts
     level = 0
     while groups:
         level += 1
@@ -62,6 +66,12 @@ def drop_chunk(all_data: list, walls: _Walls, stats: dict, q: FloatArray, R: flo
         for j, d, it in groups:
             ub, lb, lu, lv = sub_patch_bounds(d, it, q, R, best[it.query] + certify)
             evaluated.append((j, d, it, ub))
+            if fused:
+                try:
+                    rk.record_contacts(j, it.query, lb, lu, lv, fb, fu, fv, touched)
+                    continue
+                except kernels.KernelUnavailable:
+                    fused = False
             _record_contacts(j, it, lb, lu, lv, fb, fu, fv)
         merge(data, fb, fu, fv, best, face, bu, bv)
         if level in POLISH_LEVELS[1:] or (level > POLISH_LEVELS[-1]
@@ -71,6 +81,16 @@ def drop_chunk(all_data: list, walls: _Walls, stats: dict, q: FloatArray, R: flo
         groups = []
         for j, d, it, ub in evaluated:
             stats["pairs"] += len(it.query)
+            if fused:
+                try:
+                    halves, unc = open_children(j, d, it, ub, best, gap, reg_box, reg_val,
+                                                given_up, certify, crowded_now)
+                    stats["uncertified"] += unc
+                    if len(halves.query):
+                        groups.append((j, d, halves))
+                    continue
+                except kernels.KernelUnavailable:
+                    fused = False
             open_, rb, inreg, crowded = _open_pairs(j, it, ub, best, gap, reg_box, reg_val,
                                                     given_up, certify, stats, m)
             crowded_now |= crowded

@@ -11,9 +11,10 @@ import numpy as np
 
 from .. import kernels
 from ..kernels import faceset_kernels as fk
+from ..kernels import faceset_round_kernels as rk
 from ..typing import FloatArray
 from .faceset_bezier import _split_at, _split_into
-from .faceset_params import CUT_MARGIN, MAX_SEGMENTS
+from .faceset_params import CUT_MARGIN, MAX_DEPTH, MAX_OPEN, MAX_SEGMENTS
 from .faceset_trims import _FaceData, _Items
 
 
@@ -89,6 +90,33 @@ def children(d: _FaceData, it: _Items, mask: np.ndarray | None = None,
     pieces = _Items(it.query[parent], node, out, box, it.depth[parent] + 1, status, segs)
     keep = status > 0
     return pieces if keep.all() else pieces.take(keep)
+
+
+def open_children(j: int, d: _FaceData, it: _Items, ub: FloatArray, best: FloatArray,
+                  gap: FloatArray, reg_box: FloatArray, reg_val: FloatArray,
+                  given_up: np.ndarray, certify: float, crowded: np.ndarray) -> tuple:
+    """The compiled level's end for face row ``j`` (:func:`..kernels.faceset_round_kernels.
+    open_split`): the pairs still open (``faceset_branch._open_pairs``; ``gap`` and
+    ``crowded`` updated in place) cut along their regions' sides (:func:`region_cuts`) or
+    halved, as :func:`children` of them: (halves, pairs left uncertified).  Raises
+    :class:`..kernels.KernelUnavailable` where the kernel cannot run."""
+    bands = d._bands
+    unc, parent, query, node, nets, box, depth, status, segs = rk.open_split(
+        j, np.ascontiguousarray(it.query, dtype=np.int64),
+        np.ascontiguousarray(it.node, dtype=np.int64), np.ascontiguousarray(it.nets),
+        np.ascontiguousarray(it.box, dtype=float), np.ascontiguousarray(it.depth, np.int64),
+        np.ascontiguousarray(it.status, dtype=np.int8),
+        np.ascontiguousarray(it.segs, dtype=np.int64), ub, best, gap, reg_box, reg_val,
+        given_up, float(certify), MAX_DEPTH, MAX_OPEN, CUT_MARGIN,
+        bool(d.face.surface.rational), d.edges, bands.table, float(bands.v0), float(bands.h),
+        d._inner, crowded)
+    todo = np.flatnonzero(status < 0)
+    if len(todo):
+        # parents crossed by more trim segments than listed: classified against all
+        status[todo], segs[todo] = d.classify(box[todo], it.segs[parent[todo]])
+    pieces = _Items(query, node, nets, box, depth, status, segs)
+    keep = status > 0
+    return (pieces if keep.all() else pieces.take(keep)), int(unc)
 
 
 _halve_kernel = kernels.Kernel(fk.halve)

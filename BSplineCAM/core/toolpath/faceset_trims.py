@@ -300,6 +300,11 @@ class _FaceData:
         self._known_vertices = _RowCache()  # vertices' answers by row
         self.design = _bernstein_grid(self.p, self.q)
         self.pinv = np.linalg.pinv(self.design)  # (3, K)
+        # the same, contiguous, and the corner control points' flat indices, for the kernels
+        self._pinv = np.ascontiguousarray(self.pinv)
+        self._design = np.ascontiguousarray(self.design)
+        self._corners = np.array([0, self.p * (self.q + 1), self.q,
+                                  self.p * (self.q + 1) + self.q], dtype=np.int64)
         status, segs = self.classify(self.boxes, np.full((len(self.boxes), 1), -2))
         self.root_status, self.root_segs = status, segs
         keep = status > 0

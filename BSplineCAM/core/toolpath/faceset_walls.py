@@ -8,7 +8,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .. import kernels
 from ..geometry.faces import Face
+from ..kernels import faceset_wall_kernels as wk
 from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_params import TOUCH
@@ -68,6 +70,12 @@ class _Walls:
         bv = np.zeros(m)
         if len(self.seg) == 0:
             return best, face, bu, bv
+        if kernels.use_numba():
+            try:
+                return wk.drop(np.ascontiguousarray(q, dtype=float), float(R), self.lo,
+                               self.hi, self.seg, self.owner, self.uv, TOUCH)
+            except kernels.KernelUnavailable:
+                pass
         dx = np.maximum(np.maximum(self.lo[None, :, 0] - q[:, :1], q[:, :1] - self.hi[None, :, 0]), 0)
         dy = np.maximum(np.maximum(self.lo[None, :, 1] - q[:, 1:], q[:, 1:] - self.hi[None, :, 1]), 0)
         qi, si = np.nonzero(dx * dx + dy * dy <= R * R)
