@@ -59,7 +59,7 @@ from ..geometry.face_distance import FaceDistance, dot, golden_min
 from ..geometry.faces import Face
 from ..program.gcode_words import Segments
 from ..typing import FloatArray
-from .simulate import Grid, Tool
+from .simulate import Grid, Tool, ToolShape
 
 #: Flagged cells measured at most (the worst first); the others keep their vertical gouge.
 MAX_CELLS = 200
@@ -150,13 +150,14 @@ class NormalGouge:
 def measure(faces: Sequence[Face], segments: Segments, tools: Sequence[Tool],
             grid: Grid, design: FloatArray, machined: FloatArray, mask: np.ndarray,
             tolerance: float = GOUGE_TOLERANCE_MM, max_cells: int = MAX_CELLS,
-            path_step: float = PATH_STEP_MM, distance: FaceDistance | None = None
-            ) -> NormalGouge:
+            path_step: float = PATH_STEP_MM, distance: FaceDistance | None = None,
+            tool_of: np.ndarray | None = None) -> NormalGouge:
     """Measure the cells of ``mask`` where ``design - machined > tolerance`` (mm) along the
     normal (module docstring): at most ``max_cells`` of them, the deepest first.
 
-    ``segments`` are the linearised moves the Z-map ``machined`` came from, ``tools`` the
-    tool of each segment (one Tool for all, or one per segment), ``design`` the top-most
+    ``segments`` are the linearised moves the Z-map ``machined`` came from, cut by
+    ``tools[tool_of[i]]`` (``tools[0]`` for every segment without ``tool_of``; -1: a move
+    that cuts nothing, of a tool the simulation did not have); ``design`` is the top-most
     face height of each cell of ``grid``."""
     gouge = np.where(mask, design - machined, -np.inf)
     flagged = np.flatnonzero(gouge.ravel() > tolerance)
@@ -167,12 +168,14 @@ def measure(faces: Sequence[Face], segments: Segments, tools: Sequence[Tool],
     unmeasured = [(float(x), float(y), float(g), "beyond the cap")
                   for x, y, g in zip(cx[max_cells:], cy[max_cells:], cg[max_cells:])]
     cx, cy, cz, cg = cx[:max_cells], cy[:max_cells], cz[:max_cells], cg[:max_cells]
+    if not len(cx):
+        return NormalGouge((), tuple(unmeasured), len(flagged), path_step)
     start = np.asarray(segments.start, dtype=float)
     end = np.asarray(segments.end, dtype=float)
-    if len(tools) == 1 and len(start) != 1:
-        tools = list(tools) * len(start)
-    radius = np.array([t.radius for t in tools], dtype=float)
-    ball = np.array([t.shape.value == "ball" for t in tools], dtype=bool)
+    which = np.zeros(len(start), np.intp) if tool_of is None else np.asarray(tool_of, np.intp)
+    # index -1 picks the last entry: no reach
+    radius = np.array([*(t.radius for t in tools), -np.inf])[which]
+    ball = np.array([*(t.shape is ToolShape.BALL for t in tools), True])[which]
     lo = np.minimum(start, end)
     hi = np.maximum(start, end)
     pairs: list[tuple[int, int, float, float]] = []  # (cell, segment, ta, tb)

@@ -243,9 +243,12 @@ def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: flo
                     zip(faces, np.bincount(hm.face[model], minlength=len(faces)))},
     )
     metrics.pop("footprint_cells", None)
-    moved = [tool] if job is None else [tools.get(int(n), tool) for n in job.tool]
+    numbers = [] if job is None else sorted(tools)
+    tool_of = None if job is None else np.where(np.isin(job.tool, numbers),
+                                                np.searchsorted(numbers, job.tool), -1)
     metrics.update(gouge_normal_measured=True, **measure_normal_gouge(
-        faces, segments, moved, grid, design, sim.height, model, GOUGE_TOLERANCE_MM).metrics())
+        faces, segments, [tools[n] for n in numbers] or [tool], grid, design, sim.height,
+        model, GOUGE_TOLERANCE_MM, tool_of=tool_of).metrics())
     _describe(metrics, program, sim, segments, tool, stock_top, (x0, x1, y0, y1))
     _describe_job(metrics, job, model)
     if progress is not None:
