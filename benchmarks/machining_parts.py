@@ -342,7 +342,8 @@ def freecad_run(bench, job, theirs, doc, faces, args, path: Path) -> dict:
     return {"seconds": seconds, **measure_program(faces, text, path, args),
             "stepover_mm": args.diameter * theirs.StepOver / 100.0,
             "sample_interval_mm": theirs.SampleInterval.Value,
-            "boundary_adjustment_mm": theirs.BoundaryAdjustment.Value}
+            "boundary_adjustment_mm": theirs.BoundaryAdjustment.Value,
+            "final_depth_mm": theirs.FinalDepth.Value}
 
 
 def adjust_boundary(bench, job, theirs, doc, faces, args, out: Path, flat: dict, edge: float,
@@ -353,18 +354,22 @@ def adjust_boundary(bench, job, theirs, doc, faces, args, out: Path, flat: dict,
     PathSurface (0.20, ``PathSurfaceSupport._calculateOffsetValue``) offsets the faces'
     outline by BoundaryAdjustment - R - LinearDeflection for the ball centre when
     BoundaryEnforcement is on: BoundaryAdjustment = R (:mod:`BSplineCAM.app.surface3d`)
-    keeps the centre on the outline, where a ball cannot finish a fillet down to a side
-    wall (its contact there lies R outside the outline), and its first pass runs on the
-    offset outline.  The trials are ``--boundary-adjustments`` (mm; by default 1.5 R, then
-    2 R less 0.4, 0.3, 0.2 and 0.1 mm, then 2 R: the first pass R less that beyond the
-    outline, where the ball reaches a fillet's foot at a side wall), in order, stopping at the
+    keeps the centre on the outline, where a ball cannot finish a fillet down to a side wall
+    (its contact at the fillet's foot lies R outside the outline); its passes lie at
+    multiples of StepOver from the middle of the bound box, the boundary only decides which
+    of them run.  FinalDepth (by default the faces' lowest point, which stops the tip above
+    a convex fillet's foot when the centre is outside) is set R lower, then the trials are
+    ``--boundary-adjustments`` (mm; by default 1.5 R and 2 R), in order, stopping at the
     first that meets ``edge``; the chosen one is that, or else the one with the least edge
-    band scallop (the first within 2 % of it).  The op keeps the chosen adjustment."""
+    band scallop (the first within 2 % of it).  The op keeps the chosen adjustment and
+    FinalDepth."""
     radius = args.diameter / 2.0
     out.mkdir(parents=True, exist_ok=True)
     trials = [flat]
-    adjustments = args.boundary_adjustments or [
-        1.5 * radius, *(2.0 * radius - d for d in (0.4, 0.3, 0.2, 0.1, 0.0))]
+    depth = theirs.FinalDepth.Value
+    theirs.setExpression("FinalDepth", None)
+    theirs.FinalDepth = depth - radius
+    adjustments = args.boundary_adjustments or [1.5 * radius, 2.0 * radius]
     for adjustment in adjustments:
         if trials[-1]["edge_scallop_max_mm"] <= edge:
             break
@@ -528,7 +533,8 @@ def freecad_label(what: str, r: dict) -> str:
     boundary = r.get("boundary_adjustment_mm")
     return (f"FreeCAD 3D Surface, {what}: stepover {r['stepover_mm']:.3f} mm"
             + (f", SampleInterval {interval:.3f} mm" if interval is not None else "")
-            + (f", BoundaryAdjustment {boundary:.2f} mm" if boundary is not None else ""))
+            + (f", BoundaryAdjustment {boundary:.2f} mm" if boundary is not None else "")
+            + (f", FinalDepth {r['final_depth_mm']:.2f} mm" if "final_depth_mm" in r else ""))
 
 
 def trials_line(what: str, matched: dict) -> list[str]:
@@ -617,7 +623,7 @@ def main(argv: list[str] | None = None) -> None:
                         "SampleInterval and search again, at most this many times")
     parser.add_argument("--boundary-adjustments", default="",
                         help="the 3D Surface op's BoundaryAdjustment trials on the whole "
-                        "selection (mm, comma-separated; default 1.5 R, 2 R - 0.4 ... 2 R)")
+                        "selection (mm, comma-separated; default 1.5 R, 2 R)")
     parser.add_argument("--match-min-stepover", type=float, default=0.3,
                         help="the least StepOver (mm) the retuning tries")
     parser.add_argument("--baseline-angles", default="0,90",
