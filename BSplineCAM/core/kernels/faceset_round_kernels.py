@@ -32,6 +32,7 @@ import numpy as np
 from . import Kernel, helper
 from .faceset_kernels import halve, net_coords, split_at
 from .faceset_trim_kernels import clip_one, inside_one, vertices_into
+from .nurbs_eval import _check_loops, _rational_loops, _scattered_loops
 
 
 @helper
@@ -71,17 +72,22 @@ def net_planes(flat, rational, pinv, design):
 
 def _bound_pairs_loops(nd, qq, R2, flat, rational, pinv, design, touch_R2, cidx, corners,
                        ibox, segs, status, edges, table, v0, h, inner, floor, depth, rim_r2,
-                       rim_depth):
+                       rim_depth, knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                       spans_v, orders, offsets, tables, dim, index, dom):
     """Bounds of the pairs (query ``qq`` (n, 2), sub-patch ``nd`` (n,) of the nets ``flat``)
     of one level of one face: (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv,
     rim, and the nets' planes of :func:`net_planes`).
 
     ``ub`` is the upper bound before the rim bound (-inf out of reach), ``dd`` the squared
     xy distance of the net's box, ``reach`` whether it is within reach (no material: out),
-    ``lb`` the corners' lower bound at (``lu``, ``lv``); ``strad`` (s,) the straddling pairs,
-    ``st``, ``ok``, ``aval``, ``listed`` their material's vertices as
-    ``faceset_bounds._Straddling``, ``kv`` (s,) the vertex whose surface point offers a
-    lower bound (-1 none), and ``rim`` the number of pairs the rim bound is for."""
+    ``lb`` the lower bound of the corners and, on straddling pairs, of the surface point at
+    the best trim vertex, at (``lu``, ``lv``); ``strad`` (s,) the straddling pairs, ``st``,
+    ``ok``, ``aval``, ``listed`` their material's vertices as ``faceset_bounds._Straddling``,
+    ``kv`` (s,) the vertex whose surface point was tried (-1 none), and ``rim`` the number of
+    pairs the rim bound is for.  The surface's points come from :mod:`.nurbs_eval`'s loops
+    (its pack of the points' order, ``index`` of the quotient rule, the domain ``dom`` (lo u,
+    hi u, tol u, lo v, hi v, tol v)); ``rim`` is -1 where a vertex fell outside the domain
+    (the caller's evaluation raises there)."""
     PX, PY, PZ, cen, C, RS, box = net_planes(flat, rational, pinv, design)
     n = nd.shape[0]
     K = RS.shape[2]
@@ -104,6 +110,7 @@ def _bound_pairs_loops(nd, qq, R2, flat, rational, pinv, design, touch_R2, cidx,
     lu = np.empty(n)
     lv = np.empty(n)
     cok = np.ones(4, np.bool_)
+    first = np.full(flat.shape[0], -1, np.int64)  # each node's first straddling pair
     lim = 0.999 * R2
     rim = 0
     r = 0
@@ -145,11 +152,25 @@ def _bound_pairs_loops(nd, qq, R2, flat, rational, pinv, design, touch_R2, cidx,
             b1 = ibox[i, 1]
             b2 = ibox[i, 2]
             b3 = ibox[i, 3]
-            vertices_into(edges, b0, b1, b2, b3, segs[i], st[r], ok[r], 4)
-            ok[r, 0] = inside_one(table, v0, h, b0, b2, inner[0], inner[1], inner[2], inner[3])
-            ok[r, 1] = inside_one(table, v0, h, b1, b2, inner[0], inner[1], inner[2], inner[3])
-            ok[r, 2] = inside_one(table, v0, h, b0, b3, inner[0], inner[1], inner[2], inner[3])
-            ok[r, 3] = inside_one(table, v0, h, b1, b3, inner[0], inner[1], inner[2], inner[3])
+            # the material's vertices depend on the box and its segments alone: the queries
+            # sharing a sub-patch take its first pair's
+            f = first[j]
+            if f >= 0 and same_box(ibox, segs, strad[f], i):
+                for v in range(V):
+                    st[r, v, 0] = st[f, v, 0]
+                    st[r, v, 1] = st[f, v, 1]
+                    ok[r, v] = ok[f, v]
+            else:
+                first[j] = r
+                vertices_into(edges, b0, b1, b2, b3, segs[i], st[r], ok[r], 4)
+                ok[r, 0] = inside_one(table, v0, h, b0, b2, inner[0], inner[1], inner[2],
+                                      inner[3])
+                ok[r, 1] = inside_one(table, v0, h, b1, b2, inner[0], inner[1], inner[2],
+                                      inner[3])
+                ok[r, 2] = inside_one(table, v0, h, b0, b3, inner[0], inner[1], inner[2],
+                                      inner[3])
+                ok[r, 3] = inside_one(table, v0, h, b1, b3, inner[0], inner[1], inner[2],
+                                      inner[3])
             top = -np.inf
             some = False
             for v in range(V):
@@ -222,6 +243,42 @@ def _bound_pairs_loops(nd, qq, R2, flat, rational, pinv, design, touch_R2, cidx,
         lb[i] = f_best
         lu[i] = ibox[i, 0] + corners[arg, 0] * (ibox[i, 1] - ibox[i, 0])
         lv[i] = ibox[i, 2] + corners[arg, 1] * (ibox[i, 3] - ibox[i, 2])
+    # the best trim vertices' surface points (faceset_bounds._ball_at and _raise_bound)
+    c = 0
+    for r in range(s):
+        if kv[r] >= 0:
+            c += 1
+    uu = np.empty(c)
+    vv = np.empty(c)
+    c = 0
+    for r in range(s):
+        if kv[r] >= 0:
+            i = strad[r]
+            uu[c] = ibox[i, 0] + st[r, kv[r], 0] * (ibox[i, 1] - ibox[i, 0])
+            vv[c] = ibox[i, 2] + st[r, kv[r], 1] * (ibox[i, 3] - ibox[i, 2])
+            c += 1
+    if c:
+        cu, cv, inside = _check_loops(uu, vv, dom[0], dom[1], dom[2], dom[3], dom[4], dom[5])
+        if not inside:
+            rim = -1
+        pts, _, _ = _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                                     spans_v, orders, offsets, tables, dim, cu, cv)
+        if rational:
+            pts = _rational_loops(pts, orders, index)
+        c = 0
+        for r in range(s):
+            if kv[r] < 0:
+                continue
+            i = strad[r]
+            ex = pts[0, c, 0] - qq[i, 0]
+            ey = pts[0, c, 1] - qq[i, 1]
+            e2 = ex ** 2 + ey ** 2
+            f = pts[0, c, 2] + math.sqrt(max(R2 - e2, 0.0)) if e2 <= touch_R2 else -np.inf
+            if f > lb[i]:
+                lb[i] = f
+                lu[i] = uu[c]
+                lv[i] = vv[c]
+            c += 1
     return (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv, rim, PX, PY, PZ, cen,
             C, RS)
 
@@ -245,6 +302,18 @@ def _record_contacts_loops(j, query, lb, lu, lv, fb, fu, fv, touched):
             touched[q] = True
     for i in range(n):
         touched[query[i]] = False
+
+
+@helper
+def same_box(box, segs, a, b):
+    """Whether pairs a and b have the same parameter box and trim segments."""
+    for k in range(4):
+        if box[a, k] != box[b, k]:
+            return False
+    for k in range(segs.shape[1]):  # noqa: SIM110  (a generator does not compile)
+        if segs[a, k] != segs[b, k]:
+            return False
+    return True
 
 
 @helper

@@ -21,9 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import Kernel
+from . import Kernel, helper
 
 
+@helper
 def _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v, spans_v,
                      orders, offsets, tables, d, u, w):
     """Homogeneous partial derivatives at the scattered points (u, w): (len(orders), m, d),
@@ -107,6 +108,7 @@ def _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v, s
     return out, spans, local
 
 
+@helper
 def _rational_loops(hom, orders, index):
     """Derivatives of S = A / w from the homogeneous ones ``hom`` (len(orders), m, 4) of
     (A, w): (len(orders), m, 3), by the quotient rule in the operation order of
@@ -144,6 +146,7 @@ def _rational_loops(hom, orders, index):
     return out
 
 
+@helper
 def _check_loops(u, w, lo_u, hi_u, tol_u, lo_v, hi_v, tol_v):
     """u and w clamped to their domains [lo, hi] (as ``numeric.clamp``), and whether every
     value is finite and within [lo - tol, hi + tol]."""

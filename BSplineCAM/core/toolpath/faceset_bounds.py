@@ -59,8 +59,8 @@ def sub_patch_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
 def _fused_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
                   floor: FloatArray | float):
     """:func:`sub_patch_bounds` in one compiled call (the nets' planes and every pair's
-    bounds, :func:`..kernels.faceset_round_kernels.bound_pairs`), and numpy for the rarer
-    steps that evaluate the surface or bound the rim."""
+    bounds, the trim vertices' points included: :func:`..kernels.faceset_round_kernels.
+    bound_pairs`), and numpy for the rarer steps (the shallow pairs' points, the rim)."""
     n = len(it.query)
     R2 = R * R
     N = len(it.nets)
@@ -76,18 +76,16 @@ def _fused_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
         np.ascontiguousarray(it.box, dtype=float), np.ascontiguousarray(it.segs, dtype=np.int64),
         np.ascontiguousarray(it.status, dtype=np.int8), d.edges, bands.table, float(bands.v0),
         float(bands.h), d._inner, fl, np.ascontiguousarray(it.depth, dtype=np.int64),
-        (RIM_FRACTION * R) ** 2, RIM_DEPTH)
+        (RIM_FRACTION * R) ** 2, RIM_DEPTH, *d.point_pack())
     m = (_Straddling(strad, st, ok, aval, listed) if len(strad)
          else _Straddling(strad, None, None, None, None))
     P = _NetPlanes(flat, PX, PY, PZ, cen[:, 0], cen[:, 1], cen[:, 2], C, RS)
+    if rim < 0:
+        # a trim vertex outside the surface's domain: its evaluation says so
+        rows = np.flatnonzero(kv >= 0)
+        _ball_at(d, it, qq, R2, strad[rows], st[rows, kv[rows]])
     if rim:
         _rim_bound(d, it, P, qq, R, ub, dd, floor, m)
-    # straddling sub-patches: the best trim vertex, evaluated on the surface
-    rows = np.flatnonzero(kv >= 0)
-    if len(rows):
-        sel = strad[rows]
-        loc = st[rows, kv[rows]]
-        _raise_contact(it, lb, lu, lv, sel, loc, _ball_at(d, it, qq, R2, sel, loc)[2])
     # shallow sub-patches: the point at the control point nearest the query
     sel = np.flatnonzero((it.depth <= SEED_DEPTH) & reach)
     if len(sel):

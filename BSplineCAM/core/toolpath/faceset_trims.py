@@ -298,6 +298,7 @@ class _FaceData:
         self._grid = _SegmentGrid(self.edges, face.surface.domain)
         self._known = _RowCache()  # classify's answers by row
         self._known_vertices = _RowCache()  # vertices' answers by row
+        self._point_pack = None  # see point_pack
         self.design = _bernstein_grid(self.p, self.q)
         self.pinv = np.linalg.pinv(self.design)  # (3, K)
         # the same, contiguous, and the corner control points' flat indices, for the kernels
@@ -309,6 +310,16 @@ class _FaceData:
         self.root_status, self.root_segs = status, segs
         keep = status > 0
         self.roots = np.flatnonzero(keep)
+
+    def point_pack(self) -> tuple:
+        """The compiled point evaluation's arguments for this face's surface (its scattered
+        kernel's pack of order (0, 0), the quotient rule's index, the domain and its
+        tolerances: :mod:`..kernels.nurbs_eval`), for kernels that evaluate points."""
+        if self._point_pack is None:
+            s = self.face.surface
+            self._point_pack = (*s._pack(((0, 0),)), np.zeros((1, 1), dtype=np.int64),
+                                np.array(s._tolerances, dtype=float))
+        return self._point_pack
 
     def inside(self, u: FloatArray, v: FloatArray) -> np.ndarray:
         """Whether (u, v) lies in the material: the trim test of :func:`faces.inside`, with points
