@@ -64,7 +64,6 @@ from .common import (
     ToolParameters,
     Toolpath,
     ToolpathStats,
-    normal_curvature,
     principal_curvatures,
     simplify,
 )
@@ -80,12 +79,12 @@ from .scallop_field import (
     contours,
     edge_ends,
     edge_points,
-    near_distance,
     near_vector,
     propagate,
 )
 from .scallop_gaps import SurfaceGrid, gap_limit, gap_passes
 from .scallop_metric import (
+    NormalCurvature,
     across_directions,
     band_costs,
     directional_cost,
@@ -186,12 +185,12 @@ class _Grid:
         return [edge_points(mask, self.xs, self.ys, ch, 0.5,
                             np.array([t_of[k] for k in ch.tolist()])) for ch in chains]
 
-    def distance(self, polylines: list) -> FloatArray:
-        """Least cost (stepovers) from ``polylines`` to every region node (inf where none),
+    def distance(self, near: FloatArray, vec: FloatArray) -> FloatArray:
+        """Least cost (stepovers) from polylines to every region node (inf where none),
         started at the nodes within a cell of them from the XY vector from their nearest
         point at the node's cost along it (further out the cost between falls short of the
-        node's where it rises towards the polylines, as on a fillet that steepens)."""
-        near, vec = near_vector(polylines, self.xs, self.ys)
+        node's where it rises towards the polylines, as on a fillet that steepens); ``near``
+        and ``vec`` are :func:`.scallop_field.near_vector` of the polylines on the grid."""
         ok = self.inside & (near <= max(self.dx, self.dy))
         start = np.full(self.shape, np.inf)
         start[ok] = directional_cost(self.cost[:, ok], self.axes, vec[ok])
@@ -224,7 +223,8 @@ def stepovers(jet: Jet, tool: ToolParameters, across: FloatArray) -> FloatArray:
     """(len(across), m) XY distance between passes (mm) that run perpendicular to each unit XY
     vector ``across``, leaving vertical cusps of ``tool.scallop`` at the jet's points
     (:func:`.raster.cross_section_stepover`), clamped to [0.02 s_flat, R]."""
-    n = jet.normal
+    curvature = NormalCurvature(jet)
+    n = curvature.normal
     kappa_max = principal_curvatures(jet)[1]
     nz = np.clip(n[:, 2], 1e-3, 1.0)
     out = np.empty((len(across), len(n)))
@@ -232,7 +232,7 @@ def stepovers(jet: Jet, tool: ToolParameters, across: FloatArray) -> FloatArray:
         along = np.array([-c[1], c[0]])
         t = np.column_stack([np.full(len(n), c[0]), np.full(len(n), c[1]),
                              -(n[:, :2] @ c) / nz])
-        s = cross_section_stepover(tool.radius, tool.scallop, normal_curvature(jet, t), n, c,
+        s = cross_section_stepover(tool.radius, tool.scallop, curvature(t), n, c,
                                    along, kappa_max)
         out[a] = np.clip(s, 0.02 * tool.flat_stepover, tool.radius)
     return out
@@ -259,11 +259,11 @@ def scallop_faces(faceset: FaceSet, tool: ToolParameters,
     grid = _Grid(faceset, tool, query, _upward_signs(faceset))
     monitor(0.3)
     border = grid.border()
-    d = grid.distance(border)
+    near, vec = near_vector(border, grid.xs, grid.ys)
+    d = grid.distance(near, vec)
     monitor(0.4)
     # outside the region the field falls below zero (the XY distance to the border in flat
     # stepovers): the first level's contour runs along the border, not the grid's staircase
-    near = near_distance(border, grid.xs, grid.ys)
     field = np.where(grid.inside, d, -np.where(np.isfinite(near), near, grid.dx)
                      / tool.flat_stepover)
     field[~np.isfinite(field)] = np.nan  # region nodes no path reaches (none expected)

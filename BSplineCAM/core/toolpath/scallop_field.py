@@ -22,7 +22,10 @@ stepovers, propagated over a grid of ball-centre positions, and its contours.
   :mod:`.waterline`) with the crossing on each grid edge interpolated linearly.
 * :func:`near_distance` gives the XY distance of grid nodes near polylines to them: the exact
   start values next to a boundary or a pass, so the field does not inherit the grid's
-  staircase.
+  staircase; :class:`NearField` keeps it for a growing set of polylines, searching near the
+  new ones only.
+
+The loops run compiled (:mod:`..kernels.scallop_kernels`) under the numba engine.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ import math
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import scallop_kernels as _sk
 from ..typing import FloatArray
 from .waterline import _chain, _crossings
 
@@ -102,6 +107,21 @@ def propagate(start: FloatArray, cost: FloatArray, dx: float, dy: float,
     # (i - di, j - dj) forwards, from (i + di, j + dj) backwards
     back = [(di, dj, k, _between(di, dj)) for k, (di, dj) in enumerate(AXES) if di > 0]
     row_axis = AXES.index((0, 1))
+    if kernels.use_numba():
+        mids = [m for *_, mid in back for m in mid]
+        ints = [np.array(v, dtype=np.int64) for v in (
+            [di for di, *_ in back], [dj for _, dj, *_ in back], [k for _, _, k, _ in back],
+            np.cumsum([0] + [len(mid) for *_, mid in back]), [a for a, _ in mids],
+            [b for _, b in mids])]
+        out = d.copy()
+        try:
+            _sk.propagate(out, np.ascontiguousarray(cost, dtype=float),
+                          np.ascontiguousarray(against, dtype=float),
+                          np.ascontiguousarray(free, dtype=bool), np.array(length), *ints,
+                          row_axis, int(max_rounds))
+            return out
+        except kernels.KernelUnavailable:
+            pass
     for _ in range(max_rounds):
         before = d.copy()
         for sweep in (1, -1):
@@ -198,19 +218,60 @@ def near_vector(polylines: list, xs: FloatArray, ys: FloatArray,
                 reach: int = 2) -> tuple[FloatArray, FloatArray]:
     """:func:`near_distance` and the XY vector (nx, ny, 2) from the nearest point of the
     segments to the node (zero where none is within reach)."""
+    out, vec, _ = _near(polylines, xs, ys, reach)
+    return out, vec
+
+
+class NearField:
+    """:func:`near_vector` of a growing list of polylines over one grid: :meth:`add` finds the
+    nodes near the new ones only and merges them in, the same answer as a call over all of
+    them.  Of the pieces at a node's least distance a call keeps the last to reach it, the
+    neighbour offsets outermost (the offset's index decides; at one offset a later polyline
+    wins), so with finite coordinates merging is exact; other polylines are searched anew
+    with all the rest."""
+
+    def __init__(self, xs: FloatArray, ys: FloatArray, reach: int = 2):
+        self.xs, self.ys, self.reach = xs, ys, reach
+        self.lines: list = []
+        self.out, self.vec, self.offset = _near([], xs, ys, reach)
+        self.finite = True
+
+    def add(self, polylines: list) -> None:
+        """Take in more polylines (after those already in, in order)."""
+        polylines = list(polylines)
+        self.lines += polylines
+        finite = all(bool(np.isfinite(np.asarray(p, dtype=float)[:, :2]).all())
+                     for p in polylines)
+        if not (self.finite and finite):
+            self.finite = False
+            self.out, self.vec, self.offset = _near(self.lines, self.xs, self.ys, self.reach)
+            return
+        out, vec, offset = _near(polylines, self.xs, self.ys, self.reach)
+        new = (out < self.out) | ((out == self.out) & (offset >= self.offset))
+        self.out = np.where(new, out, self.out)
+        self.vec = np.where(new[..., None], vec, self.vec)
+        self.offset = np.where(new, offset, self.offset)
+
+
+def _near(polylines: list, xs: FloatArray, ys: FloatArray,
+          reach: int) -> tuple[FloatArray, FloatArray, np.ndarray]:
+    """:func:`near_vector` and, per node, the index of the neighbour offset (row-major over
+    [1 - reach, reach]^2) whose piece set its vector (-1 where none)."""
     nx, ny = len(xs), len(ys)
     out = np.full((nx, ny), np.inf)
     vec = np.zeros((nx, ny, 2))
+    won_at = np.full((nx, ny), -1, dtype=np.int64)
     segs = [np.column_stack([p[:-1, :2], p[1:, :2]]) for p in polylines if len(p) >= 2]
     if not segs:
-        return out, vec
+        return out, vec, won_at
     s = np.concatenate(segs)
     dx, dy = xs[1] - xs[0], ys[1] - ys[0]
     # split segments longer than a cell so that the nodes near each piece are found from it
     n = np.maximum(np.ceil(np.maximum(np.abs(s[:, 2] - s[:, 0]) / dx,
                                       np.abs(s[:, 3] - s[:, 1]) / dy)).astype(int), 1)
     rep = np.repeat(np.arange(len(s)), n)
-    f = np.concatenate([np.arange(m) / m for m in n])
+    # the k-th of a segment's m pieces runs from k / m to (k + 1) / m along it
+    f = (np.arange(len(rep)) - np.repeat(np.cumsum(n) - n, n)) / n[rep]
     g = f + 1.0 / n[rep]
     a = s[rep, :2] + f[:, None] * (s[rep, 2:] - s[rep, :2])
     b = s[rep, :2] + g[:, None] * (s[rep, 2:] - s[rep, :2])
@@ -219,19 +280,31 @@ def near_vector(polylines: list, xs: FloatArray, ys: FloatArray,
     cj = np.floor((mid[:, 1] - ys[0]) / dy).astype(int)
     ab = b - a
     den = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-    for oi in range(-reach + 1, reach + 1):
-        for oj in range(-reach + 1, reach + 1):
-            i, j = ci + oi, cj + oj
-            ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
-            p = np.column_stack([xs[np.clip(i, 0, nx - 1)], ys[np.clip(j, 0, ny - 1)]])
-            t = np.clip(np.einsum("ij,ij->i", p - a, ab) / den, 0.0, 1.0)
-            r = p - (a + t[:, None] * ab)
-            dist = np.hypot(r[:, 0], r[:, 1])
-            io, jo, do, ro = i[ok], j[ok], dist[ok], r[ok]
-            np.minimum.at(out, (io, jo), do)
-            won = do == out[io, jo]  # the nearest so far (a tie keeps either)
-            vec[io[won], jo[won]] = ro[won]
-    return out, vec
+    if kernels.use_numba():
+        try:
+            _sk.near_vector(np.ascontiguousarray(xs, dtype=float),
+                            np.ascontiguousarray(ys, dtype=float), a[:, 0].copy(),
+                            a[:, 1].copy(), ab[:, 0].copy(), ab[:, 1].copy(), den,
+                            ci.astype(np.int64), cj.astype(np.int64), int(reach), out, vec,
+                            won_at)
+            return out, vec, won_at
+        except kernels.KernelUnavailable:
+            pass
+    offsets = [(oi, oj) for oi in range(-reach + 1, reach + 1)
+               for oj in range(-reach + 1, reach + 1)]
+    for o, (oi, oj) in enumerate(offsets):
+        i, j = ci + oi, cj + oj
+        ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+        p = np.column_stack([xs[np.clip(i, 0, nx - 1)], ys[np.clip(j, 0, ny - 1)]])
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / den, 0.0, 1.0)
+        r = p - (a + t[:, None] * ab)
+        dist = np.hypot(r[:, 0], r[:, 1])
+        io, jo, do, ro = i[ok], j[ok], dist[ok], r[ok]
+        np.minimum.at(out, (io, jo), do)
+        won = do == out[io, jo]  # the nearest so far (a tie: the last piece)
+        vec[io[won], jo[won]] = ro[won]
+        won_at[io[won], jo[won]] = o
+    return out, vec, won_at
 
 
 def bilinear(field: FloatArray, xs: FloatArray, ys: FloatArray, xy: FloatArray) -> FloatArray:
@@ -247,4 +320,4 @@ def bilinear(field: FloatArray, xs: FloatArray, ys: FloatArray, xy: FloatArray) 
 
 
 __all__ = ["AXES", "axis_vectors", "bilinear", "contour_keys", "contours", "edge_ends",
-           "edge_points", "near_distance", "near_vector", "propagate"]
+           "edge_points", "near_distance", "near_vector", "NearField", "propagate"]

@@ -35,8 +35,8 @@ import numpy as np
 from ..geometry.faces_height import FacesHeight
 from ..typing import FloatArray
 from .common import Jet, ToolParameters
-from .scallop_field import bilinear, contour_keys, edge_points, near_vector
-from .scallop_metric import band_costs, cover_costs, directional_cost
+from .scallop_field import NearField, bilinear, contour_keys, edge_points
+from .scallop_metric import band_costs, cover_costs, directional_cost_on
 
 #: Beyond reach of every pass (stepovers).
 FAR = 1.0
@@ -110,20 +110,25 @@ class SurfaceGrid:
         self.half = np.full(self.shape, np.inf)
         self.half[self.on] = half
 
-    def distance(self, contact_lines: list) -> FloatArray:
-        """E (nx, ny) at the surface points (NaN off them; :data:`FAR` beyond reach), each
+    def near_field(self) -> NearField:
+        """An empty :class:`.scallop_field.NearField` over the surface points, out to the
+        reach: the contact lines for :meth:`distance`."""
+        return NearField(self.xs, self.ys, self.reach)
+
+    def distance(self, contact_lines: NearField) -> FloatArray:
+        """E (nx, ny) at the surface points from the contact lines taken into
+        ``contact_lines`` (NaN off them; :data:`FAR` beyond reach), each
         raised to the largest E between it and a neighbour along x or y: across a band
         between two contact lines E is a tent whose ridge mostly lies between the nodes.
         From a node E grows along its vector from the nearest contact v at the cost along
         v per mm, so along the edge to its neighbour at that cost times the cosine; where
         both grow towards each other, the tent's top lies where the two lines meet."""
-        near, vec = near_vector(contact_lines, self.xs, self.ys, self.reach)
+        near, vec = contact_lines.out, contact_lines.vec
         on = self.on & np.isfinite(near)
         length = np.hypot(vec[..., 0], vec[..., 1])
         unit = vec / np.where(length > 0, length, 1.0)[..., None]
         rate = np.zeros(self.shape)
-        rate[on] = directional_cost(self.cover[:, on], self.axes, unit[on],
-                                    self.against[:, on], bound=False)
+        rate[on] = directional_cost_on(self.cover, self.against, self.axes, on, unit[on])
         e = np.full(self.shape, np.nan)
         e[self.on] = np.where(self.half[self.on] * REACH_SHARE <= self.reach_mm, FAR, 0.0)
         e[on] = rate[on] * length[on]
@@ -196,19 +201,24 @@ def gap_passes(surface: SurfaceGrid, polylines: list, contacts: Callable[[list],
     made its midline (:func:`thin_midline`); and the area (mm^2, XY of surface points) still
     further than ``limit`` from every pass after them."""
     added: list = []
-    lines = contacts(polylines)
+    lines = surface.near_field()
+    lines.add(contacts(polylines))
+    e = None
     for _ in range(ROUNDS):
-        e = np.nan_to_num(surface.distance(lines), nan=0.0)  # off the surface: below all
-        if not (e > limit).any():
+        e = surface.distance(lines)
+        filled = np.nan_to_num(e, nan=0.0)  # off the surface: below all
+        if not (filled > limit).any():
             break
-        new = [surface.centres(thin_midline(edge_points(e, surface.xs, surface.ys, chain,
-                                                        limit), thin))
-               for chain in contour_keys(e, limit)]
+        new = [surface.centres(thin_midline(edge_points(filled, surface.xs, surface.ys,
+                                                        chain, limit), thin))
+               for chain in contour_keys(filled, limit)]
         if not new:
             break
         added += new
-        lines += contacts(new)
-    e = surface.distance(lines)
+        lines.add(contacts(new))
+        e = None
+    if e is None:  # passes were added since the last E
+        e = surface.distance(lines)
     left = np.count_nonzero(np.nan_to_num(e, nan=0.0) > limit)
     return added, float(left) * surface.dx * surface.dy
 

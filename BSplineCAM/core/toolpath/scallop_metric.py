@@ -33,12 +33,13 @@ import math
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import scallop_kernels as _sk
 from ..typing import FloatArray
 from .common import (
     Jet,
     ToolParameters,
     curved_stepover,
-    normal_curvature,
 )
 
 #: Across directions sampled over a half turn for the dual costs.
@@ -80,6 +81,20 @@ def band_costs(cost: FloatArray, steps: FloatArray, dx: float, dy: float,
         tmax = int(math.floor(float(reach.max()) / step))
         src = np.where(finite, c, -np.inf)
         best = src.copy()
+        if kernels.use_numba() and src.dtype == reach.dtype == np.float64:
+            offsets = {}  # (oi, oj): the least distance that reaches it
+            for t in range(1, tmax + 1):
+                for sign in sides:
+                    offsets.setdefault((int(round(sign * t * di)), int(round(sign * t * dj))),
+                                       t * step)
+            try:
+                _sk.band(src, reach, np.array([o[0] for o in offsets], dtype=np.int64),
+                         np.array([o[1] for o in offsets], dtype=np.int64),
+                         np.array(list(offsets.values()), dtype=float), best)
+                out[k] = np.where(finite, best, c)
+                continue
+            except kernels.KernelUnavailable:
+                pass
         seen = set()
         for t in range(1, tmax + 1):
             within = reach >= t * step
@@ -99,6 +114,38 @@ def band_costs(cost: FloatArray, steps: FloatArray, dx: float, dy: float,
     return out
 
 
+class NormalCurvature:
+    """:func:`.common.normal_curvature` at one jet's points in direction after direction:
+    the normal and the fundamental forms are taken once, the rest as there, so the values
+    are the same to the bit."""
+
+    def __init__(self, jet: Jet):
+        self.normal = n = jet.normal
+        self.su, self.sw = jet.su, jet.sw
+        self.E = np.einsum("ij,ij->i", jet.su, jet.su)
+        self.F = np.einsum("ij,ij->i", jet.su, jet.sw)
+        self.G = np.einsum("ij,ij->i", jet.sw, jet.sw)
+        det = self.E * self.G - self.F * self.F
+        self.det = np.where(np.abs(det) > 0, det, 1.0)
+        self.L = np.einsum("ij,ij->i", jet.suu, n)
+        self.M = np.einsum("ij,ij->i", jet.suw, n)
+        self.N = np.einsum("ij,ij->i", jet.sww, n)
+
+    def __call__(self, direction: FloatArray) -> FloatArray:
+        """Normal curvature (1/mm, positive concave) in the tangent direction nearest each
+        row of ``direction`` (3-vectors)."""
+        n, E, F, G, det = self.normal, self.E, self.F, self.G, self.det
+        d = np.asarray(direction, dtype=float)
+        d = d - np.einsum("ij,ij->i", d, n)[:, None] * n
+        bu = np.einsum("ij,ij->i", d, self.su)
+        bw = np.einsum("ij,ij->i", d, self.sw)
+        a = (G * bu - F * bw) / det
+        b = (E * bw - F * bu) / det
+        first = E * a * a + 2 * F * a * b + G * b * b
+        second = self.L * a * a + 2 * self.M * a * b + self.N * b * b
+        return second / np.where(first > 0, first, 1.0)
+
+
 def cover_costs(jet: Jet, tool: ToolParameters, axes: FloatArray) -> FloatArray:
     """(len(axes), m) cost per XY mm, along each unit XY vector a of ``axes``, of moving away
     from a ball's contact at the jet's point across a pass that runs perpendicular to a:
@@ -113,7 +160,8 @@ def cover_costs(jet: Jet, tool: ToolParameters, axes: FloatArray) -> FloatArray:
     distance from the contact to the cusp (a hollow tighter than the ball: the flat one).
     Unlike the stepover, a hollow the ball nearly fits bounds it: its contacts do not crowd."""
     R, h = tool.radius, tool.scallop
-    n = jet.normal
+    curvature = NormalCurvature(jet)
+    n = curvature.normal
     nz = np.clip(n[:, 2], 1e-3, 1.0)
     out = np.empty((len(axes), len(n)))
     for k, a in enumerate(axes):
@@ -124,7 +172,7 @@ def cover_costs(jet: Jet, tool: ToolParameters, axes: FloatArray) -> FloatArray:
         sec = np.sqrt(1.0 + p * p)
         t = np.column_stack([np.full(len(n), a[0]), np.full(len(n), a[1]), p])
         cos_phi = np.clip((nz - p * (n[:, :2] @ a)) / sec, 1e-3, 1.0)
-        z2 = normal_curvature(jet, t) * sec ** 3 / cos_phi * cos_b
+        z2 = curvature(t) * sec ** 3 / cos_phi * cos_b
         p2 = p * cos_b
         sec2 = np.sqrt(1.0 + p2 * p2)
         kappa2 = z2 / sec2 ** 3
@@ -162,4 +210,27 @@ def directional_cost(cost: FloatArray, axes: FloatArray, v: FloatArray,
     return np.abs(alpha) * c[lo, m] + np.abs(beta) * c[hi, m]
 
 
-__all__ = ["DIRECTIONS", "cover_costs", "across_directions", "band_costs", "directional_cost", "dual_costs"]
+def directional_cost_on(cost: FloatArray, against: FloatArray, axes: FloatArray,
+                        on: np.ndarray, v: FloatArray) -> FloatArray:
+    """:func:`directional_cost` without ``bound`` at the nodes ``on`` (nx, ny) of per-axis
+    cost grids ``cost`` and ``against`` (len(axes), nx, ny), ``v`` (m, 2) the vectors at
+    those nodes in row-major order: ``directional_cost(cost[:, on], axes, v, against[:, on],
+    bound=False)``, the costs read in place."""
+    if kernels.use_numba():
+        dirs = np.vstack([axes, -axes])
+        ang = np.mod(np.arctan2(dirs[:, 1], dirs[:, 0]), 2.0 * math.pi)
+        order = np.argsort(ang)
+        theta = np.mod(np.arctan2(v[:, 1], v[:, 0]), 2.0 * math.pi)
+        ii, jj = np.nonzero(on)
+        try:
+            return _sk.interpolated_cost(cost, against, order.astype(np.int64), ang[order],
+                                         ii.astype(np.int64), jj.astype(np.int64), theta,
+                                         np.ascontiguousarray(v[:, 0]),
+                                         np.ascontiguousarray(v[:, 1]))
+        except kernels.KernelUnavailable:
+            pass
+    return directional_cost(cost[:, on], axes, v, against[:, on], bound=False)
+
+
+__all__ = ["DIRECTIONS", "NormalCurvature", "across_directions", "band_costs", "cover_costs", "directional_cost",
+           "directional_cost_on", "dual_costs"]
