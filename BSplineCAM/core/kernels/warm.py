@@ -1,8 +1,8 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Compile the kernels before the first real job: a small drop-cutter over two faces (a
 rational quarter cylinder trimmed by a hole and a bicubic bump) and one beside a wall, the
-scattered NURBS evaluation with derivatives, short Z-map simulations (one tool, and a job with two) and the roughing of a small pocketed
-plate, all run through the public paths
+scattered NURBS evaluation with derivatives, short Z-map simulations (one tool, and a job with two), the roughing of a small pocketed
+plate and the constant-scallop strategy's grid fields, all run through the public paths
 so that every kernel they reach is compiled (or loaded from the cache folder) with the
 argument types real jobs pass.
 
@@ -24,6 +24,7 @@ from ..program.gcode import read_gcode
 from ..program.gcode_words import Segments
 from ..simulation import simulate as sim
 from ..simulation.job_simulation import simulate_job
+from ..toolpath import scallop_field, scallop_metric
 from ..toolpath.faceset import FaceSet
 from ..toolpath.roughing import Stock, generate_roughing
 from . import engine, use_numba
@@ -99,8 +100,22 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         generate_roughing(plate, Stock(-14.0, 14.0, -14.0, 14.0, 0.0, 8.0),
                           sim.Tool(6.0, "flat"), 3.0, 2.4, 0.2, 0.2, cell=0.5)
 
+    def scallop():
+        xs, ys = np.linspace(0.0, 10.0, 21), np.linspace(0.0, 8.0, 17)
+        t = np.linspace(0.0, 2.0 * np.pi, 33)
+        ring = np.column_stack([5.0 + 3.0 * np.cos(t), 4.0 + 2.0 * np.sin(t)])
+        near = scallop_field.NearField(xs, ys, 3)
+        near.add([ring])
+        free = near.out < 1.0
+        axes = scallop_field.AXES
+        cost = scallop_metric.band_costs(np.ones((len(axes),) + free.shape), axes, 0.5, 0.5)
+        scallop_field.propagate(np.where(near.out < 0.3, 0.0, np.inf), cost, 0.5, 0.5, free)
+        cover = np.ones((16,) + free.shape, np.float32)
+        scallop_metric.directional_cost_on(cover, cover, scallop_field.axis_vectors(0.5, 0.5),
+                                           free, near.vec[free])
+
     return [("NURBS evaluation", evaluate), ("drop-cutter", drop), ("walls", walls),
-            ("Z-map simulation", simulate), ("roughing", rough)]
+            ("Z-map simulation", simulate), ("roughing", rough), ("constant scallop", scallop)]
 
 
 def warm_up(progress: Callable[[float], None] | None = None) -> dict:
