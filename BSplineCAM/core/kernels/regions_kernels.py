@@ -26,6 +26,7 @@ import numpy as np
 
 from . import Kernel, helper
 from .faceset_trim_kernels import clip_one, inside_one
+from .nurbs_eval import _check_loops, _rational_loops, _scattered_loops
 
 #: ``np.nan_to_num``'s replacement for +inf
 _BIG = 1.7976931348623157e308
@@ -404,6 +405,7 @@ def _regions_loops(nets, root, boxes, cs, ct, wu, wv, g, gp, p0, su, sw, wstar, 
 regions = Kernel(_regions_loops)
 
 
+@helper
 def _ball_depth_loops(point, qq, R2):
     """h = sqrt(R^2 - |S_xy - q|^2) (at least 1e-300 under the root) of
     :func:`~BSplineCAM.core.toolpath.faceset_contacts.grad_hess`: (n,)."""
@@ -418,6 +420,7 @@ def _ball_depth_loops(point, qq, R2):
     return h
 
 
+@helper
 def _grad_hess_loops(point, su, sw, suu, suw, sww, qq, h, h3):
     """Gradient and Hessian (gu, gw, Huu, Huw, Hww) (5, n) of f(u, v) = S_z + sqrt(R^2 -
     |S_xy - q|^2) as :func:`~BSplineCAM.core.toolpath.faceset_contacts.grad_hess`, from the
@@ -446,6 +449,7 @@ def _grad_hess_loops(point, su, sw, suu, suw, sww, qq, h, h3):
     return out
 
 
+@helper
 def _newton_loops(gh, u, v, dom):
     """Projected Newton step of :func:`~BSplineCAM.core.toolpath.faceset_contacts.newton_step`
     from the gradient and Hessian ``gh`` (5, n), its new (u, v) clamped to the domain ``dom``
@@ -492,6 +496,7 @@ def _newton_loops(gh, u, v, dom):
     return ok, nu, nv
 
 
+@helper
 def _newton_accept_loops(p, qq, R2, fbest, ok, nu, nv, u, v, bands, band_v0, band_h, dom):
     """The values f at the stepped points ``p`` (n, 3) and whether each step counts (ok, moved,
     raises f above ``fbest``, inside the trim: the even-odd test of
@@ -571,6 +576,45 @@ def _edge_accept_loops(p, qq, R2, nt, t, ft):
     return moved
 
 
+def _polish_ders_loops(u, v, qq, R2, rows, rational, knots_u, p, first_u, last_u, knots_v, q,
+                       first_v, last_v, spans_v, orders, offsets, tables, dim, index, dom):
+    """The first step of a polish step (:func:`~BSplineCAM.core.toolpath.faceset_contacts.
+    polish`): the surface's point and derivatives at (u, v) (:mod:`.nurbs_eval`'s loops over
+    its pack of the orders the quotient rule needs, ``rows`` (6,) of point, Su, Sw, Suu, Suw,
+    Sww among them; ``dom`` the domain and its tolerances) and h
+    (:func:`_ball_depth_loops`): (derivatives (k, n, 3), h (n,), whether (u, v) lay in the
+    domain).  The caller takes h ** 3 with numpy (see the module docstring)."""
+    cu, cv, ok = _check_loops(u, v, dom[0], dom[1], dom[2], dom[3], dom[4], dom[5])
+    ders, _, _ = _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                                  spans_v, orders, offsets, tables, dim, cu, cv)
+    if rational:
+        ders = _rational_loops(ders, orders, index)
+    return ders, _ball_depth_loops(ders[rows[0]], qq, R2), ok
+
+
+def _polish_step_loops(ders, rows, h, h3, qq, R2, u, v, fbest, dom, bands, band_v0, band_h,
+                       rational, knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                       spans_v, orders, offsets, tables, dim, index, tol):
+    """The rest of a polish step: the gradient and Hessian (:func:`_grad_hess_loops`), the
+    projected Newton step (:func:`_newton_loops`), the surface's point there (the pack of
+    order (0, 0), ``tol`` the domain and its tolerances) and the step's value and acceptance
+    (:func:`_newton_accept_loops`): (f (n,), good (n,), new u, new v, whether the new
+    (u, v) lay in the domain)."""
+    gh = _grad_hess_loops(ders[rows[0]], ders[rows[1]], ders[rows[2]], ders[rows[3]],
+                          ders[rows[4]], ders[rows[5]], qq, h, h3)
+    ok, nu, nv = _newton_loops(gh, u, v, dom)
+    cu, cv, inside = _check_loops(nu, nv, tol[0], tol[1], tol[2], tol[3], tol[4], tol[5])
+    pts, _, _ = _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                                 spans_v, orders, offsets, tables, dim, cu, cv)
+    if rational:
+        pts = _rational_loops(pts, orders, index)
+    fv, good = _newton_accept_loops(pts[0], qq, R2, fbest, ok, nu, nv, u, v, bands, band_v0,
+                                    band_h, dom)
+    return fv, good, nu, nv, inside
+
+
+polish_ders = Kernel(_polish_ders_loops)
+polish_step = Kernel(_polish_step_loops)
 ball_depth = Kernel(_ball_depth_loops)
 grad_hess = Kernel(_grad_hess_loops)
 newton = Kernel(_newton_loops)

@@ -189,15 +189,22 @@ def _polish_compiled(d: _FaceData, qq: FloatArray, R2: float, fbest: FloatArray,
     bands = d._bands
     qq = np.ascontiguousarray(qq, np.float64)
     u, v, fbest = u.copy(), v.copy(), fbest.copy()
+    rows, *ders_pack = d.derivative_pack()
+    rational = bool(s.rational)
+    *point_pack, point_index, tol = d.point_pack()
     live = np.arange(len(u))
     for _ in range(steps):
         ul, vl, ql = u[live], v[live], qq[live]
-        gh = _grad_hess_compiled(s, ul, vl, ql, R2)
-        ok_, nu_, nv_ = regions_kernels.newton(gh, ul, vl, dom)
-        p = np.ascontiguousarray(s.evaluate(nu_, nv_), np.float64)
-        fv, good = regions_kernels.newton_accept(p, ql, R2, fbest[live], ok_, nu_, nv_, ul, vl,
-                                                 bands.table, float(bands.v0),
-                                                 float(bands.h), dom)
+        # two compiled calls a step, h ** 3 numpy's between them (see regions_kernels)
+        ders, h, inside = regions_kernels.polish_ders(ul, vl, ql, R2, rows, rational,
+                                                      *ders_pack)
+        if not inside:
+            s.derivatives(ul, vl)  # outside the surface's domain: its evaluation says so
+        fv, good, nu_, nv_, inside = regions_kernels.polish_step(
+            ders, rows, h, h ** 3, ql, R2, ul, vl, fbest[live], dom, bands.table,
+            float(bands.v0), float(bands.h), rational, *point_pack, point_index, tol)
+        if not inside:
+            s.evaluate(nu_, nv_)
         if not good.any():
             break
         live = live[good]

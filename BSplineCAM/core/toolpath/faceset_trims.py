@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import kernels
 from ..geometry.faces import Face
+from ..geometry.surface import SECOND_ORDER
 from ..kernels import faceset_trim_kernels as tk
 from ..numeric import clamp
 from ..typing import FloatArray
@@ -299,6 +300,7 @@ class _FaceData:
         self._known = _RowCache()  # classify's answers by row
         self._known_vertices = _RowCache()  # vertices' answers by row
         self._point_pack = None  # see point_pack
+        self._derivative_pack = None  # see derivative_pack
         self.design = _bernstein_grid(self.p, self.q)
         self.pinv = np.linalg.pinv(self.design)  # (3, K)
         # the same, contiguous, and the corner control points' flat indices, for the kernels
@@ -320,6 +322,28 @@ class _FaceData:
             self._point_pack = (*s._pack(((0, 0),)), np.zeros((1, 1), dtype=np.int64),
                                 np.array(s._tolerances, dtype=float))
         return self._point_pack
+
+    def derivative_pack(self) -> tuple:
+        """The compiled derivatives' arguments for this face's surface: the rows of the
+        point, Su, Sw, Suu, Suw, Sww among the orders the surface's kernels compute (with the
+        quotient rule's lower ones for a rational surface), then the scattered kernel's pack of
+        those orders, the quotient rule's index and the domain and its tolerances
+        (:mod:`..kernels.nurbs_eval`)."""
+        if self._derivative_pack is None:
+            s = self.face.surface
+            if s.rational:
+                needed = tuple(sorted({(a, b) for du, dw in SECOND_ORDER
+                                       for a in range(du + 1) for b in range(dw + 1)}))
+            else:
+                needed = SECOND_ORDER
+            top = max(max(a, b) for a, b in needed)
+            index = np.zeros((top + 1, top + 1), dtype=np.int64)
+            for k, (a, b) in enumerate(needed):
+                index[a, b] = k
+            rows = np.array([needed.index(o) for o in SECOND_ORDER], dtype=np.int64)
+            self._derivative_pack = (rows, *s._pack(needed), index,
+                                     np.array(s._tolerances, dtype=float))
+        return self._derivative_pack
 
     def inside(self, u: FloatArray, v: FloatArray) -> np.ndarray:
         """Whether (u, v) lies in the material: the trim test of :func:`faces.inside`, with points
