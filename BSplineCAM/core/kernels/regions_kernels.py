@@ -522,6 +522,7 @@ def _newton_accept_loops(p, qq, R2, fbest, ok, nu, nv, u, v, bands, band_v0, ban
     return fv, good
 
 
+@helper
 def _edge_step_loops(gh, dd, t):
     """Newton's step along the trim segments of
     :func:`~BSplineCAM.core.toolpath.faceset_contacts.edge_polish`: the new parameters
@@ -556,6 +557,7 @@ def _edge_step_loops(gh, dd, t):
     return nt
 
 
+@helper
 def _edge_accept_loops(p, qq, R2, nt, t, ft):
     """f at the points ``p`` (n, 3) of the stepped parameters ``nt``; where it beats ``ft``
     the parameter and value move there (``t``, ``ft`` in place), as
@@ -613,7 +615,34 @@ def _polish_step_loops(ders, rows, h, h3, qq, R2, u, v, fbest, dom, bands, band_
     return fv, good, nu, nv, inside
 
 
+def _edge_polish_step_loops(ders, rows, h, h3, qq, R2, a, dd, t, ft, rational, knots_u, p,
+                            first_u, last_u, knots_v, q, first_v, last_v, spans_v, orders,
+                            offsets, tables, dim, index, tol):
+    """The rest of a Newton step along trim segments a + t dd
+    (:func:`~BSplineCAM.core.toolpath.faceset_contacts.edge_polish`), after
+    :func:`_polish_ders_loops` at a + t dd: the gradient and Hessian, the step
+    (:func:`_edge_step_loops`), the surface's points there (the pack of order (0, 0)) and
+    the moves that raise f (:func:`_edge_accept_loops`; ``t``, ``ft`` in place): (how many
+    moved, whether the new points lay in the domain)."""
+    gh = _grad_hess_loops(ders[rows[0]], ders[rows[1]], ders[rows[2]], ders[rows[3]],
+                          ders[rows[4]], ders[rows[5]], qq, h, h3)
+    nt = _edge_step_loops(gh, dd, t)
+    n = t.shape[0]
+    nu = np.empty(n)
+    nv = np.empty(n)
+    for i in range(n):
+        nu[i] = a[i, 0] + nt[i] * dd[i, 0]
+        nv[i] = a[i, 1] + nt[i] * dd[i, 1]
+    cu, cv, inside = _check_loops(nu, nv, tol[0], tol[1], tol[2], tol[3], tol[4], tol[5])
+    pts, _, _ = _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                                 spans_v, orders, offsets, tables, dim, cu, cv)
+    if rational:
+        pts = _rational_loops(pts, orders, index)
+    return _edge_accept_loops(pts[0], qq, R2, nt, t, ft), inside
+
+
 polish_ders = Kernel(_polish_ders_loops)
+edge_polish_step = Kernel(_edge_polish_step_loops)
 polish_step = Kernel(_polish_step_loops)
 ball_depth = Kernel(_ball_depth_loops)
 grad_hess = Kernel(_grad_hess_loops)

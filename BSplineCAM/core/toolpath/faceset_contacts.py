@@ -125,8 +125,7 @@ def edge_polish(d: _FaceData, q: FloatArray, R: float, idx: np.ndarray, best: Fl
               / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
     qq = q[rows]
     R2 = R * R
-    s = d.face.surface
-    t, ft = _edge_newton(s, a, dd, t, qq, R2)
+    t, ft = _edge_newton(d, a, dd, t, qq, R2)
     uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
     order = np.argsort(ft, kind="stable")  # later (larger) assignments win
     rows, ft, uu, vv = rows[order], ft[order], uu[order], vv[order]
@@ -135,15 +134,17 @@ def edge_polish(d: _FaceData, q: FloatArray, R: float, idx: np.ndarray, best: Fl
     bu[rows[up]], bv[rows[up]] = uu[up], vv[up]
 
 
-def _edge_newton(s, a: FloatArray, dd: FloatArray, t: FloatArray, qq: FloatArray,
+def _edge_newton(d: _FaceData, a: FloatArray, dd: FloatArray, t: FloatArray, qq: FloatArray,
                  R2: float) -> tuple[FloatArray, FloatArray]:
-    """Newton's method for the largest f along segments a + t dd (t in [0, 1]) from ``t``:
-    the parameters reached and their values f (-inf where no step raised f)."""
+    """Newton's method for the largest f along segments a + t dd (t in [0, 1]) of face
+    ``d`` from ``t``: the parameters reached and their values f (-inf where no step raised
+    f)."""
     if kernels.use_numba():
         try:
-            return _edge_newton_compiled(s, a, dd, t, qq, R2)
+            return _edge_newton_compiled(d, a, dd, t, qq, R2)
         except kernels.KernelUnavailable:
             pass
+    s = d.face.surface
     ft = np.full(len(t), -np.inf)
     for _ in range(2 * POLISH_STEPS):
         uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
@@ -212,21 +213,32 @@ def _polish_compiled(d: _FaceData, qq: FloatArray, R2: float, fbest: FloatArray,
     return fbest, u, v
 
 
-def _edge_newton_compiled(s, a: FloatArray, dd: FloatArray, t: FloatArray, qq: FloatArray,
-                          R2: float) -> tuple[FloatArray, FloatArray]:
-    """:func:`_edge_newton` by the compiled kernels (the same steps and choices)."""
+def _edge_newton_compiled(d: _FaceData, a: FloatArray, dd: FloatArray, t: FloatArray,
+                          qq: FloatArray, R2: float) -> tuple[FloatArray, FloatArray]:
+    """:func:`_edge_newton` by the compiled kernels (the same steps and choices), two calls
+    a step (h ** 3 numpy's between them, see ``regions_kernels``)."""
     f64 = np.float64
+    s = d.face.surface
+    a = np.ascontiguousarray(a, f64)
     dd = np.ascontiguousarray(dd, f64)
     qq = np.ascontiguousarray(qq, f64)
     t = np.array(t, f64)
     ft = np.full(len(t), -np.inf)
+    rows, *ders_pack = d.derivative_pack()
+    rational = bool(s.rational)
+    *point_pack, point_index, tol = d.point_pack()
     for _ in range(2 * POLISH_STEPS):
         uu, vv = a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1]
-        gh = _grad_hess_compiled(s, uu, vv, qq, R2)
-        nt = regions_kernels.edge_step(gh, dd, t)
-        p = np.ascontiguousarray(s.evaluate(a[:, 0] + nt * dd[:, 0], a[:, 1] + nt * dd[:, 1]),
-                                 f64)
-        if regions_kernels.edge_accept(p, qq, R2, nt, t, ft) == 0:
+        ders, h, inside = regions_kernels.polish_ders(uu, vv, qq, R2, rows, rational,
+                                                      *ders_pack)
+        if not inside:
+            s.derivatives(uu, vv)  # outside the surface's domain: its evaluation says so
+        moved, inside = regions_kernels.edge_polish_step(ders, rows, h, h ** 3, qq, R2, a, dd,
+                                                         t, ft, rational, *point_pack,
+                                                         point_index, tol)
+        if not inside:
+            s.evaluate(a[:, 0] + t * dd[:, 0], a[:, 1] + t * dd[:, 1])
+        if moved == 0:
             break
     return t, ft
 
