@@ -72,22 +72,22 @@ def net_planes(flat, rational, pinv, design):
 
 def _bound_pairs_loops(nd, qq, R2, flat, rational, pinv, design, touch_R2, cidx, corners,
                        ibox, segs, status, edges, table, v0, h, inner, floor, depth, rim_r2,
-                       rim_depth, knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
-                       spans_v, orders, offsets, tables, dim, index, dom):
+                       rim_depth, seed_depth, knots_u, p, first_u, last_u, knots_v, q,
+                       first_v, last_v, spans_v, orders, offsets, tables, dim, index, dom):
     """Bounds of the pairs (query ``qq`` (n, 2), sub-patch ``nd`` (n,) of the nets ``flat``)
     of one level of one face: (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv,
-    rim, and the nets' planes of :func:`net_planes`).
+    rim, fine, and the nets' planes of :func:`net_planes`).
 
     ``ub`` is the upper bound before the rim bound (-inf out of reach), ``dd`` the squared
     xy distance of the net's box, ``reach`` whether it is within reach (no material: out),
-    ``lb`` the lower bound of the corners and, on straddling pairs, of the surface point at
-    the best trim vertex, at (``lu``, ``lv``); ``strad`` (s,) the straddling pairs, ``st``,
+    ``lb`` the lower bound of the corners, on straddling pairs of the surface point at the
+    best trim vertex, and on pairs at most ``seed_depth`` deep of the point below the control
+    point nearest the query, at (``lu``, ``lv``); ``strad`` (s,) the straddling pairs, ``st``,
     ``ok``, ``aval``, ``listed`` their material's vertices as ``faceset_bounds._Straddling``,
     ``kv`` (s,) the vertex whose surface point was tried (-1 none), and ``rim`` the number of
     pairs the rim bound is for.  The surface's points come from :mod:`.nurbs_eval`'s loops
     (its pack of the points' order, ``index`` of the quotient rule, the domain ``dom`` (lo u,
-    hi u, tol u, lo v, hi v, tol v)); ``rim`` is -1 where a vertex fell outside the domain
-    (the caller's evaluation raises there)."""
+    hi u, tol u, lo v, hi v, tol v)); ``fine``: whether every point lay in the domain."""
     PX, PY, PZ, cen, C, RS, box = net_planes(flat, rational, pinv, design)
     n = nd.shape[0]
     K = RS.shape[2]
@@ -248,39 +248,52 @@ def _bound_pairs_loops(nd, qq, R2, flat, rational, pinv, design, touch_R2, cidx,
     for r in range(s):
         if kv[r] >= 0:
             c += 1
+    pair = np.empty(c, np.int64)
     uu = np.empty(c)
     vv = np.empty(c)
     c = 0
     for r in range(s):
         if kv[r] >= 0:
             i = strad[r]
+            pair[c] = i
             uu[c] = ibox[i, 0] + st[r, kv[r], 0] * (ibox[i, 1] - ibox[i, 0])
             vv[c] = ibox[i, 2] + st[r, kv[r], 1] * (ibox[i, 3] - ibox[i, 2])
             c += 1
-    if c:
-        cu, cv, inside = _check_loops(uu, vv, dom[0], dom[1], dom[2], dom[3], dom[4], dom[5])
-        if not inside:
-            rim = -1
-        pts, _, _ = _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
-                                     spans_v, orders, offsets, tables, dim, cu, cv)
-        if rational:
-            pts = _rational_loops(pts, orders, index)
-        c = 0
-        for r in range(s):
-            if kv[r] < 0:
-                continue
-            i = strad[r]
-            ex = pts[0, c, 0] - qq[i, 0]
-            ey = pts[0, c, 1] - qq[i, 1]
-            e2 = ex ** 2 + ey ** 2
-            f = pts[0, c, 2] + math.sqrt(max(R2 - e2, 0.0)) if e2 <= touch_R2 else -np.inf
-            if f > lb[i]:
-                lb[i] = f
-                lu[i] = uu[c]
-                lv[i] = vv[c]
+    fine = raise_at(pair, uu, vv, False, qq, R2, touch_R2, lb, lu, lv, status, table, v0, h,
+                    inner, rational, knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                    spans_v, orders, offsets, tables, dim, index, dom)
+    # shallow pairs: the point at the Greville abscissae of the control point nearest the
+    # query (faceset_bounds._seed_points), inside the trim
+    c = 0
+    for i in range(n):
+        if depth[i] <= seed_depth and reach[i]:
             c += 1
-    return (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv, rim, PX, PY, PZ, cen,
-            C, RS)
+    pair = np.empty(c, np.int64)
+    uu = np.empty(c)
+    vv = np.empty(c)
+    c = 0
+    for i in range(n):
+        if not (depth[i] <= seed_depth and reach[i]):
+            continue
+        j = nd[i]
+        best = 0.0
+        kn = 0
+        for k in range(K):
+            x = (PX[j, k] - qq[i, 0]) ** 2 + (PY[j, k] - qq[i, 1]) ** 2
+            if k == 0:
+                best = x
+            elif best == best and (x < best or x != x):
+                best = x
+                kn = k
+        pair[c] = i
+        uu[c] = ibox[i, 0] + design[kn, 1] * (ibox[i, 1] - ibox[i, 0])
+        vv[c] = ibox[i, 2] + design[kn, 2] * (ibox[i, 3] - ibox[i, 2])
+        c += 1
+    fine = raise_at(pair, uu, vv, True, qq, R2, touch_R2, lb, lu, lv, status, table, v0, h,
+                    inner, rational, knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                    spans_v, orders, offsets, tables, dim, index, dom) and fine
+    return (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv, rim, fine, PX, PY, PZ,
+            cen, C, RS)
 
 
 def _record_contacts_loops(j, query, lb, lu, lv, fb, fu, fv, touched):
@@ -302,6 +315,39 @@ def _record_contacts_loops(j, query, lb, lu, lv, fb, fu, fv, touched):
             touched[q] = True
     for i in range(n):
         touched[query[i]] = False
+
+
+@helper
+def raise_at(pair, uu, vv, trimmed, qq, R2, touch_R2, lb, lu, lv, status, table, v0, h, inner,
+             rational, knots_u, p, first_u, last_u, knots_v, q, first_v, last_v, spans_v,
+             orders, offsets, tables, dim, index, dom):
+    """Raise the lower bounds ``lb`` of pairs ``pair`` to the centre height of the ball
+    resting on the surface at (``uu``, ``vv``) where larger (-inf out of reach and, if
+    ``trimmed``, on a straddling pair outside the trim), and their contacts (``lu``, ``lv``)
+    there, in place (``faceset_bounds._ball_at`` and ``_raise_bound``): whether every point
+    lay in the surface's domain (:mod:`.nurbs_eval`'s loops over the pack of order (0, 0))."""
+    c = pair.shape[0]
+    if c == 0:
+        return True
+    cu, cv, fine = _check_loops(uu, vv, dom[0], dom[1], dom[2], dom[3], dom[4], dom[5])
+    pts, _, _ = _scattered_loops(knots_u, p, first_u, last_u, knots_v, q, first_v, last_v,
+                                 spans_v, orders, offsets, tables, dim, cu, cv)
+    if rational:
+        pts = _rational_loops(pts, orders, index)
+    for k in range(c):
+        i = pair[k]
+        ex = pts[0, k, 0] - qq[i, 0]
+        ey = pts[0, k, 1] - qq[i, 1]
+        e2 = ex ** 2 + ey ** 2
+        f = pts[0, k, 2] + math.sqrt(max(R2 - e2, 0.0)) if e2 <= touch_R2 else -np.inf
+        if trimmed and status[i] == 2 and not inside_one(table, v0, h, uu[k], vv[k], inner[0],
+                                                         inner[1], inner[2], inner[3]):
+            f = -np.inf
+        if f > lb[i]:
+            lb[i] = f
+            lu[i] = uu[k]
+            lv[i] = vv[k]
+    return fine
 
 
 @helper

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import kernels
+from ..errors import BSplineCAMError
 from ..kernels import faceset_kernels as fk
 from ..kernels import faceset_round_kernels as rk
 from ..typing import FloatArray
@@ -59,8 +60,8 @@ def sub_patch_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
 def _fused_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
                   floor: FloatArray | float):
     """:func:`sub_patch_bounds` in one compiled call (the nets' planes and every pair's
-    bounds, the trim vertices' points included: :func:`..kernels.faceset_round_kernels.
-    bound_pairs`), and numpy for the rarer steps (the shallow pairs' points, the rim)."""
+    bounds, the surface points of the lower bounds included:
+    :func:`..kernels.faceset_round_kernels.bound_pairs`), and numpy for the rim bound."""
     n = len(it.query)
     R2 = R * R
     N = len(it.nets)
@@ -69,42 +70,23 @@ def _fused_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
     fl = (np.full(n, float(floor)) if np.ndim(floor) == 0
           else np.ascontiguousarray(floor, dtype=float))
     bands = d._bands
-    (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv, rim, PX, PY, PZ, cen, C,
+    (ub, dd, reach, lb, lu, lv, strad, st, ok, aval, listed, kv, rim, fine, PX, PY, PZ, cen, C,
      RS) = rk.bound_pairs(
         np.ascontiguousarray(it.node, dtype=np.int64), qq, R2, flat,
         bool(d.face.surface.rational), d._pinv, d._design, TOUCH * R2, d._corners, CORNERS,
         np.ascontiguousarray(it.box, dtype=float), np.ascontiguousarray(it.segs, dtype=np.int64),
         np.ascontiguousarray(it.status, dtype=np.int8), d.edges, bands.table, float(bands.v0),
         float(bands.h), d._inner, fl, np.ascontiguousarray(it.depth, dtype=np.int64),
-        (RIM_FRACTION * R) ** 2, RIM_DEPTH, *d.point_pack())
+        (RIM_FRACTION * R) ** 2, RIM_DEPTH, SEED_DEPTH, *d.point_pack())
     m = (_Straddling(strad, st, ok, aval, listed) if len(strad)
          else _Straddling(strad, None, None, None, None))
     P = _NetPlanes(flat, PX, PY, PZ, cen[:, 0], cen[:, 1], cen[:, 2], C, RS)
-    if rim < 0:
-        # a trim vertex outside the surface's domain: its evaluation says so
-        rows = np.flatnonzero(kv >= 0)
-        _ball_at(d, it, qq, R2, strad[rows], st[rows, kv[rows]])
+    if not fine:
+        raise BSplineCAMError(f"face {d.index}: a sub-patch's point fell outside its surface's "
+                              "domain (the sub-patch's box is not within the domain)")
     if rim:
         _rim_bound(d, it, P, qq, R, ub, dd, floor, m)
-    # shallow sub-patches: the point at the control point nearest the query
-    sel = np.flatnonzero((it.depth <= SEED_DEPTH) & reach)
-    if len(sel):
-        loc, fv = _seed_points(d, it, P, qq, R2, sel)
-        _raise_contact(it, lb, lu, lv, sel, loc, fv)
     return ub, lb, lu, lv
-
-
-def _raise_contact(it: _Items, lb: FloatArray, lu: FloatArray, lv: FloatArray,
-                   sel: np.ndarray, loc: FloatArray, fv: FloatArray) -> None:
-    """Raise the lower bounds ``lb`` of pairs ``sel`` to ``fv`` where larger, and their
-    contacts (``lu``, ``lv``) to the points at local ``loc``, in place."""
-    better = fv > lb[sel]
-    s = sel[better]
-    lb[s] = fv[better]
-    b = it.box[s]
-    loc = loc[better]
-    lu[s] = b[:, 0] + loc[:, 0] * (b[:, 1] - b[:, 0])
-    lv[s] = b[:, 2] + loc[:, 1] * (b[:, 3] - b[:, 2])
 
 
 @dataclass
