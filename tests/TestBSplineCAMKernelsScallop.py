@@ -14,7 +14,7 @@ import pytest
 from BSplineCAM.core import kernels
 from BSplineCAM.core.toolpath.common import Jet, normal_curvature
 from BSplineCAM.core.toolpath.scallop_field import AXES, NearField, near_vector, propagate
-from BSplineCAM.core.toolpath.scallop_gaps import COVER_DIRECTIONS
+from BSplineCAM.core.toolpath.scallop_gaps import COVER_DIRECTIONS, tents
 from BSplineCAM.core.toolpath.scallop_metric import (
     NormalCurvature,
     band_costs,
@@ -248,3 +248,30 @@ def test_band_costs_engines_agree(sides, dtype):
     a, b = _both(lambda: band_costs(cost, steps, 0.3, 0.2, sides=sides))
     assert _same(a, b)
     assert (a[0] > cost[0]).any()
+
+
+@needs_numba
+@pytest.mark.parametrize("shape", [(30, 22), (1, 8), (9, 1), (2, 2)])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_tents_engines_agree(shape, seed):
+    """E with NaN (off the surface) and the far value, rates with zeros and inf, unit vectors
+    along the axes, opposed and zero, nodes on and off."""
+    rng = np.random.default_rng(seed)
+    e = rng.uniform(0.0, 1.2, shape)
+    e[rng.random(shape) < 0.1] = np.nan
+    e[rng.random(shape) < 0.05] = 1.0
+    rate = rng.uniform(0.0, 3.0, shape)
+    rate[rng.random(shape) < 0.05] = 0.0
+    rate[rng.random(shape) < 0.02] = np.inf
+    ang = rng.uniform(0.0, 2.0 * np.pi, shape)
+    axis = rng.random(shape) < 0.2
+    ang[axis] = rng.integers(0, 4, int(axis.sum())) * (np.pi / 2)
+    unit = np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+    unit[rng.random(shape) < 0.05] = 0.0
+    on = rng.random(shape) < 0.8
+    for dx, dy in ((0.1, 0.1), (0.07, 0.13)):
+        with np.errstate(invalid="ignore"):
+            a, b = _both(lambda dx=dx, dy=dy: tents(e, rate, unit, on, dx, dy))
+        assert _same(a, b)
+    if min(shape) > 2:
+        assert (a > e).any()

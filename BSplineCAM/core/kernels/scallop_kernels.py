@@ -10,6 +10,8 @@ order, so that the answers agree to the bit.
 * :func:`_propagate_loops` is ``scallop_field.propagate``'s sweeps, row by row, with the
   segmented running minimum along each row by the same prefix sums and offsets;
 * :func:`_band_loops` is one direction of ``scallop_metric.band_costs``;
+* :func:`_tent_loops` raises E to the tents between neighbours
+  (``scallop_gaps.SurfaceGrid.distance``);
 * :func:`_interpolated_cost_loops` is ``scallop_metric.directional_cost`` without ``bound``
   at the nodes of a mask, the costs read in place from the (axes, nx, ny) grids; the angles
   come from numpy's ``arctan2`` (its SIMD loops do not round as the C library's does).
@@ -240,9 +242,48 @@ def _band_loops(src, reach, oi, oj, within, best):
             best[i, j] = b
 
 
+@helper
+def _fmax(a, b):
+    """np.fmax(a, b) of two floats (NaN loses)."""
+    if b != b:
+        return a
+    if a != a or b > a:
+        return b
+    return a
+
+
+def _tent_loops(e, rate, unit, on, dx, dy, out, top):
+    """``scallop_gaps.SurfaceGrid.distance``'s tents: along x, then y, each edge's top
+    (where E growing from both ends at rate times the unit vector's component meets, -inf
+    where it does not lie on the edge) raises ``out`` at the edge's lower ends, then at its
+    upper ones; ``top`` is scratch (nx, ny)."""
+    nx, ny = e.shape
+    for axis in range(2):
+        step = dx if axis == 0 else dy
+        di = 1 if axis == 0 else 0
+        dj = 1 - di
+        for i in range(nx - di):
+            for j in range(ny - dj):
+                i1, j1 = i + di, j + dj
+                s1 = rate[i, j] * unit[i, j, axis]
+                s2 = -rate[i1, j1] * unit[i1, j1, axis]
+                t = (e[i1, j1] - e[i, j] + s2 * step) / (s1 + s2)
+                if on[i, j] and on[i1, j1] and s1 > 0 and s2 > 0 and t > 0 and t < step:
+                    top[i, j] = e[i, j] + s1 * t
+                else:
+                    top[i, j] = -math.inf
+        for i in range(nx - di):
+            for j in range(ny - dj):
+                out[i, j] = _fmax(out[i, j], top[i, j])
+        for i in range(nx - di):
+            for j in range(ny - dj):
+                out[i + di, j + dj] = _fmax(out[i + di, j + dj], top[i, j])
+
+
 near_vector = Kernel(_near_vector_loops)
 interpolated_cost = Kernel(_interpolated_cost_loops)
 propagate = Kernel(_propagate_loops)
 band = Kernel(_band_loops)
+tent = Kernel(_tent_loops)
 
-__all__ = ["band", "interpolated_cost", "near_vector", "propagate"]
+__all__ = ["band", "interpolated_cost", "near_vector", "propagate", "tent"]

@@ -32,7 +32,9 @@ from typing import Callable
 
 import numpy as np
 
+from .. import kernels
 from ..geometry.faces_height import FacesHeight
+from ..kernels import scallop_kernels as _sk
 from ..typing import FloatArray
 from .common import Jet, ToolParameters
 from .scallop_field import NearField, bilinear, contour_keys, edge_points
@@ -109,6 +111,10 @@ class SurfaceGrid:
         self.reach = int(np.ceil(self.reach_mm / cell)) + 1
         self.half = np.full(self.shape, np.inf)
         self.half[self.on] = half
+        # E where no contact line is within reach: far where the point's half stepover is
+        self.beyond = np.full(self.shape, np.nan)
+        self.beyond[self.on] = np.where(self.half[self.on] * REACH_SHARE <= self.reach_mm,
+                                        FAR, 0.0)
 
     def near_field(self) -> NearField:
         """An empty :class:`.scallop_field.NearField` over the surface points, out to the
@@ -129,31 +135,47 @@ class SurfaceGrid:
         unit = vec / np.where(length > 0, length, 1.0)[..., None]
         rate = np.zeros(self.shape)
         rate[on] = directional_cost_on(self.cover, self.against, self.axes, on, unit[on])
-        e = np.full(self.shape, np.nan)
-        e[self.on] = np.where(self.half[self.on] * REACH_SHARE <= self.reach_mm, FAR, 0.0)
+        e = self.beyond.copy()
         e[on] = rate[on] * length[on]
-        out = e.copy()
-        for axis, step in ((0, self.dx), (1, self.dy)):
-            lo = [slice(None)] * 2
-            hi = [slice(None)] * 2
-            lo[axis], hi[axis] = slice(None, -1), slice(1, None)
-            lo, hi = tuple(lo), tuple(hi)
-            both = on[lo] & on[hi]
-            s1 = rate[lo] * unit[lo][..., axis]  # growth from the lower node towards the upper
-            s2 = -rate[hi] * unit[hi][..., axis]
-            up = both & (s1 > 0) & (s2 > 0)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                t = (e[hi] - e[lo] + s2 * step) / (s1 + s2)
-                top = np.where(up & (t > 0) & (t < step), e[lo] + s1 * t, -np.inf)
-            out[lo] = np.fmax(out[lo], top)
-            out[hi] = np.fmax(out[hi], top)
-        return out
+        return tents(e, rate, unit, on, self.dx, self.dy)
 
     def centres(self, p: FloatArray) -> FloatArray:
         """XY of the ball centres R along the (interpolated) normals above surface points p."""
         nx = bilinear(self.normal[..., 0], self.xs, self.ys, p)
         ny = bilinear(self.normal[..., 1], self.xs, self.ys, p)
         return p + self.radius * np.column_stack([nx, ny])
+
+
+def tents(e: FloatArray, rate: FloatArray, unit: FloatArray, on: np.ndarray, dx: float,
+          dy: float) -> FloatArray:
+    """E (nx, ny) raised at each node to the top of the tent between it and its neighbour
+    along x or y (:meth:`SurfaceGrid.distance`), E growing from both nodes (``on``) at
+    ``rate`` per mm along their unit vectors ``unit`` (nx, ny, 2) from the contacts."""
+    out = np.array(e, dtype=float)
+    if kernels.use_numba():
+        try:
+            f64 = np.float64
+            _sk.tent(np.ascontiguousarray(e, f64), np.ascontiguousarray(rate, f64),
+                     np.ascontiguousarray(unit, f64), np.ascontiguousarray(on, bool),
+                     float(dx), float(dy), out, np.empty(e.shape))
+            return out
+        except kernels.KernelUnavailable:
+            pass
+    for axis, step in ((0, dx), (1, dy)):
+        lo = [slice(None)] * 2
+        hi = [slice(None)] * 2
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        lo, hi = tuple(lo), tuple(hi)
+        both = on[lo] & on[hi]
+        s1 = rate[lo] * unit[lo][..., axis]  # growth from the lower node towards the upper
+        s2 = -rate[hi] * unit[hi][..., axis]
+        up = both & (s1 > 0) & (s2 > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = (e[hi] - e[lo] + s2 * step) / (s1 + s2)
+            top = np.where(up & (t > 0) & (t < step), e[lo] + s1 * t, -np.inf)
+        out[lo] = np.fmax(out[lo], top)
+        out[hi] = np.fmax(out[hi], top)
+    return out
 
 
 def gap_limit(tool: ToolParameters) -> float:
@@ -224,4 +246,4 @@ def gap_passes(surface: SurfaceGrid, polylines: list, contacts: Callable[[list],
 
 
 __all__ = ["COVER_DIRECTIONS", "FAR", "FINE", "MAX_SURFACE_NODES", "ROUNDS", "SurfaceGrid", "gap_limit",
-           "gap_passes", "thin_midline"]
+           "gap_passes", "tents", "thin_midline"]

@@ -166,12 +166,13 @@ def cover_costs(jet: Jet, tool: ToolParameters, axes: FloatArray) -> FloatArray:
     out = np.empty((len(axes), len(n)))
     for k, a in enumerate(axes):
         along = np.array([-a[1], a[0]])
-        p = -(n[:, :2] @ a) / nz
+        na = n[:, :2] @ a
+        p = -na / nz
         ta = -(n[:, :2] @ along) / nz
         cos_b = 1.0 / np.sqrt(1.0 + ta * ta)
         sec = np.sqrt(1.0 + p * p)
         t = np.column_stack([np.full(len(n), a[0]), np.full(len(n), a[1]), p])
-        cos_phi = np.clip((nz - p * (n[:, :2] @ a)) / sec, 1e-3, 1.0)
+        cos_phi = np.clip((nz - p * na) / sec, 1e-3, 1.0)
         z2 = curvature(t) * sec ** 3 / cos_phi * cos_b
         p2 = p * cos_b
         sec2 = np.sqrt(1.0 + p2 * p2)
