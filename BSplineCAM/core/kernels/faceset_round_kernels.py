@@ -622,7 +622,8 @@ def _open_split_loops(j, query, node, nets, box, depth, status, segs, ub, best, 
     :func:`halves`), their pieces' trim status and segments classified by their parents'
     listed segments (:func:`classify_halves`; status -1: a parent with too many to list,
     for the caller): (uncertified count, parent pair (n2,), query (n2,), node (n2,), nets
-    (N2, 4, p+1, q+1), box (n2, 4), depth (n2,), status (n2,), segs (n2, K))."""
+    (N2, 4, p+1, q+1), box (n2, 4), depth (n2,), status (n2,), segs (n2, K), whether the
+    pieces outside the trim are dropped already: none waits for the caller)."""
     opened, inreg, unc = open_pairs(j, query, box, depth, ub, best, gap, reg_box, reg_val,
                                     given_up, certify, max_depth, max_open, crowded)
     t, along = region_cuts(j, query, box, opened, inreg, reg_box, margin)
@@ -634,7 +635,28 @@ def _open_split_loops(j, query, node, nets, box, depth, status, segs, ub, best, 
         oq[r] = query[parent[r]]
         odepth[r] = depth[parent[r]] + 1
     ostatus, osegs = classify_halves(parent, obox, status, segs, edges, table, v0, h, inner)
-    return unc, parent, oq, onode, out, obox, odepth, ostatus, osegs
+    # the pieces outside the trim dropped here unless some wait for the caller's classification
+    keep = 0
+    for r in range(n2):
+        if ostatus[r] < 0:
+            return unc, parent, oq, onode, out, obox, odepth, ostatus, osegs, False
+        if ostatus[r] > 0:
+            keep += 1
+    if keep < n2:
+        rows = np.empty(keep, np.int64)
+        c = 0
+        for r in range(n2):
+            if ostatus[r] > 0:
+                rows[c] = r
+                c += 1
+        parent = parent[rows]
+        oq = oq[rows]
+        onode = onode[rows]
+        obox = obox[rows]
+        odepth = odepth[rows]
+        ostatus = ostatus[rows]
+        osegs = osegs[rows]
+    return unc, parent, oq, onode, out, obox, odepth, ostatus, osegs, True
 
 
 bound_pairs = Kernel(_bound_pairs_loops)

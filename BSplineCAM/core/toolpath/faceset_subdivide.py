@@ -101,7 +101,7 @@ def open_children(j: int, d: _FaceData, it: _Items, ub: FloatArray, best: FloatA
     halved, as :func:`children` of them: (halves, pairs left uncertified).  Raises
     :class:`..kernels.KernelUnavailable` where the kernel cannot run."""
     bands = d._bands
-    unc, parent, query, node, nets, box, depth, status, segs = rk.open_split(
+    unc, parent, query, node, nets, box, depth, status, segs, done = rk.open_split(
         j, np.ascontiguousarray(it.query, dtype=np.int64),
         np.ascontiguousarray(it.node, dtype=np.int64), np.ascontiguousarray(it.nets),
         np.ascontiguousarray(it.box, dtype=float), np.ascontiguousarray(it.depth, np.int64),
@@ -110,11 +110,12 @@ def open_children(j: int, d: _FaceData, it: _Items, ub: FloatArray, best: FloatA
         given_up, float(certify), MAX_DEPTH, MAX_OPEN, CUT_MARGIN,
         bool(d.face.surface.rational), d.edges, bands.table, float(bands.v0), float(bands.h),
         d._inner, crowded)
-    todo = np.flatnonzero(status < 0)
-    if len(todo):
-        # parents crossed by more trim segments than listed: classified against all
-        status[todo], segs[todo] = d.classify(box[todo], it.segs[parent[todo]])
     pieces = _Items(query, node, nets, box, depth, status, segs)
+    if done:
+        return pieces, int(unc)
+    # parents crossed by more trim segments than listed: classified against all
+    todo = np.flatnonzero(status < 0)
+    status[todo], segs[todo] = d.classify(box[todo], it.segs[parent[todo]])
     keep = status > 0
     return (pieces if keep.all() else pieces.take(keep)), int(unc)
 
