@@ -10,6 +10,7 @@ a vertex where the ball comes nearest).
   tolerance outside the wall shows the wall's height;
 * a pass over the cylinder lowered by a known depth along the normal measures that depth;
 * a ball dipping into the hole grazes its rim: intrusion R - distance to the rim circle;
+* a ball clear of a post under an overhanging lip: its shank runs through the lip;
 * the gate (:func:`gouge_gate_mm`): a pass lowered 0.05 mm into the top or a wall fails it,
   cells beyond the cap and cells swept by a flat end mill keep their vertical gouge.
 """
@@ -17,6 +18,7 @@ a vertex where the ball comes nearest).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -250,3 +252,22 @@ def test_job_gate_fails_a_finishing_pass_into_a_face(wall):
     assert m["gouge_normal_measured"] and m["gouge_normal_cells_checked"] > 0
     assert m["gouge_normal_max_mm"] == pytest.approx(0.05, abs=1e-9)
     assert gn.gouge_gate_mm(m) > 1e-3
+
+
+def test_shank_under_an_overhang():
+    """A post 8 mm tall and, 2 mm above it, a lip reaching 6 mm beyond its side x = 20; the
+    ball passes beside the post 0.5 mm clear of it, under the lip: the Z-map reads the lip's
+    height over the ball; the ball clears every face, its shank (axis at x = 23.5) runs
+    through the lip: intrusion R (unsigned, from the lip's underside above the centre)."""
+    post = box(0.0, 20.0, 0.0, 20.0, 0.0, 8.0)
+    lip = [replace(f, index=f.index + 6) for f in box(0.0, 26.0, 0.0, 20.0, 10.0, 12.0)]
+    text = program(along_y(20.0 + R + 0.5, 2.0, -10.0, 30.0))
+    m = verify_faces(post + lip, read_gcode(text), Tool(2 * R), cell=0.1).metrics
+    at = m["gouge_normal_at"]
+    assert m["gouge_max_mm"] > 5.0
+    assert at["ball_mm"] == pytest.approx(-0.5, abs=1e-9)
+    assert at["part"] == "shank" and at["shank_mm"] == pytest.approx(R, abs=1e-9)
+    # 11000 cells under the lip: those beyond the cap count at their vertical depth
+    assert m["gouge_normal_unmeasured_cells"]["beyond the cap"] > 0
+    assert gn.gouge_gate_mm(m) == pytest.approx(m["gouge_normal_unmeasured_max_mm"], abs=1e-12)
+    assert gn.gouge_gate_mm(m) >= R

@@ -68,6 +68,7 @@ PATH_STEP_MM = 0.05
 #: Design - machined above this (mm) flags a cell (verify's GOUGE_TOLERANCE_MM).
 GOUGE_TOLERANCE_MM = 1e-3
 
+
 @dataclass(frozen=True)
 class CellGouge:
     """One flagged cell measured along the normal (mm): ``depth`` = max(``ball``,
@@ -143,8 +144,6 @@ class NormalGouge:
             "gouge_normal_at": self.cells[0].to_dict() if self.cells else None,
             "gouge_normal_worst": [c.to_dict() for c in self.cells[:10]],
         }
-
-
 
 
 def measure(faces: Sequence[Face], segments: Segments, tools: Sequence[Tool],
