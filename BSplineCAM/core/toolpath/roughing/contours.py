@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import kernels
+from ...kernels import roughing_contour_kernels as _ck
 from ...typing import FloatArray
 
 
@@ -19,6 +21,12 @@ def marching_squares(F: FloatArray) -> list:
     ny, nx = F.shape
     if ny < 2 or nx < 2:
         return []
+    if kernels.use_numba():
+        try:
+            points, starts = _ck.marching_squares(np.ascontiguousarray(F, dtype=float))
+            return [points[a:b] for a, b in zip(starts[:-1].tolist(), starts[1:].tolist())]
+        except kernels.KernelUnavailable:
+            pass
     ins = F <= 0.0
     a, b = F[:-1, :-1], F[:-1, 1:]
     d, c = F[1:, :-1], F[1:, 1:]

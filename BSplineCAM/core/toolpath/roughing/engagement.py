@@ -44,10 +44,26 @@ class _Engagement:
         if not len(live):
             return out, counts
         A, B, length = A[live], B[live], length[live]
-        i0, i1, j0, j1 = self.window(self.idx(np.concatenate([A, B])), self.Rc + 2)
+        if len(A) == 1:
+            (ax, ay), (bx, by) = A[0].tolist(), B[0].tolist()
+            i0, i1, j0, j1 = self.window_of(ax, ay, bx, by, self.Rc + 2)
+        else:
+            i0, i1, j0, j1 = self.window(self.idx(np.concatenate([A, B])), self.Rc + 2)
+        flat = self.tool.shape is ToolShape.FLAT
+        if flat and kernels.use_numba():
+            # the window's cells gathered in the kernel's loop
+            g = self.grid
+            uncut = self.uncut if material is None else material
+            try:
+                out[live], counts[live] = _rk.engaged_flat_window(
+                    np.ascontiguousarray(A), length, (B - A) / length[:, None], uncut,
+                    uncut if task is None else task, i0, i1, j0, j1, g.x0, g.y0, g.cell,
+                    float(self.R))
+                return out, counts
+            except kernels.KernelUnavailable:
+                pass
         uncut = base = (self.uncut if material is None else material)[i0:i1, j0:j1]
         work = uncut if task is None else task[i0:i1, j0:j1]
-        flat = self.tool.shape is ToolShape.FLAT
         if not flat:
             # a bull-nose's or ball's passes leave fillets under their corners, which the
             # surface estimate holds: material there counts as the simulation counts it
@@ -59,16 +75,6 @@ class _Engagement:
             return out, counts
         cells = self.xy(np.column_stack([ix + j0, iy + i0]).astype(float))
         d = (B - A) / length[:, None]
-        if flat and kernels.use_numba():
-            try:
-                out[live], counts[live] = _rk.engaged_flat(
-                    np.ascontiguousarray(A), np.ascontiguousarray(B), length,
-                    np.ascontiguousarray(d), np.ascontiguousarray(cells[:, 0]),
-                    np.ascontiguousarray(cells[:, 1]), np.ascontiguousarray(uncut[iy, ix]),
-                    np.ascontiguousarray(work[iy, ix]), float(self.R), float(self.cell))
-                return out, counts
-            except kernels.KernelUnavailable:
-                pass
         rx = cells[None, :, 0] - A[:, :1]
         ry = cells[None, :, 1] - A[:, 1:]
         along = rx * d[:, :1] + ry * d[:, 1:]

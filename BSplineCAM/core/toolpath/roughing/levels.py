@@ -95,7 +95,7 @@ class _Levels:
         limit = self.engagement_limit * self.s
         best = self.widest_cut(z)
         if best <= limit:
-            self.peel_level(z)
+            self.peel_level(z, best)
             return
         kept, used = self.snapshot(), None
         # a ball's cut at the level is not the grid's flat swath: closer fronts shave more
@@ -115,7 +115,7 @@ class _Levels:
             if best <= limit:
                 break
         self.restore(kept)
-        self.peel_level(z)
+        self.peel_level(z, best)
         if used is not None:
             self.bent_levels.append(float(z))
         if used is not None and used < 1.0:

@@ -19,17 +19,20 @@ class _Peel:
     """Part of a roughing run (:class:`~.job._Job`): the peel of a level's moves, measured in
     its replay (:class:`~.replay._Replay`)."""
 
-    def peel_level(self, z: float) -> None:
+    def peel_level(self, z: float, widest: float | None = None) -> None:
         """Replay the level's feed moves at z outside its entries in order, as
         :meth:`widest_cut` does, and cut each one wider than PEEL_OVER stepovers by
         :meth:`peel` instead, where that finds a way; then mark the new moves on the run's
         state too.  The entry spans and links after a peeled move shift with it.  For flat
         and bull-nose end mills (a bull-nose's width counts the fillets its corner shaves, as
         :meth:`engaged` measures them); not for a ball, whose passes' cusps the flat
-        replay does not hold."""
+        replay does not hold.  ``widest``: the level's widest cut (:meth:`widest_cut`) when
+        known; none wider than PEEL_OVER stepovers, the replay would peel nothing."""
         if self.tool.shape is ToolShape.BALL:
             return
         over = self.peel_over * self.s
+        if widest is not None and widest <= over:
+            return
         moves = self.writer.moves
         first = self.level_first
         out = list(moves[:max(first, 1)])

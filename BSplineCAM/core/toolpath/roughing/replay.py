@@ -136,9 +136,9 @@ class _Replay:
                                   material=self.uncut_level)[0][0])
 
     def mark_both(self, path_xy: FloatArray) -> None:
-        """:meth:`mark` and :meth:`mark_level` of a feed at the level in a replay."""
-        self.mark(path_xy)
-        self.mark_level(path_xy)
+        """:meth:`mark` and :meth:`mark_level` of a feed at the level in a replay (one pass:
+        the same cells leave both grids of uncut cells)."""
+        self.mark(path_xy, also=self.uncut_level)
 
     def widest_cut(self, z: float) -> float:
         """Widest cut (mm, :meth:`level_width`) of the level's feed moves at z outside its

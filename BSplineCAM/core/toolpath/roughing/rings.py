@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import kernels
+from ...kernels import roughing_front_kernels as _fk
 from ...typing import FloatArray
 from .constants import FRONT_SMOOTH_RADII, MIN_FRONT_STEP
 from .gridops import squared_distance
@@ -62,9 +64,14 @@ def front_radius(Q: np.ndarray, cell: float, R: float) -> FloatArray:
     at least two cells.  The signed distance is smooth across the boundary, and the Laplacian
     of a distance is the curvature of its level sets, 1 / (rho + d) at a distance d from a
     round boundary of radius rho."""
+    h = max(2, int(round(FRONT_SMOOTH_RADII * R / cell)))
+    if kernels.use_numba():
+        try:
+            return _fk.front_radius(squared_distance(Q), squared_distance(~Q), float(cell), h)
+        except kernels.KernelUnavailable:
+            pass
     out = np.sqrt(squared_distance(Q)) * cell
     sd = out - np.sqrt(squared_distance(~Q)) * cell
-    h = max(2, int(round(FRONT_SMOOTH_RADII * R / cell)))
     sm = _box_mean(_box_mean(sd, h), h)
     lap = np.zeros_like(sm)
     lap[1:-1, 1:-1] = (sm[1:-1, 2:] + sm[1:-1, :-2] + sm[2:, 1:-1] + sm[:-2, 1:-1]

@@ -12,6 +12,7 @@ import numpy as np
 
 from ... import kernels
 from ...kernels import roughing_kernels as _rk
+from ...kernels import roughing_mark_kernels as _mk
 from ...typing import FloatArray
 from ..common import Move
 from .constants import CELL_HALF_DIAGONAL, TRAVEL_GAP_MM
@@ -87,6 +88,17 @@ class _GridState:
         i1 = min(int(math.ceil(f[:, 1].max() + pad)) + 1, ny)
         return i0, i1, j0, j1
 
+    def window_of(self, ax: float, ay: float, bx: float, by: float,
+                  pad: float) -> tuple[int, int, int, int]:
+        """:meth:`window` of the fractional indices of the two points (ax, ay), (bx, by) (xy
+        mm), in plain floats: the same arithmetic, without arrays."""
+        g = self.grid
+        ny, nx = self.T.shape
+        fa, fb = (ax - g.x0) / g.cell - 0.5, (bx - g.x0) / g.cell - 0.5
+        ga, gb = (ay - g.y0) / g.cell - 0.5, (by - g.y0) / g.cell - 0.5
+        return (max(math.floor(min(ga, gb) - pad), 0), min(math.ceil(max(ga, gb) + pad) + 1, ny),
+                max(math.floor(min(fa, fb) - pad), 0), min(math.ceil(max(fa, fb) + pad) + 1, nx))
+
     @property
     def X(self):
         xs, ys = self.grid.centres()
@@ -98,7 +110,7 @@ class _GridState:
         return ys[:, None]
 
     def mark(self, path_xy: FloatArray, only: np.ndarray | None = None,
-             heights: tuple | None = None) -> None:
+             heights: tuple | None = None, also: np.ndarray | None = None) -> None:
         """Record the cut of the tool along a path at the level: cells within R of it leave
         the uncut grid, and cells the tool covers whole (their centre within R less half a
         diagonal) drop in the surface estimate to the level plus the profile at their
@@ -111,11 +123,22 @@ class _GridState:
         ``only``, the cells leave that grid of uncut cells and nothing else changes.  With
         ``heights`` (low, high) the path is not at the level but between those tip heights
         (a descent's): the estimate drops to the high one plus the profile, its lower bound
-        and the floor to the low one."""
+        and the floor to the low one.  With ``also`` (a grid of uncut cells, not with
+        ``only``) the cells within R leave that grid too."""
         path_xy = np.asarray(path_xy, dtype=float)
         if len(path_xy) == 2:
-            i0, i1, j0, j1 = self.window(self.idx(path_xy), self.Rc + 2)
+            (ax, ay), (bx, by) = path_xy.tolist()
+            i0, i1, j0, j1 = self.window_of(ax, ay, bx, by, self.Rc + 2)
             g = self.grid
+            if kernels.use_numba():
+                ab = path_xy[1] - path_xy[0]
+                try:
+                    self._mark_kernel(_mk.mark_segment, only, heights, also, i0, i1, j0, j1,
+                                      g.x0, g.y0, g.cell, ax, ay, bx - ax, by - ay,
+                                      max(float(ab @ ab), 1e-300))
+                    return
+                except kernels.KernelUnavailable:
+                    pass
             xs = g.x0 + (np.arange(j0, j1) + 0.5) * g.cell
             ys = g.y0 + (np.arange(i0, i1) + 0.5) * g.cell
             dist = _segment_distance(xs, ys, path_xy)
@@ -135,12 +158,21 @@ class _GridState:
                 by, bx = np.divmod(band, j1 - j0)
                 pts = self.xy(np.column_stack([bx + j0, by + i0]).astype(float))
                 dist.flat[band] = dist_lo.flat[band] = _polyline_distance(pts, path_xy)
+            if kernels.use_numba():
+                try:
+                    self._mark_kernel(_mk.mark_field, only, heights, also, i0, j0, dist,
+                                      dist_lo)
+                    return
+                except kernels.KernelUnavailable:
+                    pass
         cut = dist <= self.R
         if only is not None:  # that grid of uncut cells only
             only[i0:i1, j0:j1] &= ~cut
             return
         z_lo, z_hi = (self.z, self.z) if heights is None else heights
         self.uncut[i0:i1, j0:j1] &= ~cut
+        if also is not None:
+            also[i0:i1, j0:j1] &= ~cut
         fl = self.floor[i0:i1, j0:j1]
         fl[cut] = np.minimum(fl[cut], z_lo)
         # the estimate bounds the material's top over the whole cell: a cell drops only where
@@ -154,6 +186,17 @@ class _GridState:
         some = near <= self.R
         lo = self.surface_lo[i0:i1, j0:j1]
         lo[some] = np.minimum(lo[some], z_lo + self.tool.profile(np.maximum(near[some], 0.0)))
+
+    def _mark_kernel(self, kernel, only, heights, also, *where) -> None:
+        """:meth:`mark` by one of :mod:`~BSplineCAM.core.kernels.roughing_mark_kernels`
+        (``where``: its arguments between the grids and the tool's)."""
+        z_lo, z_hi = (self.z, self.z) if heights is None else heights
+        grids = (self.uncut, self.floor, self.surface, self.surface_lo) if only is None else \
+            (only, self.floor, self.surface, self.surface_lo)
+        kernel(*grids, only is None, grids[0] if also is None else also, also is not None,
+               *where, float(self.R),
+               float(CELL_HALF_DIAGONAL * self.cell), float(z_lo), float(z_hi),
+               _mk.SHAPES[self.tool.shape.value], float(self.tool.corner_radius))
 
     def safe_at(self, q: FloatArray, z: float) -> float:
         """Lowest tip height (>= z) at q (xy) where the tool meets none of the material the
