@@ -112,8 +112,8 @@ def measure(entry: dict, shared: Path, tool: float, work: Path) -> dict:
             v = ver["json"] or {}
             row["verify"] = {k: ver[k] for k in ("rc", "seconds", "error")}
             row["verify"].update({k: v.get(k) for k in (
-                "gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "edge_scallop_max_mm",
-                "coverage")})
+                "gouge_max_mm", "gouge_normal_max_mm", "scallop_max_mm", "scallop_p99_mm",
+                "edge_scallop_max_mm", "coverage")})
             if rs274.available():
                 check_rs = rs274.check(ngc, {1: tool})
                 row["rs274"] = {"ok": check_rs.ok, "message": check_rs.message}
@@ -129,6 +129,16 @@ def cell(row: dict | None, key: str, spec: str = ".3g") -> str:
     if not row or row.get("rc") != 0:
         return "—"
     return fmt((row.get("verify") or {}).get(key), spec)
+
+
+def gouge(row: dict | None) -> str:
+    """The vertical gouge, and the gouge along the design's normal where verify measured
+    it and it differs."""
+    text = cell(row, "gouge_max_mm")
+    normal = (row or {}).get("verify", {}).get("gouge_normal_max_mm")
+    if text == "—" or normal is None or fmt(normal, ".3g") == text:
+        return text
+    return f"{text} ({fmt(normal, '.3g')} normal)"
 
 
 def status(row: dict | None) -> str:
@@ -162,8 +172,8 @@ def table(results: list[dict]) -> str:
             f"| {r['file']} | {r['cad']} | {faces} | {degrees} | "
             f"{'yes' if c['rational'] else 'no'} | "
             f"{c['seconds']:.1f}{check_exit} | {status(ras)} | "
-            f"{status(st)} | {verify_s} | {cell(ras, 'gouge_max_mm')} / "
-            f"{cell(st, 'gouge_max_mm')} | {cell(ras, 'scallop_max_mm')} / "
+            f"{status(st)} | {verify_s} | {gouge(ras)} / "
+            f"{gouge(st)} | {cell(ras, 'scallop_max_mm')} / "
             f"{cell(st, 'scallop_max_mm')} | {cell(ras, 'coverage', '.3f')} / "
             f"{cell(st, 'coverage', '.3f')} | {rs_text} |")
         for name, row in (("check", c), ("raster", ras), ("steep_shallow", st)):

@@ -326,6 +326,9 @@ SUMMARY = ("gouge_max_mm", "scallop_max_mm", "scallop_p99_mm", "scallop_mean_mm"
            "scallop_evenness", "scallop_mean_over_max", "edge_scallop_max_mm",
            "coverage", "rapid_collisions", "cutting_length_mm", "machining_time_s",
            "machining_time_with_acceleration_s")
+#: Figures printed too where verify.json has them: the gouge along the design's normal
+#: (parts measured with a ball; a net's gouge is the vertical one).
+SUMMARY_WHEN_MEASURED = ("gouge_normal_max_mm", "gouge_normal_unmeasured_max_mm")
 
 
 def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple = ()) -> int:
@@ -340,6 +343,8 @@ def write_results(args: argparse.Namespace, result, metrics: dict, extra: tuple 
     for warning in metrics.get("warnings", []):
         print(f"bsplinecam verify: warning: {warning}", file=sys.stderr)
     summary = {k: metrics[k] for k in SUMMARY + tuple(extra)}
+    if metrics.get("gouge_normal_measured"):
+        summary.update({k: metrics[k] for k in SUMMARY_WHEN_MEASURED if k in metrics})
     summary.update(_job_summary(metrics))
     loads = getattr(result, "loads", None)
     if loads is not None:
