@@ -3,7 +3,11 @@
 queries: level by level every (query, sub-patch) pair is bounded
 (:func:`.faceset_bounds.sub_patch_bounds`), the faces' best contacts raise the queries' lower
 bounds, contacts are polished and local certificates sought (:mod:`.faceset_regions`), and the
-pairs still open above their query's best are split (:mod:`.faceset_subdivide`)."""
+pairs still open above their query's best are split (:mod:`.faceset_subdivide`).
+
+Under the numba engine a face's level runs in three compiled calls
+(:mod:`..kernels.faceset_round_kernels`): its bounds, its contacts, and its open pairs' cuts and
+halves; the numpy engine takes the same steps as array operations, to the same answers."""
 
 from __future__ import annotations
 
