@@ -357,12 +357,14 @@ def adjust_boundary(bench, job, theirs, doc, faces, args, out: Path, flat: dict,
     keeps the centre on the outline, where a ball cannot finish a fillet down to a side wall
     (its contact at the fillet's foot lies R outside the outline); its passes lie at
     multiples of StepOver from the middle of the bound box, the boundary only decides which
-    of them run.  FinalDepth (by default the faces' lowest point, which stops the tip above
-    a convex fillet's foot when the centre is outside) is set R lower, then the trials are
-    ``--boundary-adjustments`` (mm; by default 1.5 R and 2 R), in order, stopping at the
-    first that meets ``edge``; the chosen one is that, or else the one with the least edge
-    band scallop (the first within 2 % of it).  The op keeps the chosen adjustment and
-    FinalDepth."""
+    of them run.  FinalDepth goes R lower than the op's own: with BoundaryAdjustment > 0
+    PathSurfaceSupport cuts its model of the stock's waste back by the faces' envelope down
+    to FinalDepth, and on examples/part.step at 2 R the fillets' feet keep 1.04 mm with the
+    op's FinalDepth, 0.27 mm with it R lower (measured; the cause not traced further).  The trials are ``--boundary-adjustments``
+    (mm; by default 1.5 R and 2 R), in order, stopping at the first that meets ``edge``;
+    the chosen one is that, or else the one with the least edge band scallop (the first
+    within 2 % of it), the op as it comes among them.  The op keeps the chosen adjustment
+    and FinalDepth."""
     radius = args.diameter / 2.0
     out.mkdir(parents=True, exist_ok=True)
     trials = [flat]
@@ -386,6 +388,7 @@ def adjust_boundary(bench, job, theirs, doc, faces, args, out: Path, flat: dict,
         least = min(t["edge_scallop_max_mm"] for t in trials)
         chosen = next(t for t in trials if t["edge_scallop_max_mm"] <= 1.02 * least)
     theirs.BoundaryAdjustment = chosen["boundary_adjustment_mm"]
+    theirs.FinalDepth = chosen["final_depth_mm"]
     return {"target_edge_scallop_mm": edge, "met": bool(meeting),
             "chosen": chosen,
             "trials": [{k: t[k] for k in ("boundary_adjustment_mm", "edge_scallop_max_mm",
