@@ -360,8 +360,9 @@ def adjust_boundary(bench, job, theirs, doc, faces, args, out: Path, flat: dict,
     of them run.  FinalDepth goes R lower than the op's own: with BoundaryAdjustment > 0
     PathSurfaceSupport cuts its model of the stock's waste back by the faces' envelope down
     to FinalDepth, and on examples/part.step at 2 R the fillets' feet keep 1.04 mm with the
-    op's FinalDepth, 0.27 mm with it R lower (measured; the cause not traced further).  The trials are ``--boundary-adjustments``
-    (mm; by default 1.5 R and 2 R), in order, stopping at the first that meets ``edge``;
+    op's FinalDepth, 0.27 mm with it R lower (measured; the cause not traced further).
+    The trials are ``--boundary-adjustments`` (mm; by default 1.5 R and 2 R), in order,
+    stopping at the first that meets ``edge``;
     the chosen one is that, or else the one with the least edge band scallop (the first
     within 2 % of it), the op as it comes among them.  The op keeps the chosen adjustment
     and FinalDepth."""
