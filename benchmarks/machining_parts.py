@@ -468,6 +468,11 @@ def freecad_verdict(t: float, run: dict, what: str) -> str:
             f"ours {100 * (t / fc - 1):+.0f} %")
 
 
+def change(saving: float) -> str:
+    """A saving (fraction of the other's time) said as "N % less" or "N % more"."""
+    return f"{100 * saving:.0f} % less" if saving >= 0 else f"{-100 * saving:.0f} % more"
+
+
 def targets(figures: dict, settings: dict) -> list[str]:
     """Issue 44's targets on one part, each met or not and by how much.  The fair FreeCAD
     row is the one retuned on the whole selection (edge band included) when there is one."""
@@ -502,11 +507,11 @@ def targets(figures: dict, settings: dict) -> list[str]:
             verdict = "met" if saving >= need else "NOT met"
             role = "the target" if index == 0 else "also"
             lines.append(f"at least {100 * need:.0f} % less than our raster of issue 44, "
-                         f"{label} ({role}, {base:.0f} s): {verdict}, {100 * saving:.0f} % less")
+                         f"{label} ({role}, {base:.0f} s): {verdict}, {change(saving)}")
     if "error" not in raster and raster:
         r = raster["machining_time_with_acceleration_s"]
         lines.append(f"against today's raster (partial passes, minimum retracts, {r:.0f} s): "
-                     f"{100 * (1.0 - t / r):.0f} % less")
+                     f"{change(1.0 - t / r)}")
     gouge = b["gouge_max_mm"]
     verdict = "met" if gouge <= settings["gouge_limit_mm"] else "NOT met"
     lines.append(f"no gouge (<= {1000 * settings['gouge_limit_mm']:g} um): {verdict}, "
