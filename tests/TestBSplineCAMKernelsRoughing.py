@@ -1,10 +1,10 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """The Z-level roughing's two engines (core.kernels.roughing_kernels, roughing_mark_kernels,
-roughing_contour_kernels, roughing_front_kernels and the numpy code of core.toolpath.roughing)
-agree exactly: the distance transforms, the distances to segments and polylines, the record
-of a cut on the grids, the widths of cut, the contours, the radius of the fronts, and whole
-programs (the case study, a pocketed part entered by helices, a ball in a bowl), move for
-move at full precision."""
+roughing_contour_kernels, roughing_front_kernels, roughing_sample_kernels and the numpy code
+of core.toolpath.roughing) agree exactly: the distance transforms, the distances to segments
+and polylines, the record of a cut on the grids, the widths of cut, the contours, the radius
+of the fronts, the samples of a grid, and whole programs (the case study, a pocketed part
+entered by helices, a ball in a bowl), move for move at full precision."""
 
 from __future__ import annotations
 
@@ -210,6 +210,33 @@ def test_front_radius_engines_agree():
         a, b = _both(lambda Q=Q: front_radius(Q, 0.25, 5.0))
         assert np.array_equal(a, b)
     assert np.isfinite(a).sum() == 0 and np.isfinite(front_radius(disc, 0.25, 5.0)).sum() > 1000
+
+
+def _samples() -> list:
+    """Bilinear samples of a field (inside, on the last row and column, beyond the grid) and
+    whether feeds stay in {T <= z} (within, crossing a ridge, of no length, off the grid)."""
+    job, xs, ys = bare_job(0.3, 15.0, Tool(8.0, "flat"))
+    rng = np.random.default_rng(9)
+    X, Y = np.meshgrid(xs, ys)
+    job.T = np.where(np.abs(X - 2.0) < 0.7, 6.0, np.sin(X / 3.0) + 0.1 * Y)
+    ny, nx = job.T.shape
+    fx = np.concatenate([rng.uniform(-3.0, nx + 2.0, 200), [0.0, nx - 1.0, nx - 1.5]])
+    fy = np.concatenate([rng.uniform(-3.0, ny + 2.0, 200), [ny - 1.0, 0.0, ny - 1.0]])
+    A = rng.uniform(-16.0, 16.0, (60, 2))
+    B = A + rng.uniform(-5.0, 5.0, A.shape)
+    B[0] = A[0]
+    return [gridops._bilinear(job.T, fx, fy)] + [job.in_region_many(A, B, z)
+                                                  for z in (-1.0, 1.0, 2.5)]
+
+
+@needs_numba
+def test_grid_samples_engines_agree():
+    """Bilinear samples of a grid and the feeds that stay in {T <= z} are the same under both
+    engines."""
+    a, b = _both(_samples)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+    assert 0 < int(a[2].sum()) < len(a[2])  # some feeds stay in, some leave
 
 
 def _roughings():

@@ -11,11 +11,20 @@ import numpy as np
 from ... import kernels
 from ...geometry.distance import squared_distance as _squared_distance_numpy
 from ...kernels import roughing_kernels as _rk
+from ...kernels import roughing_sample_kernels as _sk
 from ...typing import FloatArray
 
 
 def _bilinear(field_: FloatArray, fx: FloatArray, fy: FloatArray) -> FloatArray:
     """Bilinear value at fractional cell indices (column fx, row fy), clamped to the grid."""
+    if kernels.use_numba() and field_.dtype == np.float64 and np.ndim(fx) == 1 and \
+            np.ndim(fy) == 1:
+        try:
+            return _sk.bilinear(np.ascontiguousarray(field_),
+                                np.ascontiguousarray(fx, dtype=float),
+                                np.ascontiguousarray(fy, dtype=float))
+        except kernels.KernelUnavailable:
+            pass
     ny, nx = field_.shape
     fx = np.clip(fx, 0.0, nx - 1.0)
     fy = np.clip(fy, 0.0, ny - 1.0)

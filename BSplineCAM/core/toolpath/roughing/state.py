@@ -13,6 +13,7 @@ import numpy as np
 from ... import kernels
 from ...kernels import roughing_kernels as _rk
 from ...kernels import roughing_mark_kernels as _mk
+from ...kernels import roughing_sample_kernels as _sk
 from ...typing import FloatArray
 from ..common import Move
 from .constants import CELL_HALF_DIAGONAL, TRAVEL_GAP_MM
@@ -281,6 +282,14 @@ class _GridState:
     def in_region_many(self, A: FloatArray, B: FloatArray, z: float) -> np.ndarray:
         """:meth:`in_region` of the feeds from A[i] to B[i] (n, 2), sampled at once: the
         points of :func:`_densify` of each, half a cell apart."""
+        if kernels.use_numba():
+            g = self.grid
+            try:
+                return _sk.in_region(self.T, np.ascontiguousarray(A, dtype=float),
+                                     np.ascontiguousarray(B, dtype=float), g.x0, g.y0, g.cell,
+                                     0.5 * self.cell, float(z + 1e-3))
+            except kernels.KernelUnavailable:
+                pass
         D = B - A
         owner, t = _pieces(D, 0.5 * self.cell)
         pts = np.concatenate([A, A[owner] + t[:, None] * D[owner]])
