@@ -20,35 +20,19 @@ import math
 
 import numpy as np
 
-from . import Kernel
+from . import Kernel, helper
 
 #: Slack (mm) of the pruning of :func:`_polyline_distance_loops`: a segment's box farther than
 #: the nearest distance so far by more than this cannot hold a nearer point.
 PRUNE_MM = 1e-6
 
 
-def _squared_distance_loops(mask):
-    """Squared Euclidean distance (cells^2) from each cell to the nearest set cell of the
-    boolean grid ``mask`` (ny, nx; not empty), at most (ny + nx + 2)^2: the row pass and the
-    lower envelope of parabolas down each column of
-    :func:`~BSplineCAM.core.geometry.distance.squared_distance` (Felzenszwalb &
-    Huttenlocher), column by column."""
-    ny, nx = mask.shape
-    big = float((ny + nx + 2) ** 2)
-    f = np.empty((ny, nx))
-    for i in range(ny):
-        last = -math.inf
-        for j in range(nx):
-            if mask[i, j]:
-                last = float(j)
-            f[i, j] = j - last
-        nxt = math.inf
-        for j in range(nx - 1, -1, -1):
-            if mask[i, j]:
-                nxt = float(j)
-            g = min(f[i, j], nxt - j)
-            f[i, j] = g * g if g != math.inf else big
-    out = np.empty((ny, nx))
+@helper
+def _column_envelope(f, out, top):
+    """out[q, c] = min(top, min over p of (q - p)^2 + f[p, c]) for every column c of ``f``
+    (ny, nx): the lower envelope of parabolas down each column (Felzenszwalb &
+    Huttenlocher), in time linear in the column's length."""
+    ny, nx = f.shape
     v = np.zeros(ny, np.int64)
     z = np.empty(ny + 1)
     fq2 = np.empty(ny)
@@ -78,7 +62,32 @@ def _squared_distance_loops(mask):
                 k += 1
             vk = v[k]
             d = float((q - vk) * (q - vk)) + f[vk, c]
-            out[q, c] = min(d, big)
+            out[q, c] = min(d, top)
+
+
+def _squared_distance_loops(mask):
+    """Squared Euclidean distance (cells^2) from each cell to the nearest set cell of the
+    boolean grid ``mask`` (ny, nx; not empty), at most (ny + nx + 2)^2: the row pass and the
+    lower envelope of parabolas down each column of
+    :func:`~BSplineCAM.core.geometry.distance.squared_distance` (Felzenszwalb &
+    Huttenlocher), column by column."""
+    ny, nx = mask.shape
+    big = float((ny + nx + 2) ** 2)
+    f = np.empty((ny, nx))
+    for i in range(ny):
+        last = -math.inf
+        for j in range(nx):
+            if mask[i, j]:
+                last = float(j)
+            f[i, j] = j - last
+        nxt = math.inf
+        for j in range(nx - 1, -1, -1):
+            if mask[i, j]:
+                nxt = float(j)
+            g = min(f[i, j], nxt - j)
+            f[i, j] = g * g if g != math.inf else big
+    out = np.empty((ny, nx))
+    _column_envelope(f, out, big)
     return out
 
 
@@ -108,38 +117,11 @@ def _capped_distance_loops(mask, k, big):
                 right = j
             g = min(min(f[i, j], right - j), big)
             f[i, j] = g * g
-    top = float(big * big)
     out = np.empty((ny, nx))
-    v = np.zeros(ny, np.int64)
-    z = np.empty(ny + 1)
-    fq2 = np.empty(ny)
-    for c in range(nx):
-        for q in range(ny):
-            fq2[q] = f[q, c] + float(q * q)
-        kk = 0
-        v[0] = 0
-        z[0] = -math.inf
-        z[1] = math.inf
-        for q in range(1, ny):
-            fq = fq2[q]
-            while True:
-                vk = v[kk]
-                s = (fq - fq2[vk]) / (2.0 * (q - vk))
-                if s <= z[kk] and kk > 0:
-                    kk -= 1
-                else:
-                    break
-            kk += 1
-            v[kk] = q
-            z[kk] = s
-            z[kk + 1] = math.inf
-        kk = 0
-        for q in range(ny):
-            while z[kk + 1] < q:
-                kk += 1
-            vk = v[kk]
-            d = float((q - vk) * (q - vk)) + f[vk, c]
-            out[q, c] = math.sqrt(min(d, top))
+    _column_envelope(f, out, float(big * big))
+    for i in range(ny):
+        for j in range(nx):
+            out[i, j] = math.sqrt(out[i, j])
     return out
 
 
