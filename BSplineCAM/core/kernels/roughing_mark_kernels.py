@@ -35,6 +35,34 @@ def _profile(shape, R, corner, r):
     return corner - math.sqrt(max(corner * corner - e * e, 0.0))
 
 
+@helper
+def _mark_cell(uncut, floor, surface, surface_lo, full, also, use_also, i, j, d, d_lo, R, hd,
+               z_lo, z_hi, shape, corner):
+    """Mark cell (i, j) whose centre lies ``d`` (mm) from the path (``d_lo`` a lower bound of
+    that distance): within R it leaves ``uncut`` (and ``also`` with ``use_also``) and, with
+    ``full``, its floor drops to z_lo; with ``full`` the estimate drops to z_hi plus the
+    profile at d + hd where that lies within R, its lower bound to z_lo plus the profile at
+    d_lo - hd where that does."""
+    if d <= R:
+        uncut[i, j] = False
+        if use_also:
+            also[i, j] = False
+        if full and z_lo < floor[i, j]:
+            floor[i, j] = z_lo
+    if not full:
+        return
+    far = d + hd
+    if far <= R:
+        h = z_hi + _profile(shape, R, corner, far)
+        if h < surface[i, j]:
+            surface[i, j] = h
+    near = d_lo - hd
+    if near <= R:
+        h = z_lo + _profile(shape, R, corner, max(near, 0.0))
+        if h < surface_lo[i, j]:
+            surface_lo[i, j] = h
+
+
 def _mark_segment_loops(uncut, floor, surface, surface_lo, full, also, use_also, i0, i1, j0,
                         j1, x0, y0, cell, sx, sy, abx, aby, ab2, R, hd, z_lo, z_hi, shape,
                         corner):
@@ -53,24 +81,8 @@ def _mark_segment_loops(uncut, floor, surface, surface_lo, full, also, use_also,
             t = (px * abx + py * aby) / ab2
             t = min(max(t, 0.0), 1.0)
             d = math.hypot(px - t * abx, py - t * aby)
-            if d <= R:
-                uncut[i, j] = False
-                if use_also:
-                    also[i, j] = False
-                if full and z_lo < floor[i, j]:
-                    floor[i, j] = z_lo
-            if not full:
-                continue
-            far = d + hd
-            if far <= R:
-                h = z_hi + _profile(shape, R, corner, far)
-                if h < surface[i, j]:
-                    surface[i, j] = h
-            near = d - hd
-            if near <= R:
-                h = z_lo + _profile(shape, R, corner, max(near, 0.0))
-                if h < surface_lo[i, j]:
-                    surface_lo[i, j] = h
+            _mark_cell(uncut, floor, surface, surface_lo, full, also, use_also, i, j, d, d, R,
+                       hd, z_lo, z_hi, shape, corner)
 
 
 def _mark_field_loops(uncut, floor, surface, surface_lo, full, also, use_also, i0, j0, dist,
@@ -84,25 +96,8 @@ def _mark_field_loops(uncut, floor, surface, surface_lo, full, also, use_also, i
         i = i0 + a
         for b in range(w):
             j = j0 + b
-            d = dist[a, b]
-            if d <= R:
-                uncut[i, j] = False
-                if use_also:
-                    also[i, j] = False
-                if full and z_lo < floor[i, j]:
-                    floor[i, j] = z_lo
-            if not full:
-                continue
-            far = d + hd
-            if far <= R:
-                v = z_hi + _profile(shape, R, corner, far)
-                if v < surface[i, j]:
-                    surface[i, j] = v
-            near = dist_lo[a, b] - hd
-            if near <= R:
-                v = z_lo + _profile(shape, R, corner, max(near, 0.0))
-                if v < surface_lo[i, j]:
-                    surface_lo[i, j] = v
+            _mark_cell(uncut, floor, surface, surface_lo, full, also, use_also, i, j,
+                       dist[a, b], dist_lo[a, b], R, hd, z_lo, z_hi, shape, corner)
 
 
 mark_segment = Kernel(_mark_segment_loops)
