@@ -31,7 +31,7 @@ import numpy as np
 
 from . import Kernel, helper
 from .faceset_kernels import halve, net_coords, split_at
-from .faceset_trim_kernels import clip_one, inside_one, vertices_into
+from .faceset_trim_kernels import inside_one, kept_in_box, vertices_into
 from .nurbs_eval import _check_loops, _rational_loops, _scattered_loops
 
 
@@ -590,18 +590,7 @@ def classify_halves(parent, obox, status, segs, edges, table, v0, h, inner):
         if segs[i, 0] == -2:
             ostatus[r] = -1
             continue
-        c = 0
-        for k in range(MS):
-            e = segs[i, k]
-            if e < 0:
-                continue
-            a0 = edges[e, 0]
-            a1 = edges[e, 1]
-            hit, _, _ = clip_one(a0, a1, edges[e, 2] - a0, edges[e, 3] - a1,
-                                 obox[r, 0], obox[r, 1], obox[r, 2], obox[r, 3])
-            if hit:
-                osegs[r, c] = e
-                c += 1
+        c = kept_in_box(edges, segs, i, obox, r, osegs)
         if c > 0:
             ostatus[r] = 2
         elif inside_one(table, v0, h, 0.5 * (obox[r, 0] + obox[r, 1]),

@@ -119,20 +119,27 @@ def classify_listed(edges, ps, box):
     kept = np.full((n, K), -1, np.int64)
     counts = np.zeros(n, np.int64)
     for i in range(n):
-        c = 0
-        for j in range(K):
-            e = ps[i, j]
-            if e < 0:
-                continue
-            u0 = edges[e, 0]
-            v0 = edges[e, 1]
-            h, _, _ = clip_one(u0, v0, edges[e, 2] - u0, edges[e, 3] - v0,
-                               box[i, 0], box[i, 1], box[i, 2], box[i, 3])
-            if h:
-                kept[i, c] = e
-                c += 1
-        counts[i] = c
+        counts[i] = kept_in_box(edges, ps, i, box, i, kept)
     return counts, kept
+
+
+@helper
+def kept_in_box(edges, segs, i, box, r, out):
+    """Write to the front of ``out[r]`` the segments of ``segs[i]`` (ids into ``edges``, -1
+    none) that cross ``box[r]`` (u0, u1, v0, v1), in their order; return their count."""
+    c = 0
+    for k in range(segs.shape[1]):
+        e = segs[i, k]
+        if e < 0:
+            continue
+        u0 = edges[e, 0]
+        v0 = edges[e, 1]
+        h, _, _ = clip_one(u0, v0, edges[e, 2] - u0, edges[e, 3] - v0,
+                           box[r, 0], box[r, 1], box[r, 2], box[r, 3])
+        if h:
+            out[r, c] = e
+            c += 1
+    return c
 
 
 def classify_all(edges, elo, ehi, pad, box, width):
