@@ -196,6 +196,9 @@ class TestPartJobWalk(CamTestCase):
         self.assertTrue(metrics["loads"]["ok"], metrics["loads"])
         self.assertTrue(results_panel.verification_panel(result).ok)
         self.assertLess(metrics["gouge_max_mm"], 0.01)
+        # a part: the gouge along the normal too, in the report the panel shows
+        self.assertTrue(metrics["gouge_normal_measured"])
+        self.assertIn("along the normal", results_panel.verification_panel(result).text)
         self.assertEqual(sorted(metrics["faces"]), sorted(int(n[4:]) for n in faces))
         self.assertLess(metrics["scallop_p99_mm"], 1.5 * COARSE_SCALLOP)
         self.assertEqual(sorted(metrics["tools"]), ["1", "2"])

@@ -3,7 +3,8 @@
 """Proves that a change of structure leaves every program the same, line for line.
 
 The cases are the benchmark nets (case study, dome, saddle, waves) with every finishing
-strategy and a roughing job, examples/part.step with every strategy and a job, and the parts of
+strategy and a roughing job, examples/part.step with every strategy (the constant scallop's
+at 0.2 mm) and a job, and the parts of
 tests/parts whose toolpath the corpus expects to build within a minute.  Each case runs
 ``bin/bsplinecam`` and keeps its G-code programs (``*.ngc``); the post's own time stamp is the
 only line left out of the comparison.
@@ -77,6 +78,8 @@ def cases(nets: dict[str, Path]) -> dict[str, list[str]]:
     for strategy in STRATEGIES:
         out[f"part-{strategy}"] = ["toolpath", part, "--tool-diameter", "6", "--scallop", "0.05",
                                    "--strategy", strategy, "--no-rs274"]
+    out["part-scallop"] = ["toolpath", part, "--tool-diameter", "6", "--scallop", "0.2",
+                           "--strategy", "scallop", "--no-rs274"]
     out["part-job"] = ["job", part, "--rough", "flat:10", "--finish", "ball:6",
                        "--scallop", "0.1", "--no-rs274"]
     corpus = json.loads((ROOT / "tests" / "parts" / "corpus.json").read_text())

@@ -28,6 +28,7 @@ import numpy as np
 from ..core import Surface
 from ..core.geometry.footprint import footprint_bounds
 from ..core.program.gcode import read_gcode
+from ..core.simulation.gouge_normal import gouge_gate_mm
 from ..core.simulation.simulate import Simulation, Tool
 from ..core.simulation.verify import Verification, verify, verify_faces
 from ..core.simulation.verify import verify_job as verify_job_program
@@ -412,6 +413,8 @@ def format_metrics(label: str, m: dict) -> str:
         f"BSplineCAM verification of {label} ({m.get('program', 'program')}):",
         f"  gouge max          {m['gouge_max_mm']:.4f} mm ({m['gouge_cells']} cells beyond "
         f"{m['gouge_tolerance_mm']:g} mm)",
+        *([f"  along the normal   {gouge_gate_mm(m):.4f} mm (the ball and its shank into the "
+           f"faces, at the cells above)"] if m.get("gouge_normal_measured") else []),
         f"  scallop max / p99  {m['scallop_max_mm']:.4f} / {m['scallop_p99_mm']:.4f} mm "
         f"(edge band max {m['edge_scallop_max_mm']:.3f} mm)",
         f"  scallop evenness   {m.get('scallop_evenness', float('nan')):.2f} (local cusp "

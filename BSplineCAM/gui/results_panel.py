@@ -110,10 +110,12 @@ def verification_panel(obj) -> ResultsPanel:
     import json
 
     from ..app.verify_feature import format_metrics, loads_ok
+    from ..core.simulation.gouge_normal import gouge_gate_mm
 
     metrics = json.loads(obj.Metrics or "{}")
     text = format_metrics(obj.Label, metrics) if metrics else "No metrics (not computed)\n"
-    gouge = float(metrics.get("gouge_max_mm", 0.0))
+    # the gouge job's gate reads: along the design's normal where measured, else vertical
+    gouge = gouge_gate_mm(metrics) if metrics else 0.0
     tolerance = float(metrics.get("gouge_tolerance_mm", 0.0))
     safe = bool(metrics) and gouge <= tolerance and not metrics.get("rapid_collisions")
     loaded = bool(metrics) and loads_ok(metrics)
