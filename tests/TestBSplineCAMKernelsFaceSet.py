@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from bsplinecam_helpers import (
     circle,
+    close,
     cylinder_quarter,
     dome_faces,
     fillet_ring,
@@ -20,6 +21,7 @@ from bsplinecam_helpers import (
     plane,
     plate_with_hole,
     rectangle,
+    same,
     step_part_queries,
     two_faces,
 )
@@ -44,33 +46,6 @@ def both(fn):
             pytest.skip(f"no numba engine: {e.reason}")
         b = fn()
     return a, b
-
-
-def same(a, b):
-    """Equal arrays (NaN where NaN), or tuples of them, to the last bit."""
-    if isinstance(a, tuple):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            same(x, y)
-        return
-    a, b = np.asarray(a), np.asarray(b)
-    assert a.shape == b.shape and a.dtype.kind == b.dtype.kind
-    if a.dtype.kind == "f":
-        assert np.array_equal(a, b, equal_nan=True), np.nanmax(np.abs(a - b))
-    else:
-        assert np.array_equal(a, b)
-
-
-def close(a, b, atol=1e-12):
-    """Tuples of arrays equal to ``atol`` (the bounds: the nets' affine parts are summed in
-    another order than numpy's matrix product), infinities and NaN where they are."""
-    for x, y in zip(a, b):
-        x, y = np.asarray(x), np.asarray(y)
-        assert x.shape == y.shape
-        fx, fy = np.isfinite(x), np.isfinite(y)
-        assert np.array_equal(fx, fy)
-        assert np.array_equal(x[~fx], y[~fy], equal_nan=True)
-        np.testing.assert_allclose(x[fx], y[fy], rtol=0, atol=atol)
 
 
 def trimmed_cylinder():

@@ -14,12 +14,14 @@ import numpy as np
 import pytest
 from bsplinecam_helpers import (
     circle,
+    close,
     cylinder_quarter,
     dome_faces,
     fillet_ring,
     holed_plane,
     plate_with_hole,
     rectangle,
+    same,
 )
 
 from BSplineCAM.core import kernels
@@ -43,31 +45,6 @@ def numba_engine():
         ctx.__exit__(None, None, None)
         pytest.skip(f"no numba engine: {e.reason}")
     return ctx
-
-
-def same(a, b):
-    """Equal arrays (NaN where NaN), or tuples of them, to the last bit."""
-    if isinstance(a, tuple | list):
-        assert len(a) == len(b)
-        for x, y in zip(a, b):
-            same(x, y)
-        return
-    a, b = np.asarray(a), np.asarray(b)
-    assert a.shape == b.shape and a.dtype.kind == b.dtype.kind
-    if a.dtype.kind == "f":
-        assert np.array_equal(a, b, equal_nan=True), np.nanmax(np.abs(a - b))
-    else:
-        assert np.array_equal(a, b)
-
-
-def close(a, b, atol=1e-12):
-    """Equal to ``atol`` (infinities and NaN where they are)."""
-    a, b = np.asarray(a), np.asarray(b)
-    assert a.shape == b.shape
-    fa, fb = np.isfinite(a), np.isfinite(b)
-    assert np.array_equal(fa, fb)
-    assert np.array_equal(a[~fa], b[~fb], equal_nan=True)
-    np.testing.assert_allclose(a[fa], b[fb], rtol=0, atol=atol)
 
 
 def spike():

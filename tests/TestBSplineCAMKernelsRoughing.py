@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import numba_ready, under_both
 from bsplinecam_roughing import bare_job, bowl, case_study_part
 
 from BSplineCAM.core import kernels
@@ -24,13 +25,7 @@ from BSplineCAM.core.toolpath.roughing import (
 )
 from BSplineCAM.core.toolpath.roughing.state import _segment_distance
 
-
-def _numba_ready() -> bool:
-    with kernels.forced("numba") as engine:
-        return engine.name == "numba"
-
-
-needs_numba = pytest.mark.skipif(not _numba_ready(), reason="numba does not import")
+needs_numba = pytest.mark.skipif(not numba_ready(), reason="numba does not import")
 
 
 def _masks():
@@ -42,14 +37,6 @@ def _masks():
     one[0, 4] = True
     return [disc, ~disc, specks, ~specks, np.zeros((5, 6), bool), np.ones((4, 3), bool), one,
             rng.random((64, 40)) < 0.3]
-
-
-def _both(fn):
-    with kernels.forced("numpy"):
-        a = fn()
-    with kernels.forced("numba"):
-        b = fn()
-    return a, b
 
 
 def _moves(rough):
@@ -77,14 +64,14 @@ def test_numpy_distances_match_geometry():
 @pytest.mark.parametrize("cap", [0.5, 2.0, 3.7, 12.0, 18.0, 45.0])
 def test_capped_distance_engines_agree(cap):
     for m in _masks():
-        a, b = _both(lambda m=m: gridops.capped_distance(m, cap))
+        a, b = under_both(lambda m=m: gridops.capped_distance(m, cap))
         assert np.array_equal(a, b)
 
 
 @needs_numba
 def test_squared_distance_engines_agree():
     for m in _masks():
-        a, b = _both(lambda m=m: gridops.squared_distance(m))
+        a, b = under_both(lambda m=m: gridops.squared_distance(m))
         assert np.array_equal(a, b)
 
 
@@ -95,10 +82,10 @@ def test_segment_and_polyline_distances_engines_agree():
     walk = np.cumsum(rng.uniform(-0.4, 0.4, (300, 2)), axis=0)  # long: most segments pruned
     for path in (rng.uniform(-4, 4, (2, 2)), rng.uniform(-4, 4, (9, 2)),
                  np.array([[1.0, 1.0], [1.0, 1.0]]), walk):
-        a, b = _both(lambda path=path: gridops._polyline_distance(pts, path))
+        a, b = under_both(lambda path=path: gridops._polyline_distance(pts, path))
         assert np.array_equal(a, b)
         xs, ys = np.linspace(-5, 5, 41), np.linspace(-3, 6, 29)
-        a, b = _both(lambda path=path: _segment_distance(xs, ys, path[:2]))
+        a, b = under_both(lambda path=path: _segment_distance(xs, ys, path[:2]))
         assert np.array_equal(a, b)
 
 
@@ -133,7 +120,7 @@ def _marked(tool: Tool) -> list:
 def test_mark_engines_agree(tool):
     """A cut's record on the grids (``_GridState.mark``: the uncut cells, the floor, the
     surface estimate and its lower bound) is the same to the bit under both engines."""
-    a, b = _both(lambda: _marked(tool))
+    a, b = under_both(lambda: _marked(tool))
     for x, y in zip(a, b):
         assert np.array_equal(x, y)
     assert not a[0].all() and not a[4].all() and not a[5].all()  # the marks took cells out
@@ -164,7 +151,7 @@ def _widths() -> list:
 def test_widths_of_cut_engines_agree():
     """The widths of cut of a flat end mill's feeds and the counts of the cells they sweep
     are the same under both engines."""
-    a, b = _both(_widths)
+    a, b = under_both(_widths)
     for x, y in zip(a, b):
         assert np.array_equal(x, y)
     assert sum(float(x.sum()) for x in a[::2]) > 0
@@ -190,7 +177,7 @@ def test_marching_squares_engines_agree():
     """The contours are the same polylines, in the same order and direction, to the bit."""
     for F in _fields():
         with np.errstate(invalid="ignore"):
-            a, b = _both(lambda F=F: contours.marching_squares(F))
+            a, b = under_both(lambda F=F: contours.marching_squares(F))
         assert len(a) == len(b)
         for x, y in zip(a, b):
             assert np.array_equal(x, y, equal_nan=True)
@@ -207,7 +194,7 @@ def test_front_radius_engines_agree():
     disc = np.hypot(xx - 40, yy - 30) <= 15
     for Q in (disc, disc | (xx > 70), rng.random((50, 60)) < 0.5, np.zeros((20, 20), bool),
               np.ones((3, 9), bool)):
-        a, b = _both(lambda Q=Q: front_radius(Q, 0.25, 5.0))
+        a, b = under_both(lambda Q=Q: front_radius(Q, 0.25, 5.0))
         assert np.array_equal(a, b)
     assert np.isfinite(a).sum() == 0 and np.isfinite(front_radius(disc, 0.25, 5.0)).sum() > 1000
 
@@ -233,7 +220,7 @@ def _samples() -> list:
 def test_grid_samples_engines_agree():
     """Bilinear samples of a grid and the feeds that stay in {T <= z} are the same under both
     engines."""
-    a, b = _both(_samples)
+    a, b = under_both(_samples)
     for x, y in zip(a, b):
         assert np.array_equal(x, y)
     assert 0 < int(a[2].sum()) < len(a[2])  # some feeds stay in, some leave
@@ -257,7 +244,7 @@ def _roughings():
 def test_roughing_programs_engines_agree(name):
     """The whole program, move for move to the last bit, under both engines."""
     run = _roughings()[name]
-    a, b = _both(run)
+    a, b = under_both(run)
     assert len(a.moves) > 50
     assert _moves(a) == _moves(b)
     assert a.stats["entries"] == b.stats["entries"]

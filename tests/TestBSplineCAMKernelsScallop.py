@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from bsplinecam_helpers import numba_ready, under_both
 
 from BSplineCAM.core import kernels
 from BSplineCAM.core.toolpath.common import Jet, normal_curvature
@@ -22,21 +23,7 @@ from BSplineCAM.core.toolpath.scallop_metric import (
     directional_cost_on,
 )
 
-
-def _numba_ready() -> bool:
-    with kernels.forced("numba") as engine:
-        return engine.name == "numba"
-
-
-needs_numba = pytest.mark.skipif(not _numba_ready(), reason="numba does not import")
-
-
-def _both(fn):
-    with kernels.forced("numpy"):
-        a = fn()
-    with kernels.forced("numba"):
-        b = fn()
-    return a, b
+needs_numba = pytest.mark.skipif(not numba_ready(), reason="numba does not import")
 
 
 def _same(a, b) -> bool:
@@ -71,7 +58,7 @@ def _polylines(seed: int) -> list:
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_near_vector_engines_agree(reach, seed):
     lines = _polylines(seed)
-    (da, va), (db, vb) = _both(lambda: near_vector(lines, XS, YS, reach))
+    (da, va), (db, vb) = under_both(lambda: near_vector(lines, XS, YS, reach))
     assert _same(da, db) and _same(va, vb)
     assert np.isfinite(da).sum() > 100
 
@@ -85,7 +72,7 @@ def test_near_vector_ties_agree():
     below = line - [0.0, YS[1] - YS[0]]
     above = line + [0.0, YS[1] - YS[0]]
     for first, last in ((below, above), (above, below)):
-        (da, va), (db, vb) = _both(lambda f=first, la=last: near_vector([f, la], XS, YS, 2))
+        (da, va), (db, vb) = under_both(lambda f=first, la=last: near_vector([f, la], XS, YS, 2))
         assert _same(da, db) and _same(va, vb)
         assert da[15, 20] == 0.25 and abs(va[15, 20, 1]) == 0.25  # a tie, settled alike
     # two pieces in one cell as near to a node at one offset: the later one's vector
@@ -93,7 +80,7 @@ def test_near_vector_ties_agree():
     one = np.array([[x0 + 0.0625, y0 + 0.125], [x0 + 0.1875, y0 + 0.125]])
     two = np.array([[x0 + 0.125, y0 + 0.0625], [x0 + 0.125, y0 + 0.1875]])
     for first, last in ((one, two), (two, one)):
-        (da, va), (db, vb) = _both(lambda f=first, la=last: near_vector([f, la], XS, YS, 2))
+        (da, va), (db, vb) = under_both(lambda f=first, la=last: near_vector([f, la], XS, YS, 2))
         assert _same(da, db) and _same(va, vb)
         assert da[12, 20] == math.hypot(0.0625, 0.125)
         assert np.array_equal(va[12, 20], [x0, y0] - last[0])
@@ -103,7 +90,7 @@ def test_near_vector_ties_agree():
 @pytest.mark.parametrize("lines", [[], [np.zeros((1, 2))], [np.zeros((0, 2))],
                                    [np.array([[100.0, 100.0], [101.0, 100.0]])]])
 def test_near_vector_empty(lines):
-    (da, va), (db, vb) = _both(lambda: near_vector(lines, XS, YS, 2))
+    (da, va), (db, vb) = under_both(lambda: near_vector(lines, XS, YS, 2))
     assert _same(da, db) and _same(va, vb)
     assert np.isinf(da).all() and not va.any()
 
@@ -114,7 +101,7 @@ def test_near_field_merged_is_one_call(engine, seed):
     """Polylines taken in by batches (the later ones repeating earlier ones: ties between
     batches) give one call's distances and vectors to the bit; a batch with a NaN point is
     searched anew with all the rest."""
-    if engine == "numba" and not _numba_ready():
+    if engine == "numba" and not numba_ready():
         pytest.skip("numba does not import")
     lines = _polylines(seed)
     lines += [p.copy() for p in lines[-7:]] + [lines[0][::-1].copy()]
@@ -154,7 +141,7 @@ def _cost_grids(seed: int, shape=(30, 23)):
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_directional_cost_on_engines_agree(seed):
     cost, against, axes, on, v = _cost_grids(seed)
-    a, b = _both(lambda: directional_cost_on(cost, against, axes, on, v))
+    a, b = under_both(lambda: directional_cost_on(cost, against, axes, on, v))
     assert _same(a, b)
     reference = directional_cost(cost[:, on], axes, v, against[:, on], bound=False)
     assert _same(a, reference)
@@ -164,7 +151,7 @@ def test_directional_cost_on_engines_agree(seed):
 def test_directional_cost_on_empty():
     cost, against, axes, on, v = _cost_grids(0)
     none = np.zeros_like(on)
-    a, b = _both(lambda: directional_cost_on(cost, against, axes, none, v[:0]))
+    a, b = under_both(lambda: directional_cost_on(cost, against, axes, none, v[:0]))
     assert a.shape == b.shape == (0,)
 
 
@@ -218,7 +205,7 @@ def _propagate_case(seed: int, nx: int, ny: int):
 def test_propagate_engines_agree(shape, seed):
     start, cost, against, free = _propagate_case(seed, *shape)
     for other, rounds in ((None, 60), (against, 60), (against, 1), (None, 2)):
-        a, b = _both(lambda o=other, r=rounds: propagate(start, cost, 0.3, 0.4, free, r, o))
+        a, b = under_both(lambda o=other, r=rounds: propagate(start, cost, 0.3, 0.4, free, r, o))
         assert _same(a, b)
     assert np.isfinite(a).any()
 
@@ -227,7 +214,7 @@ def test_propagate_engines_agree(shape, seed):
 def test_propagate_engines_agree_without_sources_or_free_nodes():
     start, cost, against, free = _propagate_case(2, 20, 15)
     for st, fr in ((np.full_like(start, np.inf), free), (start, np.zeros_like(free))):
-        a, b = _both(lambda s=st, f=fr: propagate(s, cost, 0.3, 0.4, f, against=against))
+        a, b = under_both(lambda s=st, f=fr: propagate(s, cost, 0.3, 0.4, f, against=against))
         assert _same(a, b) and not np.isfinite(a).any()
 
 
@@ -245,7 +232,7 @@ def test_band_costs_engines_agree(sides, dtype):
     cost[:, rng.random((35, 28)) < 0.05] = 0.0
     cost[3] = np.inf
     cost = cost.astype(dtype)
-    a, b = _both(lambda: band_costs(cost, steps, 0.3, 0.2, sides=sides))
+    a, b = under_both(lambda: band_costs(cost, steps, 0.3, 0.2, sides=sides))
     assert _same(a, b)
     assert (a[0] > cost[0]).any()
 
@@ -271,7 +258,7 @@ def test_tents_engines_agree(shape, seed):
     on = rng.random(shape) < 0.8
     for dx, dy in ((0.1, 0.1), (0.07, 0.13)):
         with np.errstate(invalid="ignore"):
-            a, b = _both(lambda dx=dx, dy=dy: tents(e, rate, unit, on, dx, dy))
+            a, b = under_both(lambda dx=dx, dy=dy: tents(e, rate, unit, on, dx, dy))
         assert _same(a, b)
     if min(shape) > 2:
         assert (a > e).any()

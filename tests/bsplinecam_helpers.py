@@ -226,3 +226,54 @@ def cut_moves(moves, start_height: float, height, tool, grid, z_min: float, z_to
         np.maximum(height, np.float32(z_min), out=height)  # no material below the stock
         yield i, m, pos, end, (ix0, iy0), before, before - height[iy0:iy1 + 1, ix0:ix1 + 1]
         pos = end
+
+
+# -- engine agreement --------------------------------------------------------------------------
+def numba_ready() -> bool:
+    """Whether the numba engine runs in this process."""
+    from BSplineCAM.core import kernels
+
+    with kernels.forced("numba") as engine:
+        return engine.name == "numba"
+
+
+def under_both(fn):
+    """(``fn()`` under the numpy engine, ``fn()`` under the numba engine)."""
+    from BSplineCAM.core import kernels
+
+    with kernels.forced("numpy"):
+        a = fn()
+    with kernels.forced("numba"):
+        b = fn()
+    return a, b
+
+
+def same(a, b):
+    """Equal arrays (NaN where NaN), or tuples or lists of them, to the last bit."""
+    if isinstance(a, tuple | list):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            same(x, y)
+        return
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape and a.dtype.kind == b.dtype.kind
+    if a.dtype.kind == "f":
+        assert np.array_equal(a, b, equal_nan=True), np.nanmax(np.abs(a - b))
+    else:
+        assert np.array_equal(a, b)
+
+
+def close(a, b, atol=1e-12):
+    """Arrays, or tuples or lists of them, equal to ``atol`` (infinities and NaN where they
+    are)."""
+    if isinstance(a, tuple | list):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            close(x, y, atol)
+        return
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape
+    fa, fb = np.isfinite(a), np.isfinite(b)
+    assert np.array_equal(fa, fb)
+    assert np.array_equal(a[~fa], b[~fb], equal_nan=True)
+    np.testing.assert_allclose(a[fa], b[fb], rtol=0, atol=atol)
