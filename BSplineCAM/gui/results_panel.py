@@ -15,6 +15,7 @@ import FreeCAD
 import FreeCADGui
 from PySide import QtGui
 
+from ..core.simulation.gouge_normal import gouge_gate_mm
 from .messages import task_buttons
 from .resources import icon
 
@@ -110,7 +111,6 @@ def verification_panel(obj) -> ResultsPanel:
     import json
 
     from ..app.verify_feature import format_metrics, loads_ok
-    from ..core.simulation.gouge_normal import gouge_gate_mm
 
     metrics = json.loads(obj.Metrics or "{}")
     text = format_metrics(obj.Label, metrics) if metrics else "No metrics (not computed)\n"
