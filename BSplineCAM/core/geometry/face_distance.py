@@ -345,6 +345,24 @@ class FaceDistance:
         return out, foot
 
 
+def _halved_step(s, u: FloatArray, v: FloatArray, du: FloatArray, dv: FloatArray,
+                 p: FloatArray, before: FloatArray, dims: int) -> tuple:
+    """(u, v) + scale (du, dv) clamped to the domain, each scale halved (at most 8 times)
+    until the squared distance over the first ``dims`` coordinates does not grow past
+    ``before``; the new parameters and where it still grew."""
+    (u0, u1), (v0, v1) = s.domain
+    scale = np.ones_like(u)
+    for _half in range(8):
+        nu = np.clip(u + scale * du, u0, u1)
+        nv = np.clip(v + scale * dv, v0, v1)
+        e = (s.evaluate(nu, nv) - p)[:, :dims]
+        worse = dot(e, e) > before * (1 + 1e-15)
+        if not worse.any():
+            break
+        scale = np.where(worse, 0.5 * scale, scale)
+    return nu, nv, worse
+
+
 def _newton_foot(s, u: FloatArray, v: FloatArray, p: FloatArray,
                  steps: int = NEWTON_STEPS) -> tuple[FloatArray, FloatArray]:
     """Parameters of a local minimum of |S(u, v) - p| from (u, v): Newton on the gradient
@@ -366,16 +384,7 @@ def _newton_foot(s, u: FloatArray, v: FloatArray, p: FloatArray,
         det = huu * hvv - huv * huv
         du = -(hvv * gu - huv * gv) / det
         dv = -(huu * gv - huv * gu) / det
-        before = dot(r, r)
-        scale = np.ones_like(u)
-        for _half in range(8):
-            nu = np.clip(u + scale * du, u0, u1)
-            nv = np.clip(v + scale * dv, v0, v1)
-            e = s.evaluate(nu, nv) - p
-            worse = dot(e, e) > before * (1 + 1e-15)
-            if not worse.any():
-                break
-            scale = np.where(worse, 0.5 * scale, scale)
+        nu, nv, worse = _halved_step(s, u, v, du, dv, p, dot(r, r), 3)
         moved = ~worse
         step = np.abs(np.where(moved, nu - u, 0.0)) + np.abs(np.where(moved, nv - v, 0.0))
         u, v = np.where(moved, nu, u), np.where(moved, nv, v)
@@ -388,7 +397,6 @@ def _newton_horizontal(s, u: FloatArray, v: FloatArray, p: FloatArray,
                        steps: int = NEWTON_STEPS) -> tuple[FloatArray, FloatArray]:
     """Parameters of a local minimum of the horizontal distance |S_xy(u, v) - p_xy| from
     (u, v): damped Gauss-Newton (a vertical wall's S_xy is singular along its height)."""
-    (u0, u1), (v0, v1) = s.domain
     for _ in range(steps):
         d = s.derivatives(u, v)
         r = (d.point - p)[:, :2]
@@ -400,15 +408,6 @@ def _newton_horizontal(s, u: FloatArray, v: FloatArray, p: FloatArray,
         det = juu * jvv - juv * juv
         du = -(jvv * gu - juv * gv) / det
         dv = -(juu * gv - juv * gu) / det
-        before = dot(r, r)
-        scale = np.ones_like(u)
-        for _half in range(8):
-            nu = np.clip(u + scale * du, u0, u1)
-            nv = np.clip(v + scale * dv, v0, v1)
-            e = (s.evaluate(nu, nv) - p)[:, :2]
-            worse = dot(e, e) > before * (1 + 1e-15)
-            if not worse.any():
-                break
-            scale = np.where(worse, 0.5 * scale, scale)
+        nu, nv, worse = _halved_step(s, u, v, du, dv, p, dot(r, r), 2)
         u, v = np.where(worse, u, nu), np.where(worse, v, nv)
     return u, v

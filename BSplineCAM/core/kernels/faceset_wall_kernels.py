@@ -15,14 +15,7 @@ import math
 import numpy as np
 
 from . import Kernel, helper
-
-
-@helper
-def _max(a, b):
-    """``np.maximum`` of two floats (NaN if either is)."""
-    if a != a or b != b:
-        return a + b
-    return a if a >= b else b
+from .faceset_round_kernels import nan_max
 
 
 @helper
@@ -42,7 +35,7 @@ def _rest(a0, a1, a2, d0, d1, d2, qx, qy, R2, touch_R2, ok, tt):
     p2 = a2 + tt * d2
     r2 = (p0 - qx) ** 2 + (p1 - qy) ** 2
     if ok and r2 <= touch_R2:
-        return p2 + math.sqrt(_max(R2 - r2, 0.0))
+        return p2 + math.sqrt(nan_max(R2 - r2, 0.0))
     return -np.inf
 
 
@@ -63,8 +56,8 @@ def _drop_loops(q, R, lo, hi, seg, owner, uv, touch):
         qx = q[i, 0]
         qy = q[i, 1]
         for s in range(S):
-            dx = _max(_max(lo[s, 0] - qx, qx - hi[s, 0]), 0.0)
-            dy = _max(_max(lo[s, 1] - qy, qy - hi[s, 1]), 0.0)
+            dx = nan_max(nan_max(lo[s, 0] - qx, qx - hi[s, 0]), 0.0)
+            dy = nan_max(nan_max(lo[s, 1] - qy, qy - hi[s, 1]), 0.0)
             if not dx * dx + dy * dy <= R * R:
                 continue
             a0 = seg[s, 0, 0]
@@ -82,19 +75,19 @@ def _drop_loops(q, R, lo, hi, seg, owner, uv, touch):
             flat = L <= 1e-300
             Ls = 1.0 if flat else L
             disc = ed * ed - L * (ee - R2)
-            root = math.sqrt(_max(disc, 0.0))
+            root = math.sqrt(nan_max(disc, 0.0))
             t1 = 0.0 if flat else (-ed - root) / Ls
             t2 = 1.0 if flat else (-ed + root) / Ls
             ok = (ee <= R2) if flat else (disc >= 0)
-            lo_t = _max(t1, 0.0)
+            lo_t = nan_max(t1, 0.0)
             hi_t = _min(t2, 1.0)
             ok = ok and lo_t <= hi_t
             # the stationary point of the concave f(t)
-            perp = _max(ee - ed * ed / Ls, 0.0)
+            perp = nan_max(ee - ed * ed / Ls, 0.0)
             sign = 1.0 if d2 > 0 else (-1.0 if d2 < 0 else (d2 if d2 != d2 else 0.0))
-            tau = sign * abs(d2) * math.sqrt(_max(R2 - perp, 0.0) / (Ls * (Ls + d2 * d2)))
+            tau = sign * abs(d2) * math.sqrt(nan_max(R2 - perp, 0.0) / (Ls * (Ls + d2 * d2)))
             t = (hi_t if d2 >= 0 else lo_t) if flat else tau - ed / Ls
-            cand[0] = _min(_max(t, lo_t), hi_t)
+            cand[0] = _min(nan_max(t, lo_t), hi_t)
             cand[1] = lo_t
             cand[2] = hi_t
             fv = -np.inf
