@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+import os
 import re
 import shutil
 from unittest import mock
@@ -185,6 +186,37 @@ def test_fanuc_tool_change_is_a_valid_program(tmp_path) -> None:
     # the feeds, which start from a position set by the program, agree exactly
     np.testing.assert_allclose(ours.end[ours.kind == MoveKind.LINE],
                                theirs.end[theirs.kind == MoveKind.LINE], atol=1e-4)
+
+
+@pytest.mark.skipif(RS274 is None, reason="LinuxCNC rs274 not installed")
+def test_checks_at_once_do_not_collide(tmp_path) -> None:
+    """rs274 maps its tool table at $HOME/.tool.mmap: checks run together (pytest-xdist, the CLI
+    beside a test, two verifications) must each get their own, or one dies of SIGBUS."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    lines = ["G21 G90 G17", "T1 M6", "M3 S10000", "G0 Z10", "G0 X0 Y0"]
+    lines += [f"G1 X{i % 40:.3f} Y{i / 7:.3f} Z{-(i % 5) / 10:.3f} F800" for i in range(400)]
+    lines += ["G0 Z10", "M5", "M2"]
+    ngc = tmp_path / "zigzag.ngc"
+    ngc.write_text("\n".join(lines) + "\n")
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda _: rs274.check(ngc, {1: 6.0}, timeout=60), range(24)))
+    assert [r.message for r in results if not r.ok] == []
+    assert {r.feeds for r in results} == {400}
+
+
+def test_killed_rs274_named_as_a_crash(tmp_path, monkeypatch) -> None:
+    """An rs274 killed by a signal is reported as that, not as a bare negative exit status."""
+    fake = tmp_path / "bin" / "rs274"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\nkill -BUS $$\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake.parent}:{os.environ['PATH']}")
+    ngc = tmp_path / "p.ngc"
+    ngc.write_text("G0 X0\nM2\n")
+    result = rs274.check(ngc, {1: 6.0}, timeout=60)
+    assert not result.ok
+    assert result.message == "rs274 was killed by SIGBUS"
 
 
 def test_unknown_start_not_a_move() -> None:

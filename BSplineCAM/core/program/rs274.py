@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import tempfile
 from dataclasses import dataclass
@@ -42,6 +43,17 @@ def tool_table(tools: dict[int, float]) -> str:
     return "".join(f"T{n} P{n} D{d:.4f} Z0 ;BSplineCAM tool {n}\n" for n, d in sorted(tools.items()))
 
 
+def _status(code: int) -> str:
+    """``exit status N``, or the signal that killed rs274 (a crash, not a verdict on the program)."""
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        return f"rs274 was killed by {name}"
+    return f"exit status {code}"
+
+
 def check(program: str | os.PathLike, tools: dict[int, float], timeout: float = 600.0) -> Rs274Result:
     """Run ``rs274 -g`` on a program file; ``ok`` is False if it reports any error."""
     exe = shutil.which("rs274")
@@ -50,8 +62,12 @@ def check(program: str | os.PathLike, tools: dict[int, float], timeout: float = 
     with tempfile.TemporaryDirectory(prefix="rs274-") as tmp:
         table = Path(tmp) / "tool.tbl"
         table.write_text(tool_table(tools))
+        # rs274 maps its tool table into $HOME/.tool.mmap, truncating it first: two runs that
+        # share a HOME cut each other's mapping and die of SIGBUS.  Each run gets its own.
+        env = {**os.environ, "HOME": tmp}
         proc = subprocess.run([exe, "-t", str(table), "-g", str(program)], capture_output=True,
-                              text=True, timeout=timeout, stdin=subprocess.DEVNULL, check=False)
+                              text=True, timeout=timeout, stdin=subprocess.DEVNULL, check=False,
+                              env=env)
     out = proc.stdout
     lines = out.splitlines()
     canonical = [ln for ln in lines if _CANONICAL.match(ln)]
@@ -59,7 +75,7 @@ def check(program: str | os.PathLike, tools: dict[int, float], timeout: float = 
     errors = [ln for ln in (lines + proc.stderr.splitlines())
               if ln.strip() and not _CANONICAL.match(ln) and ln.strip() != "executing"]
     ok = proc.returncode == 0
-    message = "; ".join(dict.fromkeys(e.strip() for e in errors)) or ("" if ok else f"exit status {proc.returncode}")
+    message = "; ".join(dict.fromkeys(e.strip() for e in errors)) or ("" if ok else _status(proc.returncode))
     return Rs274Result(
         ok=ok, canonical="\n".join(canonical), message=message,
         feeds=sum("STRAIGHT_FEED(" in ln for ln in canonical),
