@@ -21,7 +21,12 @@ stopping on the Newton decrement.  Where f is not concave (a seed on a saddle or
 f, as where the ball nearly fits a hollow) the step is still Newton's across the contact and a
 trust step uphill along it, so the ascent reaches the maximum instead of stalling on its flank.
 Every value is evaluated at a real surface point, so it never exceeds the true height; the
-maximum over the polished seeds is taken.
+maximum over the polished seeds is taken.  A feature narrower than the sample spacing (about
+R/4) whose basin no sample lies in is not seen.
+
+The numpy code here is the reference and the fallback engine; under the numba engine each
+query's seeds, vertex seeds and Newton ascent run in one compiled call per block of queries
+(:mod:`~BSplineCAM.core.kernels.net_drop_kernels`), the same algorithm and decisions.
 """
 
 from __future__ import annotations
@@ -31,7 +36,9 @@ from typing import Any
 
 import numpy as np
 
+from .. import kernels
 from ..geometry import matrix
+from ..kernels import net_drop_kernels
 from ..threads import numpy_threads
 from ..typing import FloatArray
 from . import parallel
@@ -45,6 +52,8 @@ JET_ORDERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
 CONVERGED = 1e-14
 #: Samples within this many grid steps of the best seed belong to its basin.
 NEIGHBOURHOOD = 2
+#: Newton iterations of :meth:`DropCutter.refine` at most.
+REFINE_ITERATIONS = 30
 #: Queries per worker thread: a call with fewer runs on the caller's thread alone.
 THREAD_QUERIES = 4096
 
@@ -87,6 +96,10 @@ class DropCutter:
         self.sx, self.sy, self.sz = (np.ascontiguousarray(pts[self.order, k]) for k in range(3))
         gi, gj = np.divmod(self.order, self.n_w)
         self.si, self.sj = gi.astype(np.int32), gj.astype(np.int32)
+        self._si64, self._sj64 = gi.astype(np.int64), gj.astype(np.int64)
+        self._starts64 = self.starts.astype(np.int64)
+        # most samples a query's 5 x 5 cells hold (the compiled seeds' scratch)
+        self._window = 25 * int(np.diff(self.starts).max(initial=0))
         self.param_step = (1.0 / (self.n_u - 1), 1.0 / (self.n_w - 1))
         gap = max(np.linalg.norm(np.diff(coarse, axis=0), axis=-1).max() * 32 / (self.n_u - 1),
                   np.linalg.norm(np.diff(coarse, axis=1), axis=-1).max() * 32 / (self.n_w - 1))
@@ -210,7 +223,7 @@ class DropCutter:
         return np.where(d2 < R2, p[:, 2] + np.sqrt(np.maximum(R2 - d2, 0.0)), -np.inf)
 
     def refine(self, q: FloatArray, u: FloatArray, w: FloatArray,
-               iterations: int = 30) -> tuple[FloatArray, FloatArray, FloatArray]:
+               iterations: int = REFINE_ITERATIONS) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Projected Newton ascent of f(u, w) from (u, w); returns (centre z, u, w).
 
         The jet is evaluated at each trial point, so an accepted full step carries its
@@ -327,6 +340,11 @@ class DropCutter:
         return tuple(np.concatenate(column) for column in zip(*parts))
 
     def _centre_heights(self, q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        if kernels.use_numba():
+            try:
+                return self._centre_heights_compiled(q)
+            except kernels.KernelUnavailable:
+                pass
         best, second, _ = self.seeds(q)
         m = len(q)
         two = np.concatenate([best, second])
@@ -343,6 +361,25 @@ class DropCutter:
         z[idx], u[idx], w[idx] = self.refine(qq[idx], su[idx], sw[idx])
         pick = np.where(z[m:] > z[:m], np.arange(m) + m, np.arange(m))
         return z[pick], u[pick], w[pick]
+
+    def _centre_heights_compiled(self, q: FloatArray) -> tuple[FloatArray, FloatArray,
+                                                                FloatArray]:
+        """:meth:`_centre_heights` by the numba engine
+        (:func:`~BSplineCAM.core.kernels.net_drop_kernels.centre_heights`)."""
+        args = self.kernel_arguments(q)
+        net_drop_kernels.centre_heights(*args)
+        return args[-3:]
+
+    def kernel_arguments(self, q: FloatArray) -> tuple:
+        """The arguments of :func:`~BSplineCAM.core.kernels.net_drop_kernels.centre_heights`
+        for the queries ``q`` (m, 2), ending with the three outputs (z, u, w) it fills."""
+        m = len(q)
+        p_u, p_w = self.form.spans
+        return (np.ascontiguousarray(q, dtype=float), self.sx, self.sy, self.sz, self._si64,
+                self._sj64, self._starts64, self.samples, self.u, self.w, float(self.lo[0]),
+                float(self.lo[1]), float(self.cell), self.ncx, self.ncy, self.n_u, self.n_w,
+                self._window, self.radius, float(self.margin), NEIGHBOURHOOD, self.form.coef,
+                p_u, p_w, REFINE_ITERATIONS, CONVERGED, np.empty(m), np.empty(m), np.empty(m))
 
     def heights(self, xy: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Tool-tip heights c(x, y) - R (mm; NaN where the ball meets no surface) and contacts."""
