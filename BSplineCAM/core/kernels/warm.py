@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Compile the kernels before the first real job: a small drop-cutter over two faces (a
-rational quarter cylinder trimmed by a hole and a bicubic bump) and one beside a wall, the
+rational quarter cylinder trimmed by a hole and a bicubic bump), one beside a wall and one on a
+net, the
 scattered NURBS evaluation with derivatives, short Z-map simulations (one tool, and a job with two), the roughing of a small pocketed
 plate and the constant-scallop strategy's grid fields, all run through the public paths
 so that every kernel they reach is compiled (or loaded from the cache folder) with the
@@ -20,11 +21,13 @@ import numpy as np
 
 from ..geometry.faces import Face
 from ..geometry.nurbs import NurbsSurface
+from ..geometry.surface import Surface
 from ..program.gcode import read_gcode
 from ..program.gcode_words import Segments
 from ..simulation import simulate as sim
 from ..simulation.job_simulation import simulate_job
 from ..toolpath import scallop_field, scallop_metric
+from ..toolpath.dropcutter import DropCutter
 from ..toolpath.faceset import FaceSet
 from ..toolpath.roughing import Stock, generate_roughing
 from . import engine, use_numba
@@ -63,6 +66,8 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         q = np.column_stack([x, np.full(len(x), 14.0)])
         fs.drop_ball(q, 3.0)
         fs.drop_ball(q[:2] + 0.5, 3.0)
+        x, y = np.meshgrid(np.linspace(0.0, 30.0, 5), np.linspace(0.0, 28.0, 5), indexing="ij")
+        DropCutter(Surface(np.stack([x, y, np.sin(x / 5.0)], axis=-1)), 3.0).heights(q)
 
     def walls():
         # a plate beside a vertical check face: the walls' drop
