@@ -135,6 +135,59 @@ def test_bound_pairs_agree(name):
     assert seen
 
 
+def test_rim_bound_agrees():
+    """The compiled rim bound (faceset_rim_kernels) against the numpy engine's on the same
+    level's bounds, straddling pairs and planes, balls whose rim grazes the faces' sides
+    included: the same bits.  It is reached: it lowers bounds, on the rational cylinder and
+    on straddling pairs (their material's vertices) too."""
+    seen = {}
+    real = faceset_bounds._rim_bound
+    R = 3.0
+
+    def both(d, it, P, qq, R_, ub, dd, floor, m):
+        a, b = ub.copy(), ub.copy()
+        with kernels.forced("numpy"):
+            real(d, it, P, qq, R_, a, dd, floor, m)
+        faceset_bounds._rim_compiled(d, it, P, qq, R_, b, dd, floor, m)
+        same(a, b)
+        lowered = a != ub
+        seen["all"] = seen.get("all", 0) + int(lowered.sum())
+        if d.face.surface.rational:
+            seen["rational"] = seen.get("rational", 0) + int(lowered.sum())
+        if len(m.strad):
+            rows = m.strad[m.listed]
+            seen["straddling"] = seen.get("straddling", 0) + int(lowered[rows].sum())
+        ub[:] = b
+
+    for name in ("spike", "cylinder", "hole", "fillet_plate", "dome"):
+        faces = FACES[name]()
+        fs = FaceSet(faces)
+        q = queries(fs, 40, 11)
+        # balls whose rim grazes the faces' sides from outside (the rim bound's pairs)
+        lo, hi = fs.bounds(selected_only=False)
+        t = np.linspace(0.0, 1.0, 40)
+        ring = []
+        for off in (0.9 * R, 0.97 * R, 0.995 * R):
+            x = lo[0] - off + t * (hi[0] - lo[0] + 2 * off)
+            y = lo[1] - off + t * (hi[1] - lo[1] + 2 * off)
+            ring += [np.column_stack([x, np.full(40, lo[1] - off)]),
+                     np.column_stack([x, np.full(40, hi[1] + off)]),
+                     np.column_stack([np.full(40, lo[0] - off), y]),
+                     np.column_stack([np.full(40, hi[0] + off), y])]
+        q = np.vstack([q] + ring)
+        ctx = numba_engine()
+        try:
+            faceset_bounds._rim_bound = both
+            for d in fs.data:
+                for it in levels(d, q, R, 18):
+                    faceset_bounds._fused_bounds(d, it, q, R, -np.inf)
+            FaceSet(faces).drop_ball(q, R)
+        finally:
+            faceset_bounds._rim_bound = real
+            ctx.__exit__(None, None, None)
+    assert seen["all"] > 100 and seen["rational"] and seen["straddling"], seen
+
+
 # -- contacts, open pairs and halves -----------------------------------------------------------
 def test_record_contacts_agrees():
     """The largest finite lower bound per query, the last of equals, only where it beats the
@@ -263,6 +316,41 @@ def test_walls_drop_agrees():
         ctx.__exit__(None, None, None)
     same(a, b)
     assert (a[1] >= 0).sum() > 100
+
+
+@pytest.mark.parametrize("block", [1, 3, 16, 1000])
+def test_walls_blocks_agree(block, monkeypatch):
+    """The compiled walls' drop passes over runs of chords out of reach whole: the same
+    answers as the numpy engine's whatever the runs' length, on walls of many chords, a
+    chord of NaN box among them."""
+    from BSplineCAM.core.toolpath import faceset_walls
+
+    monkeypatch.setattr(faceset_walls, "WALL_BLOCK", block)
+    faces = [plate_with_hole(), wall(5.0, 0.0, 40.0, 0.0, 14.0, 2),
+             wall(35.0, 0.0, 40.0, 0.0, 12.0, 3), wall(20.0, 10.0, 30.0, 0.0, 9.0, 4)]
+    idx = [k for k, f in enumerate(faces) if not f.selected and _vertical(f.surface)]
+    w = _Walls([faces[k] for k in idx], idx)
+    # many chords: each border chord cut into pieces, in order along it
+    n = 60
+    a, b = w.seg[:, 0], w.seg[:, 1]
+    t = np.linspace(0.0, 1.0, n + 1)
+    w.seg = np.stack([np.stack([a + (b - a) * t[k], a + (b - a) * t[k + 1]], axis=1)
+                      for k in range(n)], axis=1).reshape(-1, 2, 3)
+    w.owner = np.repeat(w.owner, n)
+    w.uv = np.repeat(w.uv, n, axis=0)
+    w.seg[7, 0, 0] = np.nan
+    w.boxes_of_chords()
+    assert w.block == block and len(w.block_lo) == -(-len(w.seg) // block)
+    q = np.random.default_rng(9).uniform(-4.0, 44.0, (800, 2))
+    with kernels.forced("numpy"):
+        want = w.drop(q, 3.0)
+    ctx = numba_engine()
+    try:
+        got = w.drop(q, 3.0)
+    finally:
+        ctx.__exit__(None, None, None)
+    same(want, got)
+    assert (want[1] >= 0).sum() > 100
 
 
 # -- the drop-cutter, end to end ---------------------------------------------------------------

@@ -8,7 +8,8 @@ engine makes a hundred array operations:
   vertices (``_straddling``, a rational patch's drift ``faceset_bezier._rational_drift``
   included), the corners' lower bounds (``_lower_bounds``) and the trim vertex each
   straddling pair offers (``_lower_rest``); the rarer steps that evaluate the surface (a
-  trim vertex's point, a shallow pair's seed, the rim bound) stay with the caller;
+  trim vertex's point, a shallow pair's seed) stay with the caller, the rim bound
+  has a kernel of its own (:mod:`.faceset_rim_kernels`);
 * :func:`record_contacts` raises a face's best contacts to its pairs' lower bounds
   (``faceset_branch._record_contacts``);
 * :func:`open_split` keeps the pairs still open (``faceset_branch._open_pairs``), chooses

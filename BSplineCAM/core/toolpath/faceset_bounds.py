@@ -23,10 +23,19 @@ import numpy as np
 from .. import kernels
 from ..errors import BSplineCAMError
 from ..kernels import faceset_kernels as fk
+from ..kernels import faceset_rim_kernels as rimk
 from ..kernels import faceset_round_kernels as rk
 from ..typing import FloatArray
 from .faceset_bezier import _corner_index, _material_reach, _rational_drift
-from .faceset_params import CORNERS, MAX_SEGMENTS, RIM_DEPTH, RIM_FRACTION, SEED_DEPTH, TOUCH
+from .faceset_params import (
+    CORNERS,
+    MAX_SEGMENTS,
+    RIM_DEPTH,
+    RIM_FRACTION,
+    RIM_ROUNDING_MM,
+    SEED_DEPTH,
+    TOUCH,
+)
 from .faceset_trims import _FaceData, _Items
 
 
@@ -61,7 +70,8 @@ def _fused_bounds(d: _FaceData, it: _Items, q: FloatArray, R: float,
                   floor: FloatArray | float):
     """:func:`sub_patch_bounds` in one compiled call (the nets' planes and every pair's
     bounds, the surface points of the lower bounds included:
-    :func:`..kernels.faceset_round_kernels.bound_pairs`), and numpy for the rim bound."""
+    :func:`..kernels.faceset_round_kernels.bound_pairs`), and the rim bound in a second
+    (:func:`_rim_compiled`) where some pair needs it."""
     n = len(it.query)
     R2 = R * R
     N = len(it.nets)
@@ -213,6 +223,12 @@ def _rim_bound(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R: float
     n = len(it.query)
     R2 = R * R
     nd = it.node
+    if kernels.use_numba():
+        try:
+            _rim_compiled(d, it, P, qq, R, ub, dd, floor, m)
+            return
+        except kernels.KernelUnavailable:
+            pass
     rim = np.flatnonzero((ub > floor) & (dd >= (RIM_FRACTION * R) ** 2)
                          & (it.depth >= RIM_DEPTH))
     if not len(rim):
@@ -247,6 +263,40 @@ def _rim_bound(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R: float
     near = ~far
     ub[rim[near]] = np.minimum(ub[rim[near]],
                                zb[near] + np.sqrt(np.maximum(R2 - rb[near] ** 2, 0.0)))
+
+
+_NO_WEIGHTS = np.ones((1, 1))
+
+
+def _rim_compiled(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R: float,
+                  ub: FloatArray, dd: FloatArray, floor: FloatArray | float,
+                  m: _Straddling) -> None:
+    """:func:`_rim_bound` in one compiled call (:func:`..kernels.faceset_rim_kernels.
+    rim_bound`: the same pairs, vertices and bits).  Raises :class:`..kernels.
+    KernelUnavailable` where the kernel cannot run."""
+    n = len(ub)
+    R2 = R * R
+    f64 = np.float64
+    fl = (np.full(n, float(floor)) if np.ndim(floor) == 0
+          else np.ascontiguousarray(floor, dtype=f64))
+    strad = np.ascontiguousarray(m.strad, dtype=np.int64)
+    V = 4 + 2 * it.segs.shape[1]
+    if len(strad):
+        st = np.ascontiguousarray(m.st, dtype=f64)
+        ok = np.ascontiguousarray(m.ok, dtype=bool)
+        listed = np.ascontiguousarray(m.listed, dtype=bool)
+    else:
+        st, ok, listed = np.zeros((0, V, 2)), np.zeros((0, V), bool), np.zeros(0, bool)
+    rational = bool(d.face.surface.rational)
+    W = np.ascontiguousarray(P.flat[:, 3], dtype=f64) if rational else _NO_WEIGHTS
+    rimk.rim_bound(ub, np.ascontiguousarray(dd, dtype=f64), fl,
+                   np.ascontiguousarray(it.depth, dtype=np.int64), (RIM_FRACTION * R) ** 2,
+                   RIM_DEPTH, R2, np.ascontiguousarray(it.node, dtype=np.int64),
+                   np.ascontiguousarray(qq, dtype=f64), strad, listed, st, ok,
+                   np.ascontiguousarray(it.segs, dtype=np.int64),
+                   np.ascontiguousarray(P.CX, dtype=f64), np.ascontiguousarray(P.CY, dtype=f64),
+                   np.ascontiguousarray(P.CZ, dtype=f64), np.ascontiguousarray(P.C, dtype=f64),
+                   np.ascontiguousarray(P.RS, dtype=f64), rational, W, RIM_ROUNDING_MM)
 
 
 def _lower_bounds(d: _FaceData, it: _Items, P: _NetPlanes, qq: FloatArray, R2: float,

@@ -15,6 +15,9 @@ from ..numeric import clamp
 from ..typing import FloatArray
 from .faceset_params import TOUCH
 
+#: Chords per run of the compiled drop's skip test (:attr:`_Walls.block_lo`).
+WALL_BLOCK = 16
+
 
 def _vertical(s) -> bool:
     """Whether the surface is ruled by vertical lines: along one parameter direction every
@@ -58,8 +61,21 @@ class _Walls:
         self.seg = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
         self.owner = np.concatenate(owner) if owner else np.zeros(0, int)
         self.uv = np.concatenate(uv) if uv else np.zeros((0, 4))
+        self.boxes_of_chords()
+
+    def boxes_of_chords(self) -> None:
+        """The chords' xy boxes (``lo``, ``hi``) and those of runs of WALL_BLOCK chords
+        (``block_lo``, ``block_hi``; NaN boxes left out): the compiled drop passes over a run
+        out of reach whole."""
         self.lo = self.seg[:, :, :2].min(axis=1)
         self.hi = self.seg[:, :, :2].max(axis=1)
+        self.block = WALL_BLOCK
+        starts = np.arange(0, len(self.seg), self.block)
+        if len(starts):
+            self.block_lo = np.fmin.reduceat(self.lo, starts, axis=0)
+            self.block_hi = np.fmax.reduceat(self.hi, starts, axis=0)
+        else:
+            self.block_lo = self.block_hi = np.zeros((0, 2))
 
     def drop(self, q: FloatArray, R: float):
         """(best centre height, face, u, v) over the walls' borders for queries q (m, 2)."""
@@ -73,7 +89,8 @@ class _Walls:
         if kernels.use_numba():
             try:
                 return wk.drop(np.ascontiguousarray(q, dtype=float), float(R), self.lo,
-                               self.hi, self.seg, self.owner, self.uv, TOUCH)
+                               self.hi, self.seg, self.owner, self.uv, TOUCH, self.block_lo,
+                               self.block_hi, self.block)
             except kernels.KernelUnavailable:
                 pass
         dx = np.maximum(np.maximum(self.lo[None, :, 0] - q[:, :1], q[:, :1] - self.hi[None, :, 0]), 0)
