@@ -65,19 +65,19 @@ def _drop_loops(q, R, lo, hi, seg, owner, uv, touch, block_lo, block_hi, block):
             if not dx * dx + dy * dy <= R * R:
                 continue
             for s in range(b * block, min(S, (b + 1) * block)):
-                _chord(R, R2, touch_R2, lo, hi, seg, owner, uv, cand, i, qx, qy, s, best, face,
-                       bu, bv)
+                dx = nan_max(nan_max(lo[s, 0] - qx, qx - hi[s, 0]), 0.0)
+                dy = nan_max(nan_max(lo[s, 1] - qy, qy - hi[s, 1]), 0.0)
+                if dx * dx + dy * dy <= R * R:
+                    _chord(R2, touch_R2, seg, owner, uv, cand, i, qx, qy, s, best, face, bu,
+                           bv)
     return best, face, bu, bv
 
 
 @helper
-def _chord(R, R2, touch_R2, lo, hi, seg, owner, uv, cand, i, qx, qy, s, best, face, bu, bv):
-    """Query ``i``'s best rest on chord ``s`` (:func:`_drop_loops`), into ``best``, ``face``,
-    ``bu``, ``bv`` where it is at least the best so far."""
-    dx = nan_max(nan_max(lo[s, 0] - qx, qx - hi[s, 0]), 0.0)
-    dy = nan_max(nan_max(lo[s, 1] - qy, qy - hi[s, 1]), 0.0)
-    if not dx * dx + dy * dy <= R * R:
-        return
+def _chord(R2, touch_R2, seg, owner, uv, cand, i, qx, qy, s, best, face, bu, bv):
+    """Query ``i``'s best rest on chord ``s`` (whose xy box is within its reach:
+    :func:`_drop_loops`), into ``best``, ``face``, ``bu``, ``bv`` where it is at least the
+    best so far."""
     a0 = seg[s, 0, 0]
     a1 = seg[s, 0, 1]
     a2 = seg[s, 0, 2]
