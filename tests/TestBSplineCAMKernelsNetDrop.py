@@ -93,6 +93,12 @@ def test_loops_as_python_agree_with_the_numpy_engine(surface, R, seed):
     args = dc.kernel_arguments(q)
     net_drop_kernels.centre_heights.py(*args)
     close(args[-3:], want)
+    _z, u, w = want
+    with kernels.forced("numpy"):
+        slopes = dc.slopes(q, u, w)
+    out = np.empty((len(q), 2))
+    net_drop_kernels.slopes.py(q, u, w, dc.form.coef, *dc.form.spans, R, out)
+    close(out, slopes)
 
 
 @needs_numba
@@ -101,7 +107,7 @@ def test_loops_as_python_agree_with_the_numpy_engine(surface, R, seed):
 def test_engines_agree_on_generated_nets(surface, R, seed):
     dc = DropCutter(surface, R)
     q = queries(dc, 400, seed)
-    numpy_, numba_ = under_both(lambda: dc.heights(q))
+    numpy_, numba_ = under_both(lambda: dc.heights_and_slopes(q))
     close(numpy_, numba_)
     assert np.isfinite(numpy_[0]).any()
 

@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """The numba engine of the drop-cutter on one net (:class:`~BSplineCAM.core.toolpath.
 dropcutter.DropCutter`): one call answers a block of queries, each on its own, where the
-numpy engine makes a few hundred array operations per block.
+numpy engine makes a few hundred array operations per block (:func:`centre_heights`), and one
+gives their slopes from the contacts (:func:`slopes`).
 
 Per query, as the numpy engine: the seeds (the best sample of the 5 x 5 hash cells around the
 query, and the best sampled peak outside its neighbourhood, ``DropCutter.seeds`` and
@@ -356,6 +357,23 @@ def _centre_heights_loops(q, sx, sy, sz, si, sj, starts, samples, gu, gw, lo_x, 
         w[m] = fw
 
 
-centre_heights = Kernel(_centre_heights_loops)
+def _slopes_loops(q, u, w, coef, p_u, p_w, R, out):
+    """Gradients (dz/dx, dz/dy) of the tip height at the queries ``q`` (m, 2) from their
+    contacts (``u``, ``w`` in [0, 1]) into ``out`` (m, 2) (``DropCutter.slopes``)."""
+    R2 = R * R
+    point = np.empty((6, 3))
+    rows = np.empty(4)
+    planes = np.empty((3, 4, 3))
+    for m in range(q.shape[0]):
+        jet_at(coef, p_u, p_w, unit(u[m]), unit(w[m]), 1, point, rows, planes)
+        dx = point[0, 0] - q[m, 0]
+        dy = point[0, 1] - q[m, 1]
+        h = math.sqrt(max(R2 - (dx * dx + dy * dy), 0.0))
+        out[m, 0] = dx / h
+        out[m, 1] = dy / h
 
-__all__ = ["centre_heights"]
+
+centre_heights = Kernel(_centre_heights_loops)
+slopes = Kernel(_slopes_loops)
+
+__all__ = ["centre_heights", "slopes"]

@@ -396,6 +396,16 @@ class DropCutter:
         the contact is unique; at a crease (two contacts) it is one of the one-sided values.
         """
         q = np.asarray(xy, dtype=float).reshape(-1, 2)
+        u, w = np.asarray(u, dtype=float), np.asarray(w, dtype=float)
+        if kernels.use_numba() and len(u) == len(q) == len(w) and _in_unit(u) and _in_unit(w):
+            try:
+                out = np.empty((len(q), 2))
+                net_drop_kernels.slopes(np.ascontiguousarray(q), np.ascontiguousarray(u),
+                                        np.ascontiguousarray(w), self.form.coef,
+                                        *self.form.spans, self.radius, out)
+                return out
+            except kernels.KernelUnavailable:
+                pass
         d = self.points(u, w)[:, :2] - q
         h = np.sqrt(np.maximum(self.radius ** 2 - np.einsum("ij,ij->i", d, d), 0.0))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -440,6 +450,12 @@ def _indefinite_step(gu: FloatArray, gw: FloatArray, Huu: FloatArray, Huw: Float
         step_a += t * va
         step_b += t * vb
     return step_a * tu, step_b * tw
+
+
+def _in_unit(t: np.ndarray) -> bool:
+    """Whether every parameter lies in [0, 1] (the compiled slopes take no others: the numpy
+    path refuses them)."""
+    return t.ndim == 1 and (t.size == 0 or (float(t.min()) >= 0.0 and float(t.max()) <= 1.0))
 
 
 def _unit(t: FloatArray) -> FloatArray:
