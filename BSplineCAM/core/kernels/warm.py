@@ -68,7 +68,7 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         fs.drop_ball(q[:2] + 0.5, 3.0)
         fs.drop_ball(np.array([[34.95, 10.0]]), 3.0)  # the rim grazes the bump: rim bound
         x, y = np.meshgrid(np.linspace(0.0, 30.0, 5), np.linspace(0.0, 28.0, 5), indexing="ij")
-        DropCutter(Surface(np.stack([x, y, np.sin(x / 5.0)], axis=-1)), 3.0).heights(q)
+        DropCutter(Surface(np.stack([x, y, np.sin(x / 5.0)], axis=-1)), 3.0).heights_and_slopes(q)
 
     def walls():
         # a plate beside a vertical check face: the walls' drop
