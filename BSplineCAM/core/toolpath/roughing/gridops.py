@@ -86,6 +86,16 @@ def capped_distance(mask: np.ndarray, cap: float) -> FloatArray:
     return np.sqrt(best, dtype=float)
 
 
+def grown_capped_distance(dist: FloatArray, added: np.ndarray, cap: float) -> FloatArray:
+    """:func:`capped_distance` of a set grown by the cells ``added``, given ``dist``, that of
+    the set (the same ``cap``): the smaller of ``dist`` and the capped distance to the added
+    cells.  Both are sqrt(min((ceil(cap) + 1)^2, the squared distance to the nearest set
+    cell)), so the minimum is the union's to the bit; the distance to the added cells is
+    taken over their box grown by the cap only (:func:`capped_distance` crops), which is
+    small where a front grows in a pocket."""
+    return np.minimum(dist, capped_distance(added, cap))
+
+
 def squared_distance(mask: np.ndarray) -> FloatArray:
     """Squared Euclidean distance (cells^2) from each cell centre to the nearest set cell
     (:func:`~BSplineCAM.core.geometry.distance.squared_distance`)."""

@@ -6,6 +6,7 @@ again with bent and narrower fronts where it cuts too wide."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from .constants import (
     WALL_LAYER_RADII,
     WALL_LAYER_STEPS,
 )
-from .gridops import capped_distance, squared_distance
+from .gridops import capped_distance, grown_capped_distance, squared_distance
 from .rings import _Ring, front_radius, ring_step, ring_steps
 from .tips import tip_height
 
@@ -81,6 +82,38 @@ def _cutting_order(levels: list, main: list, top: float, fine: float | None) -> 
     return out
 
 
+@dataclass
+class _LevelStart:
+    """What every run of a level starts from (:meth:`_Levels.level_start`): its heights, its
+    share of the progress bar, its allowed centres A, the cleared centres Q its fronts grow
+    from, the wall term of their field, the rim of A (with rings) and the rings."""
+
+    z: float
+    z_above: float
+    frac0: float
+    nlevels: int
+    A: np.ndarray
+    Q: np.ndarray
+    wall: np.ndarray
+    rim: np.ndarray | None
+    rings: list
+    #: capped distance (cells) to the cells outside A (:meth:`near_walls`), once asked for
+    walls: np.ndarray | None = None
+
+    def copy(self) -> _LevelStart:
+        """The same start with rings of their own (a run changes their radii); the arrays,
+        which no run changes, shared."""
+        return replace(self, rings=[replace(r) for r in self.rings])
+
+    def near_walls(self, R: float, cell: float) -> np.ndarray:
+        """1 at the walls (the cells outside A) down to 0 at WALL_LAYER_RADII tool radii R
+        from them (mm; ``cell`` the grid's)."""
+        width = WALL_LAYER_RADII * R
+        if self.walls is None:
+            self.walls = capped_distance(~self.A, width / cell + 1)
+        return np.clip(1.0 - self.walls * cell / width, 0.0, 1.0)
+
+
 class _Levels:
     """Part of a roughing run (:class:`~.job._Job`): the clearing of its levels."""
 
@@ -89,9 +122,13 @@ class _Levels:
         outside the entries) passes ENGAGEMENT_LIMIT stepovers, cut it again with the fronts
         bent towards the walls, at each of WALL_LAYER_STEPS, and if none keeps within the
         limit, again so with the fronts grown by each of STEPOVER_SCALES of the stepover in
-        turn (not for a ball), until one does.  The narrowest cut is kept."""
-        before = self.snapshot()
-        self.level(z, z_above, in_stock, air, li, nlevels, step_up)
+        turn (not for a ball), until one does.  The narrowest cut is kept.  Every run of the
+        level starts alike (:meth:`level_start`: its material, its entries, the fields its
+        fronts grow in), so the runs after the first start from a copy of the first one's
+        start (:meth:`snapshot`) and grow their fronts only (:meth:`level_fronts`)."""
+        start = self.level_start(z, z_above, in_stock, air, li, nlevels, step_up)
+        started = self.snapshot()
+        self.level_fronts(start.copy())
         limit = self.engagement_limit * self.s
         best = self.widest_cut(z)
         if best <= limit:
@@ -104,10 +141,9 @@ class _Levels:
             (1.0,) + self.stepover_scales
         for scale in scales:
             for step in WALL_LAYER_STEPS:
-                self.restore(self.copied(before))
-                self.level(z, z_above, in_stock, air, li, nlevels, step_up, layer=step,
-                           scale=scale)
-                width = self.widest_cut(z)
+                self.restore(self.copied(started))
+                self.level_fronts(start.copy(), layer=step, scale=scale)
+                width = self.widest_cut(z, stop=best)  # only a narrower one is kept
                 if width < best:
                     best, kept, used = width, self.snapshot(), scale
                 if best <= limit:
@@ -123,6 +159,14 @@ class _Levels:
 
     def level(self, z, z_above, in_stock, air, li, nlevels, step_up=False,
               layer: float | None = None, scale: float = 1.0) -> None:
+        """Cut level z: :meth:`level_start`, then :meth:`level_fronts`."""
+        start = self.level_start(z, z_above, in_stock, air, li, nlevels, step_up)
+        self.level_fronts(start, layer=layer, scale=scale)
+
+    def level_start(self, z, z_above, in_stock, air, li, nlevels,
+                    step_up=False) -> _LevelStart:
+        """Set up level z (its uncut material, its grids as at its start), enter its closed
+        pockets (:meth:`enter`) and return what its fronts start from (:meth:`level_fronts`)."""
         tip, cell = self.T, self.cell
         if not hasattr(self, "surface"):
             # a cell whose centre lies just outside the block still holds a sliver of it (its
@@ -167,7 +211,6 @@ class _Levels:
             if ring is not None:
                 rings.append(ring)
         rings += floor_rings
-        frac0 = (li + 0.05) / nlevels
         # growing fronts.  On a level at a flat floor T - z is 0 over whole areas, where a
         # front's contour would run through the cells' centres (stairs of cell-long moves
         # across the round fronts of a cylinder stock, each stair a burst of engagement):
@@ -177,16 +220,30 @@ class _Levels:
         wall = np.where(A, tip - z - cell, tip - z)
         # allowed cells beside a disallowed one: the rim the rings grow towards
         rim = (capped_distance(~A, 2.0) <= 1.0) & A if rings else None
+        return _LevelStart(z, z_above, (li + 0.05) / nlevels, nlevels, A, Q, wall, rim, rings)
+
+    def level_fronts(self, start: _LevelStart, layer: float | None = None,
+                     scale: float = 1.0) -> None:
+        """Grow the fronts of a level set up by :meth:`level_start` (``start``, whose rings
+        change) by the stepover times ``scale``, with ``layer`` bent towards the walls, and
+        cut them, then the level's walls.  The distance to the cleared centres is updated
+        with each front's new centres only (:func:`grown_capped_distance`)."""
+        z, z_above, A, Q, wall, rim, rings = (start.z, start.z_above, start.A, start.Q,
+                                              start.wall, start.rim, start.rings)
+        cell = self.cell
         base = np.full(A.shape, self.s * scale)
         if layer is not None:
             # fronts grow by less near the walls, so that they bend and meet them at a slant
-            width = WALL_LAYER_RADII * self.R
-            near = np.clip(1.0 - capped_distance(~A, width / cell + 1) * cell / width, 0.0, 1.0)
+            near = start.near_walls(self.R, cell)
             base *= 1.0 - (1.0 - layer) * near * near
+        shut = A & ~self.allowed  # allowed centres of components no entry reached
+        cap = self.s / cell + 2
+        dQ = capped_distance(Q, cap)
+        count = int(Q.sum())
         k = 0
         while True:
-            self.monitor(0.05 + 0.9 * (frac0 + min(k, 50) / 60.0 / nlevels))
-            dQ = capped_distance(Q, self.s / cell + 2) * cell
+            self.monitor(0.05 + 0.9 * (start.frac0 + min(k, 50) / 60.0 / start.nlevels))
+            dQ_mm = dQ * cell
             step = base.copy()
             rho = None
             for ring in rings:
@@ -198,8 +255,8 @@ class _Levels:
                     near = ~A & ring.near_rim
                     if near.any():
                         # nearest wall, and the farthest point of the component's rim
-                        gap = float(dQ[near].min())
-                        far = float(dQ[rim & ring.mask].max(initial=math.inf))
+                        gap = float(dQ_mm[near].min())
+                        far = float(dQ_mm[rim & ring.mask].max(initial=math.inf))
                     else:
                         gap = far = math.inf
                     margin = RING_MARGIN_CELLS * cell
@@ -221,21 +278,23 @@ class _Levels:
                         rho = front_radius(Q, cell, self.R)
                     step[ring.mask] = np.minimum(step[ring.mask],
                                                  ring_steps(rho[ring.mask], self.R, self.s * scale))
-            F = np.maximum(dQ - step, wall)
-            F[A & ~self.allowed] = 1.0
+            F = np.maximum(dQ_mm - step, wall)
+            F[shut] = 1.0
             Qn = F <= 0.0
-            if Qn.sum() <= Q.sum():
+            grown = int(Qn.sum())
+            if grown <= count:
                 break
             k += 1
             # the rings still round: their front pieces go on the exact circle
             circles = [r for r in rings if r.radius is not None and r.exact]
             zones = [r.mask for r in rings if not r.exact]  # the floor rings' fronts
-            self.cut_contours(F, z, z_above, front=dQ - step, reached=dQ, circles=circles,
+            self.cut_contours(F, z, z_above, front=dQ_mm - step, reached=dQ_mm, circles=circles,
                               smooth=np.logical_or.reduce(zones) if zones else None)
-            Q = Qn
+            dQ = grown_capped_distance(dQ, Qn & ~Q, cap)
+            Q, count = Qn, grown
         # walls
-        F = tip - z
-        F[A & ~self.allowed] = 1.0
+        F = self.T - z
+        F[shut] = 1.0
         self.cut_contours(F, z, z_above, front=None)
 
     def floor_rings(self, A: np.ndarray, Q: np.ndarray) -> list:

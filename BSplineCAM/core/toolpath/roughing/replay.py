@@ -4,6 +4,7 @@ feeds outside the entries, and the walk the peel of the feeds still too wide tak
 
 from __future__ import annotations
 
+import contextlib
 import math
 from typing import Callable
 
@@ -140,21 +141,30 @@ class _Replay:
         the same cells leave both grids of uncut cells)."""
         self.mark(path_xy, also=self.uncut_level)
 
-    def widest_cut(self, z: float) -> float:
+    def widest_cut(self, z: float, stop: float = math.inf) -> float:
         """Widest cut (mm, :meth:`level_width`) of the level's feed moves at z outside its
         entries, replayed in order (:meth:`replay`) on the level's grids as they were at its
         start (every feed move, entries included, cuts its swath; the wedge an entry's
-        descent leaves above the level stays material for the width)."""
+        descent leaves above the level stays material for the width).  The replay stops at
+        the first move as wide as ``stop`` (mm) or wider and gives that move's width: a
+        caller that keeps only a cut narrower than ``stop`` needs no more of it."""
         worst = 0.0
 
         def visit(i: int, m: Move, ab: tuple | None) -> None:
             nonlocal worst
             if ab is not None:
                 worst = max(worst, self.level_width(*ab))
+                if worst >= stop:
+                    raise _Wider
                 self.mark_both(np.array(ab))
 
-        self.replay(z, visit)
+        with contextlib.suppress(_Wider):
+            self.replay(z, visit)
         return worst
+
+
+class _Wider(Exception):
+    """A replay's move is as wide as the bound :meth:`_Replay.widest_cut` was given."""
 
 
 def _split_descents(path: FloatArray, zs: FloatArray, at_level: list,
