@@ -32,6 +32,12 @@ Run inside freecadcmd 0.20 with OpenCAMLib (as benchmarks/toolpath.py):
 
     freecadcmd -c "import runpy, sys; sys.argv=['x', '--parts', 'part,boss', '--json', 'out.json'];
                    runpy.run_path('benchmarks/strategies.py', run_name='__main__')"
+    python3 benchmarks/strategies.py --table out.json
+
+Coverage and scallop are measured on the selected faces away from their border: with the
+default selection (faces seen from above, vertical walls left out) waterline leaves the flats
+of a part unfinished, so its largest scallop there is the height of a flat above the lowest
+level, for both ops.
 """
 
 from __future__ import annotations
@@ -289,12 +295,12 @@ def table(result: dict) -> str:
         f"FreeCAD {result['freecad']}, {result['started']}, {result['source']}",
         "",
         "| part | strategy | ours cold / warm (s) | FreeCAD op (s) | ratio | gouge ours / FreeCAD "
-        "(mm) | largest scallop ours / FreeCAD (mm) | rs274 |",
-        "|---|---|---|---|---|---|---|---|",
+        "(mm) | largest scallop ours / FreeCAD (mm) | coverage ours / FreeCAD | rs274 |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for row in result["rows"]:
         if "error" in row and "freecad" not in row:
-            lines.append(f"| {row['part']} | {row['strategy']} | {row['error']} |||||")
+            lines.append(f"| {row['part']} | {row['strategy']} | {row['error']} ||||||")
             continue
         ours, theirs = row["ours"], row["freecad"]
         op = "3D Surface" if row["freecad_op"] == "3d_surface" else "Waterline"
@@ -303,6 +309,7 @@ def table(result: dict) -> str:
             f"| {op} {theirs['seconds']:.2f} | {row['ratio']:.1f}x "
             f"| {ours['gouge_max_mm']:.4f} / {theirs['gouge_max_mm']:.4f} "
             f"| {ours['scallop_max_mm']:.3f} / {theirs['scallop_max_mm']:.3f} "
+            f"| {ours['coverage']:.2f} / {theirs['coverage']:.2f} "
             f"| {ours['rs274']} / {theirs['rs274']} |")
     return "\n".join(lines)
 
@@ -319,7 +326,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--cell", type=float, default=0.1, help="simulation cell (mm)")
     parser.add_argument("--out", help="folder for the parts and programs (default: temporary)")
     parser.add_argument("--json", help="write the figures to this JSON file (after each row)")
+    parser.add_argument("--table", metavar="JSON", help="print the table of a JSON file written "
+                        "by --json and exit (no FreeCAD needed)")
     args = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    if args.table:
+        print(table(json.loads(Path(args.table).read_text())))
+        return
     args.parts = [p.strip() for p in args.parts.split(",") if p.strip()]
     args.strategies = [s.strip() for s in args.strategies.split(",") if s.strip()]
     unknown = [s for s in args.strategies if s not in FREECAD_OP]
