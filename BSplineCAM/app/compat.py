@@ -104,6 +104,7 @@ _CAM_MODULES = {
     "toolbit": ("PathScripts.PathToolBit", "Path.Tool.Bit", "Path.Tool.toolbit"),
     "controller": ("PathScripts.PathToolController", "Path.Tool.Controller", "Path.Tool.Controller"),
     "surface_op": ("PathScripts.PathSurface", "Path.Op.Surface", "Path.Op.Surface"),
+    "waterline_op": ("PathScripts.PathWaterline", "Path.Op.Waterline", "Path.Op.Waterline"),
     "utils": ("PathScripts.PathUtils", "PathScripts.PathUtils", "PathScripts.PathUtils"),
     "stock": ("PathScripts.PathStock", "Path.Main.Stock", "Path.Main.Stock"),
     "setup_sheet": ("PathScripts.PathSetupSheet", "Path.Base.SetupSheet", "Path.Base.SetupSheet"),
@@ -128,8 +129,8 @@ from .legacy_cam import LEGACY_CAM_MODULES, install_legacy_cam_modules  # noqa: 
 
 
 def cam_module(role: str):
-    """The machining module playing ``role`` (job, op, toolbit, controller, surface_op, utils;
-    in the GUI also toolbit_gui, job_gui, icon_gui).
+    """The machining module playing ``role`` (job, op, toolbit, controller, surface_op,
+    waterline_op, utils; in the GUI also toolbit_gui, job_gui, icon_gui).
 
     A FreeCAD built without its CAM (Path) workbench raises an ImportError that says so.
     """

@@ -63,6 +63,27 @@ def top_face_name(model) -> str:
     return f"Face{index + 1}"
 
 
+def job_tool_and_model(job, tool_diameter: float) -> tuple:
+    """The job's first tool controller and model, checked: ValueError if either is missing or
+    the tool's diameter is not ``tool_diameter`` (mm).  Makes the job's document the active one
+    (CAM's op factories create in the active document)."""
+    controllers = list(job.Tools.Group)
+    if not controllers:
+        raise ValueError(f"job {job.Label!r} has no tool controller")
+    controller = controllers[0]
+    if abs(float(controller.Tool.Diameter) - tool_diameter) > 1e-9:
+        raise ValueError(
+            f"tool_diameter {tool_diameter:g} mm differs from the job's tool "
+            f"({float(controller.Tool.Diameter):g} mm)"
+        )
+    models = list(job.Model.Group)
+    if not models:
+        raise ValueError(f"job {job.Label!r} has no model")
+    if FreeCAD.ActiveDocument is not job.Document:
+        FreeCAD.setActiveDocument(job.Document.Name)
+    return controller, models[0]
+
+
 def add_freecad_surface_op(
     job,
     scallop: float,
@@ -88,23 +109,7 @@ def add_freecad_surface_op(
     check_positive(sample_interval, "sample_interval")
     if pattern not in CUT_PATTERNS:
         raise ValueError(f"pattern must be one of {', '.join(CUT_PATTERNS)}, got {pattern!r}")
-    controllers = list(job.Tools.Group)
-    if not controllers:
-        raise ValueError(f"job {job.Label!r} has no tool controller")
-    controller = controllers[0]
-    if abs(float(controller.Tool.Diameter) - tool_diameter) > 1e-9:
-        raise ValueError(
-            f"tool_diameter {tool_diameter:g} mm differs from the job's tool "
-            f"({float(controller.Tool.Diameter):g} mm)"
-        )
-    models = list(job.Model.Group)
-    if not models:
-        raise ValueError(f"job {job.Label!r} has no model")
-    model = models[0]
-
-    doc = job.Document
-    if FreeCAD.ActiveDocument is not doc:
-        FreeCAD.setActiveDocument(doc.Name)  # Path's factories use the active document
+    controller, model = job_tool_and_model(job, tool_diameter)
     op = compat.cam_module("surface_op").Create(name, parentJob=job)
     op.ToolController = controller
     op.Base = [(model, [top_face_name(model)])]

@@ -24,23 +24,15 @@
 
 from __future__ import annotations
 
-import importlib
-
 from ..core.toolpath.common import check_positive, flat_stepover
 from . import compat
-from .surface3d import OpenCAMLibMissing, chordal_sample_interval
+from .surface3d import OpenCAMLibMissing, chordal_sample_interval, job_tool_and_model
 
 FreeCAD = compat.ensure_freecad()
 
-#: The Waterline op's module per supported FreeCAD series (:data:`compat.SERIES`).
-WATERLINE_MODULES = dict(zip(compat.SERIES,
-                             ("PathScripts.PathWaterline", "Path.Op.Waterline",
-                              "Path.Op.Waterline")))
-
-
 def waterline_module():
     """The module of FreeCAD's Waterline op for the running FreeCAD."""
-    return importlib.import_module(WATERLINE_MODULES[compat.cam_series()])
+    return compat.cam_module("waterline_op")
 
 
 def wall_stepdown(tool_diameter: float, scallop: float) -> float:
@@ -88,25 +80,10 @@ def add_freecad_waterline_op(
     check_positive(sample_interval, "sample_interval")
     if not faces:
         raise ValueError("faces must name at least one face of the job's model")
-    controllers = list(job.Tools.Group)
-    if not controllers:
-        raise ValueError(f"job {job.Label!r} has no tool controller")
-    controller = controllers[0]
-    if abs(float(controller.Tool.Diameter) - tool_diameter) > 1e-9:
-        raise ValueError(
-            f"tool_diameter {tool_diameter:g} mm differs from the job's tool "
-            f"({float(controller.Tool.Diameter):g} mm)"
-        )
-    models = list(job.Model.Group)
-    if not models:
-        raise ValueError(f"job {job.Label!r} has no model")
-
-    doc = job.Document
-    if FreeCAD.ActiveDocument is not doc:
-        FreeCAD.setActiveDocument(doc.Name)  # Path's factories use the active document
+    controller, model = job_tool_and_model(job, tool_diameter)
     op = waterline_module().Create(name, parentJob=job)
     op.ToolController = controller
-    op.Base = [(models[0], list(faces))]
+    op.Base = [(model, list(faces))]
     op.Algorithm = "OCL Dropcutter"
     op.BoundBox = "Stock"
     op.LayerMode = "Multi-pass"
