@@ -43,6 +43,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import kernels
+from ..kernels import arcs_kernels
 from ..typing import FloatArray
 
 #: Largest arc radius (mm): flatter arcs are near-straight and stay lines.
@@ -163,17 +165,30 @@ def _fit_runs(runs: Sequence[FloatArray], tolerance: float, vertical: np.ndarray
     cols = np.arange(pts.shape[1])[None, :]
     interior = (cols >= 1) & (cols < (count - 1)[:, None])
     ok &= np.all((np.diff(u, axis=1) > 0) | ~mask[:, 1:], axis=1)
-    cc = np.where(ok, c, 1.0)[:, None]
-    s_lo = np.where(interior, _circle_sagitta(cc, u, v), -np.inf).max(axis=1)
     lift = np.where(vertical, n[:, 1], 1.0)[:, None] * tolerance
-    s_hi = np.where(interior, _circle_sagitta(cc, u, v + lift), np.inf).min(axis=1)
     # the arc leaves A above the first chord and reaches B above the last one: its tangent
     # makes the angle 2 atan(s / c) with the chord at both ends
     first = np.arctan2(v[:, 1] - v[:, 0], u[:, 1] - u[:, 0])
     last = np.arctan2(v[idx, count - 1] - v[idx, count - 2], u[idx, count - 1] - u[idx, count - 2])
-    s_lo = np.maximum(s_lo, np.maximum(c * np.tan(first / 2.0), -c * np.tan(last / 2.0)))
+    s_end = np.maximum(c * np.tan(first / 2.0), -c * np.tan(last / 2.0))
     s_max = c * math.tan(math.radians(MAX_SWEEP_DEG) / 4.0)
     s_min_radius = MAX_RADIUS - np.sqrt(np.maximum(MAX_RADIUS ** 2 - c * c, 0.0))
+    if kernels.use_numba():
+        line = np.zeros(K, bool)
+        good = np.zeros(K, bool)
+        centre = np.zeros((K, 2))
+        radius = np.full(K, np.nan)
+        try:
+            arcs_kernels.fit_runs(pts, count, u, v, ok, c, s_end, s_max, s_min_radius,
+                                  lift[:, 0], vertical, a, b, chord, mid, t, n,
+                                  float(tolerance), line, good, centre, radius)
+            return _fits(line, good, mid, centre, radius)
+        except kernels.KernelUnavailable:
+            pass  # numba failed: the numpy engine from now on
+    cc = np.where(ok, c, 1.0)[:, None]
+    s_lo = np.where(interior, _circle_sagitta(cc, u, v), -np.inf).max(axis=1)
+    s_hi = np.where(interior, _circle_sagitta(cc, u, v + lift), np.inf).min(axis=1)
+    s_lo = np.maximum(s_lo, s_end)
     # the straight chord: every vertex on or below it, within the tolerance
     gap_line = np.where(vertical[:, None],
                         a[:, None, 1] + (pts[..., 0] - a[:, None, 0])
@@ -244,8 +259,14 @@ def _fit_runs(runs: Sequence[FloatArray], tolerance: float, vertical: np.ndarray
         good[vert] = (lo_v >= -ROUNDING) & (hi_v <= tolerance) & halves
     flat = np.flatnonzero(good & ~vertical)
     good[flat] = hi[flat] <= tolerance
+    return _fits(line, good, mid, centre, radius)
+
+
+def _fits(line: np.ndarray, good: np.ndarray, mid: FloatArray, centre: FloatArray,
+          radius: FloatArray) -> list[_Fit | None]:
+    """Per run the line (through ``mid``), the arc or None."""
     out: list[_Fit | None] = []
-    for k in range(K):
+    for k in range(len(line)):
         if line[k]:
             out.append(_Fit(True, mid[k], math.inf))
         elif good[k]:
@@ -428,10 +449,18 @@ def _fit_biarcs(runs: Sequence[FloatArray], ta: FloatArray, tb: FloatArray, tole
     b = pts[idx, count - 1]
     ok, joint, centres, radii = _biarc_geometry(a, b, pts[:, 1] - a,
                                                 b - pts[idx, count - 2], ta, tb)
+    good = ok.copy()
+    if kernels.use_numba():
+        try:
+            arcs_kernels.biarc_checks(pts, count, vertical, joint, centres, radii, a, b,
+                                      float(tolerance), good)
+            return [_Biarc(joint[k], centres[k], radii[k]) if good[k] else None
+                    for k in range(K)]
+        except kernels.KernelUnavailable:
+            good = ok.copy()  # numba failed: the numpy engine from now on
     pair = mask[:, 1:]
     width = pts.shape[1]
     cols = np.arange(width + 1)[None, :]
-    good = ok.copy()
     with np.errstate(invalid="ignore", divide="ignore"):
         for arc, (p, q) in enumerate(((a, joint), (joint, b))):
             t = np.where(vertical[:, None], np.array([1.0, 0.0]), _unit(q - p))
