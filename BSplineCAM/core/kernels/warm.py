@@ -3,7 +3,8 @@
 rational quarter cylinder trimmed by a hole and a bicubic bump), one beside a wall and one on a
 net, the
 scattered NURBS evaluation with derivatives, short Z-map simulations (one tool, and a job with two), the roughing of a small pocketed
-plate and the constant-scallop strategy's grid fields, all run through the public paths
+plate, the constant-scallop strategy's grid fields and the arc fitting of a sine, all run through
+the public paths
 so that every kernel they reach is compiled (or loaded from the cache folder) with the
 argument types real jobs pass.
 
@@ -27,6 +28,7 @@ from ..program.gcode_words import Segments
 from ..simulation import simulate as sim
 from ..simulation.job_simulation import simulate_job
 from ..toolpath import scallop_field, scallop_metric
+from ..toolpath.arcs import fit_polyline
 from ..toolpath.dropcutter import DropCutter
 from ..toolpath.faceset import FaceSet
 from ..toolpath.roughing import Stock, generate_roughing
@@ -120,8 +122,13 @@ def _steps() -> list[tuple[str, Callable[[], None]]]:
         scallop_metric.directional_cost_on(cover, cover, scallop_field.axis_vectors(0.5, 0.5),
                                            free, near.vec[free])
 
+    def arcs():  # a sine in G18: single arcs and biarcs
+        x = np.linspace(0.0, 20.0, 81)
+        fit_polyline(np.column_stack([x, np.zeros_like(x), np.sin(x / 2.0)]), 0.001, 18)
+
     return [("NURBS evaluation", evaluate), ("drop-cutter", drop), ("walls", walls),
-            ("Z-map simulation", simulate), ("roughing", rough), ("constant scallop", scallop)]
+            ("Z-map simulation", simulate), ("roughing", rough), ("constant scallop", scallop),
+            ("arc fitting", arcs)]
 
 
 def warm_up(progress: Callable[[float], None] | None = None) -> dict:
