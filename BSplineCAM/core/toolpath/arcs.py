@@ -52,6 +52,7 @@ from .arcs_fit import (
     _fit_biarcs,
     _fit_helices,
     _fit_runs,
+    _gather,
     _tangents,
 )
 from .arcs_fit import _nanmedian_rows as _nanmedian_rows
@@ -179,11 +180,15 @@ def _fit_polylines(polylines: Sequence[FloatArray], tolerance: float, flags: Seq
     ``first`` segments): per polyline a list of (start index, end index, _Fit or None), None meaning
     the straight segment.  ``fitter(runs, tolerance, flags)`` is :func:`_fit_runs` (2-D,
     ``flags`` = vertical) or :func:`_fit_helices` (3-D, ``flags`` = sided)."""
-    fit = _fit_runs if fitter is None else fitter
+    flat = np.concatenate(polylines)
+    row = np.concatenate([[0], np.cumsum([len(q) for q in polylines])[:-1]])  # of vertex 0
+    flag = np.array(flags, bool)
 
     def evaluate(jobs: list[tuple[int, int, int]]) -> list:
-        return fit([polylines[p][s:e + 1] for p, s, e in jobs], tolerance,
-                   np.array([flags[p] for p, _, _ in jobs], bool))
+        p, s, e = np.array(jobs).T
+        if fitter is None:  # the runs gathered at once
+            return _fit_runs(_gather(flat, row[p] + s, e - s + 1), tolerance, flag[p])
+        return fitter([polylines[k][i:j + 1] for k, i, j in jobs], tolerance, flag[p])
 
     return _greedy([len(q) for q in polylines], evaluate, first)
 
@@ -196,7 +201,6 @@ def _with_biarcs(polylines: Sequence[FloatArray], fitted: list[list[tuple]], tol
     where the polyline is smooth: no turn above BIARC_KINK_DEG at its interior vertices; the
     biarc's end tangents are the polyline's (:func:`_tangents`)."""
     bounds = [[f[0][0]] + [piece[1] for piece in f] for f in fitted]
-    tangents = [_tangents(q) for q in polylines]
     kinks = []
     for q in polylines:
         d = np.diff(q, axis=0)
@@ -205,21 +209,27 @@ def _with_biarcs(polylines: Sequence[FloatArray], fitted: list[list[tuple]], tol
         kink = ~(cos >= math.cos(math.radians(BIARC_KINK_DEG)) * length[:-1] * length[1:])
         kink |= (length[:-1] == 0) | (length[1:] == 0)
         kinks.append(np.concatenate([[0, 0], np.cumsum(kink)]))  # kinks at vertices < index
+    # everything laid end to end: vertex k of polyline p is row first[p] + k, its piece
+    # bound b row first_bound[p] + b
+    flat = np.concatenate(polylines)
+    first = np.concatenate([[0], np.cumsum([len(q) for q in polylines])[:-1]])
+    tangents = np.concatenate([_tangents(q) for q in polylines])
+    kink_flat = np.concatenate(kinks)
+    bound_flat = np.concatenate([np.asarray(b) for b in bounds])
+    first_bound = np.concatenate([[0], np.cumsum([len(b) for b in bounds])[:-1]])
+    flags = np.array(vertical, bool)
 
     def evaluate(jobs: list[tuple[int, int, int]]) -> list:
         out: list = [None] * len(jobs)
-        rows, runs, ends = [], [], []
-        for r, (p, s, e) in enumerate(jobs):
-            i, j = bounds[p][s], bounds[p][e]
-            if kinks[p][j] - kinks[p][i + 1] > 0:
-                continue
-            rows.append(r)
-            runs.append(polylines[p][i:j + 1])
-            ends.append((tangents[p][i], tangents[p][j]))
-        if rows:
-            flags = np.array([vertical[jobs[r][0]] for r in rows], bool)
-            ta, tb = (np.array(col) for col in zip(*ends))
-            for r, fit in zip(rows, _fit_biarcs(runs, ta, tb, tolerance, flags)):
+        p, s, e = np.array(jobs).T
+        i = first[p] + bound_flat[first_bound[p] + s]
+        j = first[p] + bound_flat[first_bound[p] + e]
+        rows = np.flatnonzero(kink_flat[j] - kink_flat[i + 1] <= 0)
+        if len(rows):
+            i, j, p = i[rows], j[rows], p[rows]
+            fits = _fit_biarcs(_gather(flat, i, j - i + 1), tangents[i], tangents[j],
+                               tolerance, flags[p])
+            for r, fit in zip(rows.tolist(), fits):
                 out[r] = fit
         return out
 

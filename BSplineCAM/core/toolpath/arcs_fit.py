@@ -80,13 +80,21 @@ class _Batch(NamedTuple):
     count: np.ndarray
 
 
-def _pad(runs: Sequence[FloatArray]) -> _Batch:
+def _pad(runs: Sequence[FloatArray] | _Batch) -> _Batch:
+    """The runs padded to one length (a batch is kept as it is)."""
+    if isinstance(runs, _Batch):
+        return runs
     count = np.array([len(r) for r in runs])
-    width = int(count.max())
     first = np.concatenate([[0], np.cumsum(count)[:-1]])
-    # each row gathered from the runs laid end to end; padding repeats the end point
+    return _gather(np.concatenate(runs), first, count)
+
+
+def _gather(flat: FloatArray, first: np.ndarray, count: np.ndarray) -> _Batch:
+    """The runs flat[first[k]:first[k] + count[k]] padded to one length: each row gathered
+    from ``flat``, the padding repeating the run's end point."""
+    width = int(count.max())
     col = np.minimum(np.arange(width)[None, :], count[:, None] - 1)
-    pts = np.concatenate(runs)[first[:, None] + col]
+    pts = flat[first[:, None] + col]
     mask = np.arange(width)[None, :] < count[:, None]
     return _Batch(pts, mask, count)
 
@@ -140,14 +148,14 @@ def _circle_sagitta(c: FloatArray, u: FloatArray, v: FloatArray) -> FloatArray:
     return np.where(same, q + sign * r, -c * c / np.where(same, 1.0, q - sign * r))
 
 
-def _fit_runs(runs: Sequence[FloatArray], tolerance: float, vertical: np.ndarray
+def _fit_runs(runs: Sequence[FloatArray] | _Batch, tolerance: float, vertical: np.ndarray
               ) -> list[_Fit | None]:
     """One arc (or line) per run from its first to its last point, lying left of travel by
-    [0, tolerance] (2-D points); None where none exists.  Where ``vertical``, the plane is
+    [0, tolerance] (2-D points, or a padded batch of them); None where none exists.  Where ``vertical``, the plane is
     vertical with the second coordinate up and the gaps are measured vertically."""
-    K = len(runs)
     batch = _pad(runs)
     pts, mask, count = batch
+    K = len(count)
     idx = np.arange(K)
     a = pts[:, 0]
     b = pts[idx, count - 1]
@@ -433,8 +441,8 @@ def _biarc_geometry(a: FloatArray, b: FloatArray, d0: FloatArray, d1: FloatArray
     return ok, joint, centres, radii
 
 
-def _fit_biarcs(runs: Sequence[FloatArray], ta: FloatArray, tb: FloatArray, tolerance: float,
-                vertical: np.ndarray) -> list[_Biarc | None]:
+def _fit_biarcs(runs: Sequence[FloatArray] | _Batch, ta: FloatArray, tb: FloatArray,
+                tolerance: float, vertical: np.ndarray) -> list[_Biarc | None]:
     """An equal-distance biarc per 2-D run (:func:`_biarc_geometry`, end tangents ``ta``,
     ``tb`` (K, 2)), accepted under the single arc's tests: each arc on the free (left) side of
     the part of the polyline it spans by [0, ``tolerance``] (mm), measured vertically where
@@ -442,8 +450,8 @@ def _fit_biarcs(runs: Sequence[FloatArray], ta: FloatArray, tb: FloatArray, tole
     along the normal of the arc's own chord otherwise.  The run must be a graph over each
     arc's frame; it is cut where its abscissa reaches the joint's, and the gap at the cut is
     checked with the others (:func:`_gaps`)."""
-    K = len(runs)
     pts, mask, count = _pad(runs)
+    K = len(count)
     idx = np.arange(K)
     a = pts[:, 0]
     b = pts[idx, count - 1]
