@@ -17,7 +17,7 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
-from bsplinecam_freecad import CASE_STUDY, ROOT, ROUNDING, TOOL, FreeCAD
+from bsplinecam_freecad import CASE_STUDY, ROOT, ROUNDING, TOOL, FreeCAD, rs274_or_skip
 
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, compat, pipeline
@@ -112,10 +112,7 @@ class TestJob(JobFixture):
         self.assertRegex(text, r"M6\s*T1")
 
     def test_every_post_passes_rs274(self):
-        if not rs274.available():
-            if os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
-                self.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
-            self.skipTest("rs274 (linuxcnc-uspace) not installed")
+        rs274_or_skip(self)
         for post in compat.POST_PROCESSORS:
             with self.subTest(post=post):
                 text, path = self.post(post)

@@ -42,7 +42,7 @@ from BSplineCAM.orchestration.cli import flush_all  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 import Part  # noqa: E402
-from bsplinecam_freecad import bspline_block  # noqa: E402
+from bsplinecam_freecad import bspline_block, rs274_or_skip  # noqa: E402
 
 V = FreeCAD.Vector
 TOOL = 6.0
@@ -145,10 +145,7 @@ class PartJob(unittest.TestCase):
         return json.loads(self.op.Report or "{}")
 
     def assert_rs274(self):
-        if not rs274.available():
-            if os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
-                self.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
-            self.skipTest("rs274 (linuxcnc-uspace) not installed")
+        rs274_or_skip(self)
         check = rs274.check(self.path, {1: TOOL})
         self.assertTrue(check.ok, check.message)
         self.assertGreater(check.feeds + check.arcs, 2)

@@ -19,7 +19,7 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
-from bsplinecam_freecad import CASE_STUDY, ROUNDING, TOOL, FreeCAD
+from bsplinecam_freecad import CASE_STUDY, ROUNDING, TOOL, FreeCAD, rs274_or_skip
 
 from BSplineCAM import Surface
 from BSplineCAM.app import cam, compat, surface3d
@@ -144,10 +144,7 @@ class TestFreeCADSurfaceOp(JobFixture):
         text = cam.post_process(self.job, "linuxcnc", path)
         moves = read_gcode(text)
         self.assertGreater(int(np.sum(moves.kind == MoveKind.LINE)), 100)
-        if not rs274.available():
-            if os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
-                self.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
-            self.skipTest("rs274 (linuxcnc-uspace) not installed")
+        rs274_or_skip(self)
         check = rs274.check(path, {1: TOOL})
         self.assertTrue(check.ok, check.message)
         self.assertEqual(int(np.sum(moves.kind == MoveKind.LINE)), check.feeds)

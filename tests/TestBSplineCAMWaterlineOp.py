@@ -19,7 +19,7 @@ import unittest
 from pathlib import Path
 
 import numpy as np
-from bsplinecam_freecad import TOOL, FreeCAD
+from bsplinecam_freecad import TOOL, FreeCAD, rs274_or_skip
 
 from BSplineCAM.app import cam, compat, waterline3d
 from BSplineCAM.core.program import rs274
@@ -128,10 +128,7 @@ class TestWaterlineOp(unittest.TestCase):
         text = cam.post_process(self.job, "linuxcnc", path)
         moves = read_gcode(text)
         self.assertGreater(int(np.sum(moves.kind == MoveKind.LINE)), 20)
-        if not rs274.available():
-            if os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
-                self.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
-            self.skipTest("rs274 (linuxcnc-uspace) not installed")
+        rs274_or_skip(self)
         check = rs274.check(path, {1: TOOL})
         self.assertTrue(check.ok, check.message)
 

@@ -11,6 +11,7 @@ it.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -21,6 +22,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from BSplineCAM.app import compat  # noqa: E402
+from BSplineCAM.core.program import rs274  # noqa: E402
 
 FreeCAD = compat.ensure_freecad()
 #: The README's case-study control net.
@@ -47,3 +49,13 @@ def bspline_block():
                                      False, False, 3, 2)
     prism = Part.Face(surface).extrude(V(0, 0, -30))
     return prism.common(Part.makeBox(30, 20, 30, V(0, 0, -5))).Solids[0]
+
+
+def rs274_or_skip(case) -> None:
+    """In a test case: return if LinuxCNC's rs274 is installed, else skip it, or fail it when
+    BSPLINECAM_REQUIRE_ALL=1 (CI, where every check must run)."""
+    if rs274.available():
+        return
+    if os.environ.get("BSPLINECAM_REQUIRE_ALL") == "1":
+        case.fail("rs274 (linuxcnc-uspace) is required here (BSPLINECAM_REQUIRE_ALL=1)")
+    case.skipTest("rs274 (linuxcnc-uspace) not installed")
