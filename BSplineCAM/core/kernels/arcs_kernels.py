@@ -63,8 +63,7 @@ def _gaps_loop(pts, cnt, cx, cy, radius, upper, t0, t1, n0, n1, u, v):
     """``arcs_fit._gaps`` of one run (points ``pts`` (L, 2) padded, ``cnt`` real ones) under
     the arc of centre (cx, cy) and ``radius``: (lo, hi), NaN where the run is no graph over
     t inside the circle's span.  ``u``, ``v`` (L,) are work space."""
-    width = pts.shape[0]
-    for j in range(width):
+    for j in range(cnt):
         u[j] = pts[j, 0] * t0 + pts[j, 1] * t1
         v[j] = pts[j, 0] * n0 + pts[j, 1] * n1
     cu = cx * t0 + cy * t1
@@ -248,7 +247,7 @@ def _biarc_checks_loops(pts, count, vertical, joint, centres, radii, a, b, toler
                     length = 1.0
                 t0, t1 = dx / length, dy / length
             n0, n1 = -t1, t0
-            for j in range(width):
+            for j in range(cnt):
                 u[j] = pts[k, j, 0] * t0 + pts[k, j, 1] * t1
             uj = joint[k, 0] * t0 + joint[k, 1] * t1
             ok = u[0] < uj and uj < u[cnt - 1]
