@@ -404,19 +404,20 @@ def fit_arcs(moves: Iterable[Move], tolerance: float, side17: SideFn | None = No
         elif len(run) >= 2:
             lines(run)
 
+    xyz = np.array([m[1:4] for m in moves], dtype=float).reshape(-1, 3)  # every end point
     k = 0
     position: FloatArray | None = None
     while k < len(moves):
         m = moves[k]
         if m.kind != "feed" or position is None:
             pieces.append(m)
-            position = np.array([m.x, m.y, m.z], dtype=float)
+            position = xyz[k]
             k += 1
             continue
         stop = k
         while stop < len(moves) and moves[stop].kind == "feed":
             stop += 1
-        pts = np.vstack([position, [[f.x, f.y, f.z] for f in moves[k:stop]]])
+        pts = np.vstack([position, xyz[k:stop]])
         stretch: int | None = None  # first vertex of the pending loose stretch
         for i, j, plane in _runs(pts):
             if plane is None or j - i < 2:
