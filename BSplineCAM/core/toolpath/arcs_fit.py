@@ -1,9 +1,12 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """One-sided fits of batches of runs: circular arcs, biarcs and helical arcs.
 
-Each fitter takes runs (2-D, or 3-D for helices) padded to one length and fits each from its
-first to its last point at once in numpy, returning a fit or None per run; :mod:`.arcs` grows
-the runs and turns the fits into moves.
+Each fitter takes runs (2-D, or 3-D for helices) padded to one length (or a batch already
+padded, :func:`_gather`) and fits each from its first to its last point at once in numpy,
+returning a fit or None per run; :mod:`.arcs` grows the runs and turns the fits into moves.
+Under the numba engine the per-run work of the single arc (after the batch's chord frames)
+and of the biarcs' tests (after their geometry) runs in :mod:`..kernels.arcs_kernels`, the
+same arithmetic in the same order.
 
 Each arc interpolates two vertices of the polyline and lies on its free side ("above": higher
 Z in a vertical pass plane; outwards for a contour) by at least 0 and at most ``tolerance``
