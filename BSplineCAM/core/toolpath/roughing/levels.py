@@ -6,7 +6,7 @@ again with bent and narrower fronts where it cuts too wide."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -97,8 +97,9 @@ class _LevelStart:
     wall: np.ndarray
     rim: np.ndarray | None
     rings: list
-    #: capped distance (cells) to the cells outside A (:meth:`near_walls`), once asked for
-    walls: np.ndarray | None = None
+    #: the capped distance (cells) to the cells outside A (:meth:`near_walls`) once asked
+    #: for, under "walls"; shared by the copies
+    fields: dict = field(default_factory=dict)
 
     def copy(self) -> _LevelStart:
         """The same start with rings of their own (a run changes their radii); the arrays,
@@ -109,9 +110,9 @@ class _LevelStart:
         """1 at the walls (the cells outside A) down to 0 at WALL_LAYER_RADII tool radii R
         from them (mm; ``cell`` the grid's)."""
         width = WALL_LAYER_RADII * R
-        if self.walls is None:
-            self.walls = capped_distance(~self.A, width / cell + 1)
-        return np.clip(1.0 - self.walls * cell / width, 0.0, 1.0)
+        if "walls" not in self.fields:
+            self.fields["walls"] = capped_distance(~self.A, width / cell + 1)
+        return np.clip(1.0 - self.fields["walls"] * cell / width, 0.0, 1.0)
 
 
 class _Levels:
