@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from . import Kernel, helper
+from .scalars import least, most
 
 #: The limits of :mod:`..toolpath.arcs_fit` (its module imports them from here would make a
 #: cycle; the tests check that they agree).
@@ -27,22 +28,6 @@ MIN_RADIUS = 0.01
 MARGIN = 1e-7
 ROUNDING = 1e-10
 BISECTIONS = 16
-
-
-@helper
-def _least(a, b):
-    """np.minimum(a, b) of two floats (NaN wins)."""
-    if a < b or a != a:
-        return a
-    return b
-
-
-@helper
-def _most(a, b):
-    """np.maximum(a, b) of two floats (NaN wins)."""
-    if a > b or a != a:
-        return a
-    return b
 
 
 @helper
@@ -155,7 +140,7 @@ def _fit_runs_loops(pts, count, u, v, ok, c, s_end, s_max, s_min_radius, lift, v
             s = _sagitta(ck, u[k, j], v[k, j] + lift[k])
             if s < s_hi_k or s != s:
                 s_hi_k = s
-        s_lo = _most(s_lo, s_end[k])
+        s_lo = most(s_lo, s_end[k])
         straight = s_lo <= 0.0 and s_hi_k >= 0.0
         if straight:
             ratio = chord[k, 1] / (chord[k, 0] if chord[k, 0] > 0 else 1.0)
@@ -181,7 +166,7 @@ def _fit_runs_loops(pts, count, u, v, ok, c, s_end, s_max, s_min_radius, lift, v
             keep[i] = arc[i]
         fit = g
         if g and arc[3] < -ROUNDING:
-            top = _least(s_hi_k, s_max[k])
+            top = least(s_hi_k, s_max[k])
             g_t = _arc_loop(top, k, pts, cnt, c, mid, t, n, s_hi_k, s_max,
                             s_min_radius, wu, wv, arc)
             if not (g_t and arc[3] >= -ROUNDING):

@@ -18,15 +18,7 @@ import math
 import numpy as np
 
 from . import Kernel, helper
-from .faceset_round_kernels import nan_max
-
-
-@helper
-def nan_min(a, b):
-    """``np.minimum`` of two floats (a NaN operand gives NaN)."""
-    if a != a or b != b:
-        return a + b
-    return a if a <= b else b
+from .scalars import nan_max, nan_min
 
 
 @helper

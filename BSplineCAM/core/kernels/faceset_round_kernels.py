@@ -34,14 +34,7 @@ from . import Kernel, helper
 from .faceset_kernels import halve, net_coords, split_at
 from .faceset_trim_kernels import inside_one, kept_in_box, vertices_into
 from .nurbs_eval import _check_loops, _rational_loops, _scattered_loops
-
-
-@helper
-def nan_max(a, b):
-    """``np.maximum`` of two floats (a NaN operand gives NaN)."""
-    if a != a or b != b:
-        return a + b
-    return a if a >= b else b
+from .scalars import nan_max
 
 
 @helper

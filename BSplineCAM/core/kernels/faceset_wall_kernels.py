@@ -15,15 +15,7 @@ import math
 import numpy as np
 
 from . import Kernel, helper
-from .faceset_round_kernels import nan_max
-
-
-@helper
-def _min(a, b):
-    """``np.minimum`` of two floats (NaN if either is)."""
-    if a != a or b != b:
-        return a + b
-    return a if a <= b else b
+from .scalars import nan_max, nan_min
 
 
 @helper
@@ -98,14 +90,14 @@ def _chord(R2, touch_R2, seg, owner, uv, cand, i, qx, qy, s, best, face, bu, bv)
     t2 = 1.0 if flat else (-ed + root) / Ls
     ok = (ee <= R2) if flat else (disc >= 0)
     lo_t = nan_max(t1, 0.0)
-    hi_t = _min(t2, 1.0)
+    hi_t = nan_min(t2, 1.0)
     ok = ok and lo_t <= hi_t
     # the stationary point of the concave f(t)
     perp = nan_max(ee - ed * ed / Ls, 0.0)
     sign = 1.0 if d2 > 0 else (-1.0 if d2 < 0 else (d2 if d2 != d2 else 0.0))
     tau = sign * abs(d2) * math.sqrt(nan_max(R2 - perp, 0.0) / (Ls * (Ls + d2 * d2)))
     t = (hi_t if d2 >= 0 else lo_t) if flat else tau - ed / Ls
-    cand[0] = _min(nan_max(t, lo_t), hi_t)
+    cand[0] = nan_min(nan_max(t, lo_t), hi_t)
     cand[1] = lo_t
     cand[2] = hi_t
     fv = -np.inf

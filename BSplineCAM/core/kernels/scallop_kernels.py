@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from . import Kernel, helper
+from .scalars import least
 
 
 def _near_vector_loops(xs, ys, ax, ay, abx, aby, den, ci, cj, reach, out, vec, won_at):
@@ -109,14 +110,6 @@ def _interpolated_cost_loops(cost, against, source, ang, ii, jj, theta, vx, vy):
 
 
 @helper
-def _least(a, b):
-    """np.minimum(a, b) of two floats (NaN wins)."""
-    if a < b or a != a:
-        return a
-    return b
-
-
-@helper
 def _scan_loops(d, w, free, out):
     """``scallop_field._scan`` of one row (d, the edge costs w between its nodes, free) into
     out: the segmented running minimum by the same prefix sums, keys and offsets."""
@@ -141,9 +134,9 @@ def _scan_loops(d, w, free, out):
     acc = 0.0
     for t in range(n):
         key = (d[t] - c[t] if free[t] else math.inf) - brk[t] * big
-        acc = key if t == 0 else _least(acc, key)
+        acc = key if t == 0 else least(acc, key)
         best = acc + brk[t] * big + c[t]
-        out[t] = _least(d[t], best) if free[t] else d[t]
+        out[t] = least(d[t], best) if free[t] else d[t]
 
 
 def _propagate_loops(d, cost, against, free, length, bdi, bdj, bk, mstart, ma, mb, row_axis,
@@ -196,7 +189,7 @@ def _propagate_loops(d, cost, against, free, length, bdi, bdj, bk, mstart, ma, m
                                 total = math.inf
                         cand = src + length[k] * total / (nm + 1)
                         if free[i, j]:
-                            row[j] = _least(row[j], cand)
+                            row[j] = least(row[j], cand)
                 for j in range(ny - 1):
                     w[j] = half_row * (cost[row_axis, i, j + 1] + cost[row_axis, i, j])
                 _scan_loops(row, w, free[i], scanned)
