@@ -213,8 +213,10 @@ def test_crossings_on_a_cylinder_with_free_ends(monkeypatch):
     selected surface contact, not a jump) lies within tolerance / 1000 of its level."""
     found = []
 
-    def spy(heights, p0, p1, z0, z1, level, eps, width, steps=FALSI_STEPS, progress=None):
-        out = polish_crossings(heights, p0, p1, z0, z1, level, eps, width, steps, progress)
+    def spy(heights, p0, p1, z0, z1, level, eps, width, steps=FALSI_STEPS, progress=None,
+            slopes=None):
+        out = polish_crossings(heights, p0, p1, z0, z1, level, eps, width, steps, progress,
+                               slopes)
         found.append((p0 + out[0][:, None] * (p1 - p0), level, eps, out[1], out[3]))
         return out
 

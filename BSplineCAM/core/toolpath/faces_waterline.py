@@ -15,7 +15,8 @@ of that field.
 * The field is sampled on a grid of R / 4 over the selected faces' extent grown by R (a ball
   beside a wall still touches it); marching squares (Lorensen & Cline 1987,
   :func:`.waterline._crossings`) gives each level's contours, every crossing is polished on
-  its grid edge by regula falsi (Illinois) on the exact drop height to ``tolerance`` / 1000
+  its grid edge by safeguarded Newton steps (the height's slope from the ball's contact),
+  regula falsi (Illinois) and bisection on the exact drop height to ``tolerance`` / 1000
   (:func:`polish_crossings`; "no face under the ball" stays NaN, never a stand-in number),
   level points are inserted until the contour follows the level to tolerance / 4
   (:func:`.waterline.densify`), Douglas-Peucker thins it to tolerance / 2 in XY and every chord
@@ -318,7 +319,8 @@ def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1: FloatArray,
                      level: FloatArray, eps: float, width: float, steps: int = FALSI_STEPS,
-                     progress=None) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray]:
+                     progress=None, slopes=None,
+                     ) -> tuple[FloatArray, np.ndarray, FloatArray, np.ndarray]:
     """Where the drop height crosses ``level`` (mm) on each grid edge p0-p1.
 
     ``heights(xy)`` gives the certified tip heights (mm) at points (n, 2), NaN where no face
@@ -341,6 +343,18 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
     the level (the material it follows), and whether the edge settled within ``steps``
     queries (else t is its air end).  ``progress(fraction)``, if given, hears the share of
     the edges settled after each round of queries.
+
+    ``slopes(xy)``, if given, is the gradient (n, 2) of the height at points ``heights`` was
+    asked about (the contact's, free of a new drop: :meth:`FaceQuery.slopes`) or at the edge
+    ends; each step then is a Newton step from the edge's latest point with a finite value
+    and slope (the grid end nearer the level at first) wherever it lands strictly inside the
+    bracket and no bisection is due: quadratic where the height is smooth, and it needs no
+    value at the air end.  Safeguarded as in "Numerical Recipes" rtsafe (sec. 9.4): an edge
+    whose Newton step stayed on its point's side and removed less than half its distance to
+    the level (the ball's rim over a jump, where the level is never reached) is bisected
+    from then on.  A bisection takes the dyadic point of the bracket with the fewest binary
+    digits (its midpoint once the bracket is a dyadic interval): the levels a jump crosses on
+    one grid edge then ask the same points, whatever steps came before.
     """
     n = len(p0)
     length = np.hypot(*(p1 - p0).T)
@@ -354,6 +368,16 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
     last = np.zeros(n, np.int8)  # +1: the step before replaced the above end, -1: the air end
     w_ago = np.full((3, n), np.inf)  # bracket widths 3, 2 and 1 steps ago
     done = np.zeros(n, bool)
+    if slopes is not None:
+        d = p1 - p0
+        along = lambda g, i: np.einsum("ij,ij->i", np.asarray(g, float), d[i])  # noqa: E731
+        s0, s1 = along(slopes(p0), slice(None)), along(slopes(p1), slice(None))
+        # the Newton point: the grid end nearer the level with a value and a slope, then the
+        # latest point asked (t, its value and its slope along the edge, dz per unit t)
+        near0 = np.abs(np.nan_to_num(f0, nan=np.inf)) <= np.abs(np.nan_to_num(f1, nan=np.inf))
+        tn = np.where(near0, 0.0, 1.0)
+        fn, sn = np.where(near0, f0, f1), np.where(near0, s0, s1)
+        newton = np.ones(n, bool)  # off once a step crept (a jump: no root to converge on)
     for k in range(steps + 1):
         w = np.abs(tu - ta)
         # a jump: narrow, and nothing under the ball at the air end or a rise steeper than
@@ -378,9 +402,26 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
         # within 0.06 degrees of vertical): the secant lands next to its air end time and
         # again, while bisection narrows it to ``width`` in log2 steps
         bisect |= rise[act] > JUMP_SLOPE
-        t = np.where(bisect, 0.5 * (a_u + a_a), t)
+        if slopes is None:
+            t = np.where(bisect, 0.5 * (a_u + a_a), t)
+        else:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                t_n = tn[act] - fn[act] / sn[act]
+            use = ~bisect & newton[act] & (t_n > lo) & (t_n < hi)
+            t = np.where(bisect | ~np.isfinite(t), _dyadic(lo, hi), t)
+            t = np.where(use, t_n, t)
         w_ago[:, act] = np.vstack([w_ago[1:, act], w[act]])
-        ft = np.asarray(heights(p0[act] + t[:, None] * (p1[act] - p0[act])), float) - level[act]
+        xy_t = p0[act] + t[:, None] * (p1[act] - p0[act])
+        ft = np.asarray(heights(xy_t), float) - level[act]
+        if slopes is not None:
+            # a Newton step that stayed on its side without halving its distance crept
+            crept = use & (np.sign(ft) == np.sign(fn[act])) & ~(np.abs(ft) <= 0.5 * np.abs(fn[act]))
+            newton[act[crept]] = False
+            st = along(slopes(xy_t), act)
+            fresh = np.isfinite(ft) & np.isfinite(st)
+            tn[act] = np.where(fresh, t, tn[act])
+            fn[act] = np.where(fresh, ft, fn[act])
+            sn[act] = np.where(fresh, st, sn[act])
         hit = np.abs(np.nan_to_num(ft, nan=np.inf)) <= eps
         above = np.nan_to_num(ft, nan=-np.inf) > 0.0
         # Illinois: the end kept for the second time in a row has its value halved
@@ -397,6 +438,24 @@ def polish_crossings(heights, p0: FloatArray, p1: FloatArray, z0: FloatArray, z1
         done[act[hit]] = True
     converged = np.isfinite(t_hit)
     return np.where(converged, t_hit, ta), jump & ~converged, tu, converged | jump
+
+
+def _dyadic(lo: FloatArray, hi: FloatArray) -> FloatArray:
+    """The point j / 2^k strictly inside each interval (lo, hi) of [0, 1] with the least k
+    (the midpoint where the interval is lo..hi = i / 2^k..(i + 1) / 2^k): it splits the
+    interval into parts no wider than its dyadic cell's half."""
+    out = 0.5 * (lo + hi)
+    todo = hi > lo
+    scale = 1.0
+    for _ in range(60):
+        if not todo.any():
+            break
+        scale *= 2.0
+        j = np.floor(lo * scale) + 1.0
+        found = todo & (j < hi * scale)
+        out = np.where(found, j / scale, out)
+        todo &= ~found
+    return out
 
 
 def _jump_near(query: FaceQuery, m: FloatArray, normal: FloatArray, level: FloatArray,
@@ -581,7 +640,8 @@ def _contours(faceset: FaceSet, query: FaceQuery, signs: np.ndarray, tool: ToolP
     # the crossings take most of the time: the progress bar moves with the edges settled
     t, jump, t_up, settled = polish_crossings(lambda q: query.heights(q)[0], p0, p1, z0, z1, zl,
                                               LEVEL_EPS * tool.tolerance, width,
-                                              progress=lambda f: monitor(0.3 + 0.2 * f))
+                                              progress=lambda f: monitor(0.3 + 0.2 * f),
+                                              slopes=lambda q: query.heights_and_slopes(q)[1])
     xy = p0 + t[:, None] * (p1 - p0)
     _tip, good = _contacts(faceset, query, signs, xy)
     if jump.any():
