@@ -296,20 +296,27 @@ def densify(dc: DropCutter, pts: FloatArray, starts: np.ndarray, gap: float,
         half = 0.5 * np.hypot(*(b[:, :2] - a[:, :2]).T)
         q = m.copy()
         good = np.ones(len(idx), bool)
+        norm = np.full(len(idx), np.inf)
         for k in range(3):
-            z, g = dc.heights_and_slopes(q)
+            # a point whose last step was already below the insertion bound has converged
+            # (Newton's next step is smaller still): it is not asked about again
+            go = np.flatnonzero(~(norm < 1e-3 * gap))
+            if len(go) == 0:
+                break
+            z, g = dc.heights_and_slopes(q[go])
             with np.errstate(divide="ignore", invalid="ignore"):
-                step = ((level - z) / np.einsum("ij,ij->i", g, g))[:, None] * g
-            norm = np.hypot(step[:, 0], step[:, 1])
-            good &= np.isfinite(norm)  # off the surface, or no gradient to follow
+                step = ((level[go] - z) / np.einsum("ij,ij->i", g, g))[:, None] * g
+            norm[go] = np.hypot(step[:, 0], step[:, 1])
+            good[go] &= np.isfinite(norm[go])  # off the surface, or no gradient to follow
             if k == 0:
                 # Midpoints already within the gap (or off the surface) end their chord.
                 keep = good & (norm > gap)
                 idx, level, m, half, q, step, norm, good = (
                     v[keep] for v in (idx, level, m, half, q, step, norm, good))
-            step = np.where(good[:, None], step, 0.0)
-            step *= np.minimum(1.0, half / np.maximum(norm, 1e-300))[:, None]
-            q = q + step
+                go = np.arange(len(idx))
+            step = np.where(good[go, None], step, 0.0)
+            step *= np.minimum(1.0, half[go] / np.maximum(norm[go], 1e-300))[:, None]
+            q[go] = q[go] + step
         # Inserted only where Newton converged (last step tiny) and the point is off the chord.
         ok = good & (norm < 1e-3 * gap) & (np.hypot(*(q - m).T) > gap)
         active[:] = False
