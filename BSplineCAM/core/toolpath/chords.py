@@ -20,10 +20,8 @@ until the model fails there once: a drafted wall is not cut into MIN_SPLIT piece
 round asks the drop-cutter once (a call costs far more than its points).
 
 :func:`lift_chords` (raster, iso-parametric) then lifts each chord's end vertices by its
-excess plus ``CLEARANCE`` (a vertex shared by two chords takes the larger lift).  A lift needs
-no second check: the chord rises at least by the lesser of its end lifts all along, so its
-excess bound falls by that much; only chords the check left unresolved are examined again,
-until no chord dips more than ``DIP_LIMIT``.  Waterlines keep their Z and push their
+excess plus ``CLEARANCE`` (a vertex shared by two chords takes the larger lift) and checks
+again, until no chord dips more than ``DIP_LIMIT``.  Waterlines keep their Z and push their
 vertices outwards instead (:mod:`waterline`).
 """
 
@@ -406,24 +404,13 @@ def _check_lines(query: QueryFn, s: ChordSamples, active: np.ndarray | None) -> 
     return ChordCheck(excess, where, grad, check.unresolved, unresolved_at)
 
 
-def _lowered(excess: FloatArray, vertex_lift: FloatArray, same: np.ndarray) -> FloatArray:
-    """Bounds of the chords' excess (per vertex rank, mm) after their end vertices rose by
-    ``vertex_lift`` (mm, >= 0; ``same``: vertex r + 1 is on vertex r's line).  The chord over
-    a point rises by the linear blend of its ends' lifts, at least their minimum, so the
-    excess there falls by at least that much; a chord ending its line (-inf) stays so."""
-    low = np.zeros_like(vertex_lift)
-    low[:-1] = np.where(same, np.minimum(vertex_lift[:-1], vertex_lift[1:]), 0.0)
-    return np.where(np.isfinite(excess), excess - low, excess)
-
-
 def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
                 iterations: int = 8) -> dict:
     """Raise the vertices in ``s.zv`` until every chord clears the exact CL height.
 
     Each chord's end vertices are lifted by its excess plus ``CLEARANCE`` (shared vertices take
-    the larger lift, which only raises the neighbouring chord) and the chords' excess bounds
-    fall by the lesser lift of their ends (:func:`_lowered`); chords left unresolved are checked
-    again, until no chord dips more than ``DIP_LIMIT``.  A chord that would need more than ``max_lift`` (mm)
+    the larger lift, which only raises the neighbouring chord); the check is repeated until no
+    chord dips more than ``DIP_LIMIT``.  A chord that would need more than ``max_lift`` (mm)
     first gets exact samples as new vertices, until none of its samples lies more than
     ``max_lift`` / 2 above the chord over it (:func:`_split_worst`), so the lift, and with it
     the height of the move above the CL curve, stays bounded.  Returns statistics (largest lift in mm,
@@ -433,18 +420,15 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
     it = 0
     unresolved = 0
     added = 0
-    # After the first check a lift is accounted for without the drop-cutter: raising a
-    # chord's end vertices by l_a, l_b >= 0 lowers the chord by at least min(l_a, l_b) all
-    # along it, so a chord whose excess was bounded by e is bounded by e - min(l_a, l_b)
-    # (:func:`_lowered`).  Only the chords left unresolved are examined again, on their lines
-    # alone (:func:`_check_lines`); the others keep their (lowered) verdict.
+    # after the first check only the chords a lift changed (a lifted end vertex) are
+    # examined again, on their lines alone (:func:`_check_lines`): the others, their samples
+    # and end heights unchanged, keep their verdict
     active = None
     for it in range(1, iterations + 1):
+        check = _check_lines(query, s, active)
         if active is None:
-            check = _check_lines(query, s, active)
             exc, stuck = check.excess.copy(), check.unresolved_at.copy()
-        elif active.any():  # the chords not examined keep their last verdict
-            check = _check_lines(query, s, active)
+        else:  # the chords not examined keep their last verdict
             exc[active], stuck[active] = check.excess[active], check.unresolved_at[active]
         unresolved = int(stuck.sum())
         worst = float(np.max(exc, initial=-np.inf))
@@ -466,8 +450,9 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
         if not vertex_lift.any():
             break
         s.zv[s.vertex] += vertex_lift
-        exc = _lowered(exc, vertex_lift, same)
-        active = stuck.copy()  # a chord left unresolved is examined again
+        changed = vertex_lift > 0
+        active = changed | stuck  # a chord left unresolved is examined again too
+        active[:-1] |= changed[1:] & same
     v = s.vertex & np.isfinite(s.z)
     return {"max_lift_mm": float(np.max(s.zv[v] - s.z[v], initial=0.0)),
             "worst_dip_mm": worst, "iterations": it, "unresolved_chords": unresolved,
