@@ -9,7 +9,9 @@ slope from the contact point (envelope theorem, :meth:`DropCutter.slopes`).  Bet
 the cubic Hermite interpolant (error O(d^4 z'''') / 384, de Boor, "A Practical Guide to
 Splines", ch. IV) locates each chord's largest excess z - chord; that point is evaluated with
 the exact drop-cutter and, where Hermite and exact values disagree by more than
-``MODEL_ERROR``, inserted as a sample and the chord examined again.  Intervals whose slopes
+``MODEL_ERROR``, inserted as a sample and the chord examined again; for :func:`lift_chords`
+the exact slope there must agree too (a kink between two samples, where the contact leaves a
+face for its border, can match a model through both ends at one point).  Intervals whose slopes
 cannot be trusted (a wall steeper than ``MAX_SLOPE``, a contact on the ball's rim, a secant
 steeper than that: a jump where the ball's side meets a wall) are cut into up to ``KSECT``
 pieces per round with exact samples instead, down to ``MIN_SPLIT`` (at most ``ROUGH_PER_CHORD``
@@ -20,8 +22,10 @@ until the model fails there once: a drafted wall is not cut into MIN_SPLIT piece
 round asks the drop-cutter once (a call costs far more than its points).
 
 :func:`lift_chords` (raster, iso-parametric) then lifts each chord's end vertices by its
-excess plus ``CLEARANCE`` (a vertex shared by two chords takes the larger lift) and checks
-again, until no chord dips more than ``DIP_LIMIT``.  Waterlines keep their Z and push their
+excess plus ``CLEARANCE`` (a vertex shared by two chords takes the larger lift).  A lift needs
+no second check: the chord rises at least by the lesser of its end lifts all along, so its
+excess bound falls by that much; only chords the check left unresolved are examined again,
+until no chord dips more than ``DIP_LIMIT``.  Waterlines keep their Z and push their
 vertices outwards instead (:mod:`waterline`).
 """
 
@@ -186,10 +190,14 @@ def _cap_rough(split: np.ndarray, cid: np.ndarray, ends: FloatArray,
 
 
 def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS,
-                 active: np.ndarray | None = None) -> ChordCheck:
+                 active: np.ndarray | None = None, kinks: bool = False) -> ChordCheck:
     """Largest exact CL height above each chord (see the module docstring); inserts into
     ``s`` the samples it had to evaluate.  With ``active`` (bool per vertex rank) only those
-    chords are examined; the others report -inf."""
+    chords are examined; the others report -inf.  With ``kinks`` a point evaluated at the
+    model's maximum also checks its exact slope: the excess's tangent there, followed to the
+    interval's end it rises towards, adds to the model error (per unit of the interval,
+    ``reach``), so a kink between the samples, which a model through both ends can match at
+    one point, fails the check and is examined again."""
     nvert = int(s.vertex.sum())
     done_excess = np.full(nvert, -np.inf)
     done_where = np.full((nvert, 2), np.nan)
@@ -279,6 +287,13 @@ def chord_excess(query: QueryFn, s: ChordSamples, rounds: int = ROUNDS,
             cq = c0[cand_idx] + t * (c1[cand_idx] - c0[cand_idx])
             exact = np.where(np.isfinite(zq), zq - cq, -np.inf)
             err = np.abs(gh[cand_idx] - exact)
+            if kinks:
+                # A smooth maximum has no slope; an exact slope there that would carry the
+                # excess beyond the point along its tangent (a kink between the samples: the
+                # contact leaves a face for its border) counts as model error.
+                sq = np.einsum("ij,ij->i", gq, d[cand_idx]) - (c1[cand_idx] - c0[cand_idx])
+                reach = np.where(sq > 0, sq * (1.0 - t), -sq * t)
+                err = np.fmax(err, np.where(np.isfinite(reach), reach, 0.0))
             ok = (err <= MODEL_ERROR) | (length[cand_idx] * np.minimum(t, 1 - t) <= MIN_SPLIT)
             # A point clearly below the chord settles it even where the model is off by more
             # than MODEL_ERROR (the drop-cutter's own noise on tiny intervals): four times the
@@ -376,20 +391,21 @@ def _split_worst(s: ChordSamples, chords: np.ndarray, target: float) -> int:
 
 
 def _check_lines(query: QueryFn, s: ChordSamples, active: np.ndarray | None) -> ChordCheck:
-    """:func:`chord_excess` of the ``active`` chords (bool per vertex rank; None: all), run
-    on the lines that hold one only: each round of the check passes over all samples it is
-    given, so a few chords left of a large job are not checked at the cost of all of it.
+    """:func:`chord_excess` (with its kink check) of the ``active`` chords (bool per vertex
+    rank; None: all), run on the lines that hold one only: each round of the check passes over
+    all samples it is given, so a few chords left of a large job are not checked at the cost
+    of all of it.
     The samples it adds go back into ``s``; chords of other lines report -inf."""
     if active is None:
-        return chord_excess(query, s)
+        return chord_excess(query, s, kinks=True)
     line_v = s.line[s.vertex]
     mask = np.isin(s.line, np.unique(line_v[active]))
     if mask.all():
-        return chord_excess(query, s, active=active)
+        return chord_excess(query, s, active=active, kinks=True)
     names = [f.name for f in fields(ChordSamples)]
     sub = ChordSamples(*(getattr(s, n)[mask] for n in names))
     mine = mask[s.vertex]
-    check = chord_excess(query, sub, active=active[mine])
+    check = chord_excess(query, sub, active=active[mine], kinks=True)
     keep = ~mask
     order = np.argsort(np.concatenate([s.line[keep], sub.line]), kind="stable")
     for n in names:
@@ -404,13 +420,24 @@ def _check_lines(query: QueryFn, s: ChordSamples, active: np.ndarray | None) -> 
     return ChordCheck(excess, where, grad, check.unresolved, unresolved_at)
 
 
+def _lowered(excess: FloatArray, vertex_lift: FloatArray, same: np.ndarray) -> FloatArray:
+    """Bounds of the chords' excess (per vertex rank, mm) after their end vertices rose by
+    ``vertex_lift`` (mm, >= 0; ``same``: vertex r + 1 is on vertex r's line).  The chord over
+    a point rises by the linear blend of its ends' lifts, at least their minimum, so the
+    excess there falls by at least that much; a chord ending its line (-inf) stays so."""
+    low = np.zeros_like(vertex_lift)
+    low[:-1] = np.where(same, np.minimum(vertex_lift[:-1], vertex_lift[1:]), 0.0)
+    return np.where(np.isfinite(excess), excess - low, excess)
+
+
 def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
                 iterations: int = 8) -> dict:
     """Raise the vertices in ``s.zv`` until every chord clears the exact CL height.
 
     Each chord's end vertices are lifted by its excess plus ``CLEARANCE`` (shared vertices take
-    the larger lift, which only raises the neighbouring chord); the check is repeated until no
-    chord dips more than ``DIP_LIMIT``.  A chord that would need more than ``max_lift`` (mm)
+    the larger lift, which only raises the neighbouring chord) and the chords' excess bounds
+    fall by the lesser lift of their ends (:func:`_lowered`); chords left unresolved are checked
+    again, until no chord dips more than ``DIP_LIMIT``.  A chord that would need more than ``max_lift`` (mm)
     first gets exact samples as new vertices, until none of its samples lies more than
     ``max_lift`` / 2 above the chord over it (:func:`_split_worst`), so the lift, and with it
     the height of the move above the CL curve, stays bounded.  Returns statistics (largest lift in mm,
@@ -420,15 +447,18 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
     it = 0
     unresolved = 0
     added = 0
-    # after the first check only the chords a lift changed (a lifted end vertex) are
-    # examined again, on their lines alone (:func:`_check_lines`): the others, their samples
-    # and end heights unchanged, keep their verdict
+    # After the first check a lift is accounted for without the drop-cutter: raising a
+    # chord's end vertices by l_a, l_b >= 0 lowers the chord by at least min(l_a, l_b) all
+    # along it, so a chord whose excess was bounded by e is bounded by e - min(l_a, l_b)
+    # (:func:`_lowered`).  Only the chords left unresolved are examined again, on their lines
+    # alone (:func:`_check_lines`); the others keep their (lowered) verdict.
     active = None
     for it in range(1, iterations + 1):
-        check = _check_lines(query, s, active)
         if active is None:
+            check = _check_lines(query, s, active)
             exc, stuck = check.excess.copy(), check.unresolved_at.copy()
-        else:  # the chords not examined keep their last verdict
+        elif active.any():  # the chords not examined keep their last verdict
+            check = _check_lines(query, s, active)
             exc[active], stuck[active] = check.excess[active], check.unresolved_at[active]
         unresolved = int(stuck.sum())
         worst = float(np.max(exc, initial=-np.inf))
@@ -450,9 +480,8 @@ def lift_chords(query: QueryFn, s: ChordSamples, max_lift: float | None = None,
         if not vertex_lift.any():
             break
         s.zv[s.vertex] += vertex_lift
-        changed = vertex_lift > 0
-        active = changed | stuck  # a chord left unresolved is examined again too
-        active[:-1] |= changed[1:] & same
+        exc = _lowered(exc, vertex_lift, same)
+        active = stuck.copy()  # a chord left unresolved is examined again
     v = s.vertex & np.isfinite(s.z)
     return {"max_lift_mm": float(np.max(s.zv[v] - s.z[v], initial=0.0)),
             "worst_dip_mm": worst, "iterations": it, "unresolved_chords": unresolved,
