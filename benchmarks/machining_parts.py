@@ -31,7 +31,9 @@ with acceleration on the default machine (:func:`BSplineCAM.core.simulation.meas
 program_measures`: 500 mm/s^2 per axis, rapids 5000 mm/min, junction deviation 0.01 mm),
 feed and rapid lengths, the vertical feeds among the feeds (plunges and retracts at the feed),
 and the simulation against the part's exact faces (:func:`BSplineCAM.core.simulation.verify.
-verify_faces`): gouge, largest and mean scallop, evenness and coverage away from the faces'
+verify_faces`): gouge (along the faces' normal, the depth the ball and its shank enter them:
+:func:`BSplineCAM.core.simulation.gouge_normal.gouge_gate_mm`; the Z-map's vertical depth
+beside it), largest and mean scallop, evenness and coverage away from the faces'
 borders, and the largest scallop in the edge band (within the tool radius of a border).  The
 targets of issue 44 are checked per part: our fastest strategy (without gouge) no slower than
 FreeCAD's retuned op, at least ``--raster-saving`` (30 %) faster than issue 44's raster at the
@@ -144,6 +146,7 @@ def measure_program(faces, text: str, path: Path, args: argparse.Namespace) -> d
     """rs274's verdict, the machine figures and the simulation of one posted program."""
     from BSplineCAM.core.program import rs274
     from BSplineCAM.core.program.gcode import MoveKind, read_gcode
+    from BSplineCAM.core.simulation.gouge_normal import gouge_gate_mm
     from BSplineCAM.core.simulation.measures import program_measures
     from BSplineCAM.core.simulation.simulate import Tool
     from BSplineCAM.core.simulation.verify import verify_faces
@@ -164,10 +167,14 @@ def measure_program(faces, text: str, path: Path, args: argparse.Namespace) -> d
     started = time.perf_counter()
     metrics = verify_faces(faces, program, Tool(args.diameter), cell=args.cell).metrics
     out["verify_seconds"] = time.perf_counter() - started
-    for key in ("gouge_max_mm", "gouge_cells", "scallop_max_mm", "scallop_p99_mm",
+    for key in ("gouge_cells", "scallop_max_mm", "scallop_p99_mm",
                 "scallop_mean_mm", "scallop_evenness", "scallop_mean_over_max", "coverage",
                 "edge_scallop_max_mm", "edge_gouge_max_mm"):
         out[key] = float(metrics[key])
+    # the gouge the targets gate on: the ball's and shank's depth into the faces along the
+    # normal (the Z-map's vertical depth reads a wall's height beside a wall's top edge)
+    out["gouge_max_mm"] = gouge_gate_mm(metrics)
+    out["gouge_vertical_max_mm"] = float(metrics["gouge_max_mm"])
     out["rapid_collisions"] = len(metrics["rapid_collisions"])
     return out
 
@@ -531,8 +538,14 @@ def row(label: str, r: dict) -> str:
             f"{r['machining_time_with_acceleration_s']:.0f} | "
             f"{r['scallop_max_mm']:.3f} / {r['scallop_mean_mm']:.4f} | "
             f"{r['scallop_evenness']:.2f} | {r['edge_scallop_max_mm']:.3f} | "
-            f"{1000 * r['gouge_max_mm']:.2f} | "
+            f"{1000 * r['gouge_max_mm']:.2f} ({_vertical_um(r)}) | "
             f"{100 * r['coverage']:.1f} % | {r['rs274']} |")
+
+
+def _vertical_um(r: dict) -> str:
+    """The Z-map's vertical gouge (um) of a row, or "-" in a run before it was kept."""
+    v = r.get("gouge_vertical_max_mm")
+    return "-" if v is None else f"{1000 * v:.2f}"
 
 
 def freecad_label(what: str, r: dict) -> str:
@@ -572,7 +585,7 @@ def table(results: list[dict]) -> str:
             "",
             "| program | compute s | feed m | of which vertical m | rapid m | time with "
             "acceleration s | largest / mean scallop mm | evenness | edge band scallop mm "
-            "| gouge um | coverage | rs274 |",
+            "| gouge um, along the normal (vertical) | coverage | rs274 |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         lines += [row(k, v) for k, v in figures["ours"].items()]

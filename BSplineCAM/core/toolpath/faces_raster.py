@@ -47,6 +47,7 @@ from .raster import (
     zigzag_by_line,
 )
 from .raster_partial import Piece, StepoverSamples, order_pieces, partial_offsets
+from .raster_walls import climbing, insert_runs, wall_pieces
 
 #: Rounds of midpoint refinement along a pass.
 REFINE_ROUNDS = 5
@@ -178,6 +179,51 @@ def _stepover_samples(faceset: FaceSet, tool: ToolParameters, along: FloatArray,
             np.array([ab.min(axis=0), ab.max(axis=0)]))
 
 
+def _sampled_lines(query: FaceQuery, pieces: list[Piece], first: int, step: float, xy_of,
+                   along: FloatArray, half: float, monitor: Monitor | None) -> tuple:
+    """The pieces' dense cutter locations: (line index (``first`` + the piece's), along mm,
+    tip z, face, u, v, on selected, tip gradient), sorted by line then along.  Sampled every
+    ``step`` mm and refined at midpoints that depart more than ``half`` mm from their chord
+    (module docstring)."""
+    counts = [max(2, math.ceil((p.a1 - p.a0) / step) + 1) for p in pieces]
+    line = first + np.repeat(np.arange(len(pieces)), counts)
+    a = np.concatenate([np.linspace(p.a0, p.a1, n) for p, n in zip(pieces, counts)])
+    z, face, u, v, sel = query.heights(xy_of(a, line))
+    # every sample's height gradient, from its contact: the midpoint model below and the
+    # chord checks after it
+    grad = query.slopes(xy_of(a, line), face, u, v)
+    if monitor is not None:
+        monitor(0.5)
+    fresh = np.ones(len(z), bool)  # an interval is tested once: when an end of it is new
+    for r in range(REFINE_ROUNDS):
+        ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
+        idx = np.flatnonzero(ok & (np.diff(a) > 1e-4) & (fresh[:-1] | fresh[1:]))
+        gentle, departure = _hermite_departure(a, z, _along(grad, along), sel, idx)
+        idx = idx[~(gentle & (departure <= MODEL_SHARE * half))]  # else modelled within tol
+        if len(idx) == 0:
+            break
+        am = 0.5 * (a[idx] + a[idx + 1])
+        lm = line[idx]
+        zm, fm, um, vm, sm = query.heights(xy_of(am, lm))
+        bad = np.isfinite(zm) & (np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > half)
+        # keep also where the contact changes between selected and not (sharper split)
+        bad |= (sel[idx] != sel[idx + 1]) & np.isfinite(zm)
+        if not bad.any():
+            break
+        gm = query.slopes(xy_of(am[bad], lm[bad]), fm[bad], um[bad], vm[bad])
+        # every sample keeps its contact (face, u, v), for the slopes below
+        kept = [(line, lm), (a, am), (z, zm), (sel, sm), (face, fm), (u, um), (v, vm)]
+        line, a, z, sel, face, u, v = (np.concatenate([old, new[bad]]) for old, new in kept)
+        grad = np.concatenate([grad, gm])
+        fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
+        order = np.lexsort((a, line))
+        line, a, z, sel, face, u, v, fresh, grad = (
+            x[order] for x in (line, a, z, sel, face, u, v, fresh, grad))
+        if monitor is not None:
+            monitor(0.5 + 0.05 * (r + 1))
+    return line, a, z, face, u, v, sel, grad
+
+
 def generate_faces_raster(faceset: FaceSet, tool_diameter: float, scallop: float,
                           tolerance: float, angle: float = 0.0,
                           progress: ProgressFn = None, partial: bool = True) -> Toolpath:
@@ -227,46 +273,27 @@ def raster_faces(faceset: FaceSet, tool: ToolParameters, angle: float = 0.0,
                                        0.5 * tool.flat_stepover)
         pieces = [Piece(b, a0, a1, k, 0) for k, b in enumerate(offsets)]
     # a line index per piece: pieces may share an across-offset, each sampled over its stretch
-    counts = [max(2, math.ceil((p.a1 - p.a0) / step) + 1) for p in pieces]
     bvals = np.array([p.b for p in pieces])
-    line = np.repeat(np.arange(len(pieces)), counts)
-    a = np.concatenate([np.linspace(p.a0, p.a1, n) for p, n in zip(pieces, counts)])
 
     def xy_of(a_, line_):
         return a_[:, None] * along + bvals[line_][:, None] * across
 
-    z, face, u, v, sel = query.heights(xy_of(a, line))
-    # every sample's height gradient, from its contact: the midpoint model below and the
-    # chord checks after it
-    grad = query.slopes(xy_of(a, line), face, u, v)
-    monitor(0.5)
     half = 0.5 * tool.tolerance
-    fresh = np.ones(len(z), bool)  # an interval is tested once: when an end of it is new
-    for r in range(REFINE_ROUNDS):
-        ok = np.isfinite(z[:-1]) & np.isfinite(z[1:]) & (line[:-1] == line[1:])
-        idx = np.flatnonzero(ok & (np.diff(a) > 1e-4) & (fresh[:-1] | fresh[1:]))
-        gentle, departure = _hermite_departure(a, z, _along(grad, along), sel, idx)
-        idx = idx[~(gentle & (departure <= MODEL_SHARE * half))]  # else modelled within tol
-        if len(idx) == 0:
-            break
-        am = 0.5 * (a[idx] + a[idx + 1])
-        lm = line[idx]
-        zm, fm, um, vm, sm = query.heights(xy_of(am, lm))
-        bad = np.isfinite(zm) & (np.abs(zm - 0.5 * (z[idx] + z[idx + 1])) > half)
-        # keep also where the contact changes between selected and not (sharper split)
-        bad |= (sel[idx] != sel[idx + 1]) & np.isfinite(zm)
-        if not bad.any():
-            break
-        gm = query.slopes(xy_of(am[bad], lm[bad]), fm[bad], um[bad], vm[bad])
-        # every sample keeps its contact (face, u, v), for the slopes below
-        kept = [(line, lm), (a, am), (z, zm), (sel, sm), (face, fm), (u, um), (v, vm)]
-        line, a, z, sel, face, u, v = (np.concatenate([old, new[bad]]) for old, new in kept)
-        grad = np.concatenate([grad, gm])
-        fresh = np.concatenate([np.zeros(len(fresh), bool), np.ones(int(bad.sum()), bool)])
+    samples = _sampled_lines(query, pieces, 0, step, xy_of, along, half, monitor)
+    # a wall between two lines: a piece halfway to the one it holds up (:mod:`.raster_walls`)
+    line, a, z, face, u, v, sel, grad = samples
+    extra, refs, feet = wall_pieces(pieces, line, a, z, np.isfinite(z) & sel, grad @ across, R)
+    if extra:
+        bvals = np.concatenate([bvals, [p.b for p in extra]])
+        more = _sampled_lines(query, extra, len(pieces), step, xy_of, along, half, None)
+        line, a, z, face, u, v, sel, grad = (np.concatenate([x, y]) for x, y in
+                                             zip(samples, more))
         order = np.lexsort((a, line))
-        line, a, z, sel, face, u, v, fresh, grad = (
-            x[order] for x in (line, a, z, sel, face, u, v, fresh, grad))
-        monitor(0.5 + 0.05 * (r + 1))
+        line, a, z, face, u, v, sel, grad = (
+            x[order] for x in (line, a, z, face, u, v, sel, grad))
+        # a wall piece is cut at the wall's foot, not up the wall
+        sel = sel & ~climbing(line, a, z, grad @ across, pieces, extra, refs, feet, R)
+        pieces = pieces + extra
     cut = np.isfinite(z) & sel
     brk = np.flatnonzero((line[1:] != line[:-1]) | (cut[1:] != cut[:-1]))
     bounds = np.concatenate([[0], brk + 1, [len(z)]])
@@ -278,7 +305,13 @@ def raster_faces(faceset: FaceSet, tool: ToolParameters, angle: float = 0.0,
         xy = xy_of(a[idx], line[idx])
         passes, lift_stats = lifted_line_runs(query.heights_and_slopes, runs, line, a[idx], xy,
                                               z[idx], grad[idx], half, monitor)
+    first = len(pieces) - len(extra)
+    walls = [(pieces[refs[k - first]].b, run) for k, run in passes if k >= first]
+    passes = [(k, run) for k, run in passes if k < first]
     ordered = order_pieces(passes, pieces, along) if partial else zigzag_by_line(passes)
+    if walls:
+        # each wall run beside the pass of the line it was made for
+        ordered = insert_runs(ordered, walls, along, across)
     monitor(0.95)
     steps = np.diff(np.unique(bvals))
     parameters = {"strategy": "raster", "tool_diameter": tool.diameter, "scallop": tool.scallop,
