@@ -77,7 +77,9 @@ class StatusWidgets:
 
 
 class InputFilter(QtCore.QObject):
-    """Esc and clicks on Cancel cancel; other input is dropped while the computation runs."""
+    """Esc and clicks on Cancel cancel; other input is dropped while the computation runs;
+    another progress bar the status bar shows meanwhile (FreeCAD's recompute bar, shown late
+    by its own timer) is hidden as it shows, before it is painted."""
 
     def __init__(self, owner: ProgressBar):
         super().__init__()
@@ -85,6 +87,11 @@ class InputFilter(QtCore.QObject):
 
     def eventFilter(self, watched, event) -> bool:  # noqa: N802 - Qt API
         kind = event.type()
+        if kind == QtCore.QEvent.Show:
+            if (self.owner.open and isinstance(watched, QtGui.QProgressBar)
+                    and watched is not StatusWidgets.bar and _in_status_bar(watched)):
+                watched.hide()
+            return False
         if kind not in BLOCKED:
             return False
         owner = self.owner
@@ -227,6 +234,11 @@ class ProgressBar:
     def __del__(self):
         with contextlib.suppress(RuntimeError, AttributeError):  # Qt already gone at exit
             self.close()
+
+
+def _in_status_bar(widget) -> bool:
+    """Whether ``widget`` lies in the main window's status bar."""
+    return FreeCADGui.getMainWindow().statusBar().isAncestorOf(widget)
 
 
 def other_bars() -> list:
