@@ -48,6 +48,14 @@ def beside_edge(d: np.ndarray) -> np.ndarray:
     return np.where(d <= R, TOP - R + np.sqrt(np.clip(R * R - d * d, 0.0, None)), np.nan)
 
 
+def jump_edges(rng, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` grid edges (one CELL long, along x) across the plate's edge whose far end lies
+    beyond the ball's reach: the height jumps on each."""
+    end_d = R + rng.uniform(1e-4, 0.74, n)
+    y = rng.uniform(5.0, 15.0, n)
+    return (np.column_stack([EDGE + end_d - CELL, y]), np.column_stack([EDGE + end_d, y]))
+
+
 def tube() -> FaceSet:
     """A vertical circular tube (radius RHO, from z = 0 to HEIGHT, axis on z), open at both
     ends, nothing around it: an exact rational quadratic circle ("The NURBS Book" sec. 7.5,
@@ -157,10 +165,7 @@ def test_jump_down_to_a_floor_far_below_is_bisected():
     fs = FaceSet([Face(ns, rectangle(ns)), Face(floor, rectangle(floor))])
     rng = np.random.default_rng(17)
     n = 60
-    end_d = R + rng.uniform(1e-4, 0.74, n)
-    y = rng.uniform(5.0, 15.0, n)
-    p0 = np.column_stack([EDGE + end_d - CELL, y])
-    p1 = np.column_stack([EDGE + end_d, y])
+    p0, p1 = jump_edges(rng, n)
     level = np.full(n, TOP - R - 0.5)
     drop = Counted(fs)
     z0, z1 = drop.fs.drop_ball(p0, R)[0], drop.fs.drop_ball(p1, R)[0]
@@ -393,10 +398,7 @@ def test_jump_levels_on_one_edge_share_their_queries():
     about no more points than one level alone (the same dyadic points of the edge)."""
     rng = np.random.default_rng(9)
     n = 40
-    end_d = R + rng.uniform(1e-4, 0.74, n)
-    y = rng.uniform(5.0, 15.0, n)
-    p0 = np.column_stack([EDGE + end_d - CELL, y])
-    p1 = np.column_stack([EDGE + end_d, y])
+    p0, p1 = jump_edges(rng, n)
     z0, z1 = beside_edge(p0[:, 0] - EDGE), beside_edge(p1[:, 0] - EDGE)
     counts = []
     for levels in ([TOP - R - 0.5], [TOP - R - 0.5, TOP - R - 1.3, TOP - R - 2.9]):
