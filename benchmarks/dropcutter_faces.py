@@ -17,7 +17,12 @@ it never exceeds the true height: a certified height lies at most CERTIFY below 
 it only by what the sampling missed.
 
     .venv/bin/python benchmarks/dropcutter_faces.py [--part examples/part.step] [--every 3]
-        [--baseline OLD_faceset.py] [--profile]
+        [--baseline OLD_faceset.py] [--profile] [--batch pass] [--hints]
+
+``--hints`` times the midpoints of each pass's consecutive samples (the chord checks'
+queries) pass by pass, without hints and with the contacts of the samples answered before
+as hints (:class:`.faceset_hints.ContactMemo`, as the waterline offers them), in the same
+process.
 
 ``--baseline`` loads another copy of faceset.py (e.g. ``git show HEAD:BSplineCAM/core/
 toolpath/faceset.py > /tmp/old.py``) and times it on the same queries in the same process, so
@@ -164,6 +169,38 @@ def time_module(module, faces, passes, radius: float, batch: str, profile: bool)
             "face": face, "gap": gap, "stats": dict(fs.stats)}
 
 
+def time_hints(faces, passes, radius: float) -> None:
+    """Midpoints of each pass's consecutive samples, pass by pass, without and with hints
+    (the contacts of the passes' samples, :class:`ContactMemo`)."""
+    from BSplineCAM.core.toolpath.faceset_hints import ContactMemo
+
+    mids = [0.5 * (p[1:] + p[:-1]) for p in passes if len(p) > 1]
+    rows = {}
+    for hinted in (False, True):
+        fs = current.FaceSet(faces)
+        memo = ContactMemo.for_radius(radius)
+        seconds, cpu, tips = 0.0, 0.0, []
+        for p, mid in zip([p for p in passes if len(p) > 1], mids):
+            base = fs.centre_heights(p, radius)  # the samples' answers: not timed
+            memo.add(p, base.face, base.u, base.v)
+            started, c0 = time.perf_counter(), time.process_time()
+            hint = memo.hints(mid) if hinted else None
+            out = fs.centre_heights(mid, radius, hint=hint)
+            seconds += time.perf_counter() - started
+            cpu += time.process_time() - c0
+            tips.append(out.centre - radius)
+        rows[hinted] = (seconds, cpu, np.concatenate(tips))
+        n = sum(len(m) for m in mids)
+        print(f"midpoints {'with hints   ' if hinted else 'without hints'} {n} queries in "
+              f"{seconds:.2f} s ({cpu:.2f} s CPU): {n / seconds:.0f} queries/s")
+    a, b = rows[False][2], rows[True][2]
+    ok = np.isfinite(a)
+    print(f"hints: speed-up {rows[False][0] / rows[True][0]:.2f}x; heights: largest difference "
+          f"{np.abs(a[ok] - b[ok]).max(initial=0.0):.3g} mm, "
+          f"{int((a[ok] != b[ok]).sum())} of {int(ok.sum())} not the same bits, same misses "
+          f"{np.array_equal(ok, np.isfinite(b))}")
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--part", default=str(ROOT / "examples" / "part.step"))
@@ -178,6 +215,8 @@ def main(argv: list[str] | None = None) -> None:
                         help="heights compared with the brute-force reference")
     parser.add_argument("--baseline", help="another faceset.py to time on the same queries")
     parser.add_argument("--profile", action="store_true", help="print cProfile's top functions")
+    parser.add_argument("--hints", action="store_true",
+                        help="time the passes' midpoints without and with neighbours' hints")
     args = parser.parse_args(argv)
 
     from BSplineCAM.ocp import faces as ocp
@@ -202,6 +241,8 @@ def main(argv: list[str] | None = None) -> None:
               f"{r['gap'].max(initial=0.0):.3g} mm, {int((r['gap'] > current.CERTIFY).sum())} "
               "queries with a gap over CERTIFY")
     cur = results["current"]
+    if args.hints:
+        time_hints(faces, passes, R)
     if "baseline" in results:
         base = results["baseline"]
         both = np.isfinite(base["tip"]) & np.isfinite(cur["tip"])

@@ -210,7 +210,7 @@ class FaceSet:
 
     # -- drop-cutter ---------------------------------------------------------------------------
     def drop_ball(self, xy, radius: float, selected_only: bool = False,
-                  certify: float = CERTIFY):
+                  certify: float = CERTIFY, hint: tuple | None = None):
         """Tip heights (m,) (mm; NaN where the ball meets no face), contact face index (-1
         none), contact (u, v) and whether the contact lies on a selected face.
 
@@ -218,6 +218,9 @@ class FaceSet:
         the true maximum of f over all faces (only the selected ones if ``selected_only``),
         by the bound of the module docstring.  A looser ``certify`` stops the branch and
         bound sooner (callers that add it back get a height never below the true one).
+        ``hint`` (face, u, v), (m,) each, offers a contact near each query (a neighbour's
+        answer; face -1 none) that starts its branch and bound (:mod:`.faceset_hints`):
+        the height keeps its certificate whatever the hint.
         """
         R = float(radius)
         if not (math.isfinite(R) and R > 0):
@@ -226,7 +229,7 @@ class FaceSet:
         if not np.all(np.isfinite(q)):
             bad = int(np.flatnonzero(~np.isfinite(q).all(axis=1))[0])
             raise ParameterError(f"query point {bad} is not finite (mm): {q[bad].tolist()}")
-        res = self.centre_heights(q, R, selected_only, certify)
+        res = self.centre_heights(q, R, selected_only, certify, hint)
         tip = res.centre - R
         tip[~np.isfinite(tip)] = np.nan
         on_sel = np.zeros(len(q), bool)
@@ -236,7 +239,7 @@ class FaceSet:
         return tip, res.face, res.u, res.v, on_sel
 
     def centre_heights(self, q: FloatArray, R: float, selected_only: bool = False,
-                       certify: float = CERTIFY) -> DropResult:
+                       certify: float = CERTIFY, hint: tuple | None = None) -> DropResult:
         """Certified ball-centre heights (see :meth:`drop_ball`), chunk by chunk.
 
         A query's branch and bound meets only its own pairs, so the chunks are independent:
@@ -248,6 +251,11 @@ class FaceSet:
         if m == 0:
             e = np.zeros(0)
             return DropResult(e, np.zeros(0, int), e, e, e)
+        if hint is not None:
+            hint = tuple(np.asarray(a).reshape(-1) for a in hint)
+            if len(hint) != 3 or any(len(a) != m for a in hint):
+                raise ParameterError(f"hint must be (face, u, v) of {m} entries each, got "
+                                     f"{[len(a) for a in hint]}")
         out = DropResult(np.full(m, -np.inf), np.full(m, -1), np.zeros(m), np.zeros(m),
                          np.zeros(m))
         data = [d for d in self.data if d.selected or not selected_only]
@@ -260,7 +268,8 @@ class FaceSet:
         def one(k: int) -> dict:
             sl = slice(starts[k], min(m, starts[k] + size))
             stats = dict.fromkeys(self.stats, 0)
-            r = self._chunk(q[sl], R, data, not selected_only, certify, stats)
+            h = None if hint is None else tuple(a[sl] for a in hint)
+            r = self._chunk(q[sl], R, data, not selected_only, certify, stats, h)
             out.centre[sl], out.face[sl], out.u[sl], out.v[sl], out.gap[sl] = r
             return stats
 
@@ -278,12 +287,13 @@ class FaceSet:
         return out
 
     def _chunk(self, q: FloatArray, R: float, data: list, walls: bool = True,
-               certify: float = CERTIFY, stats: dict | None = None) -> tuple:
+               certify: float = CERTIFY, stats: dict | None = None,
+               hint: tuple | None = None) -> tuple:
         """Certified heights of one chunk of queries (:func:`.faceset_branch.drop_chunk`),
         counted into ``stats`` (default: the set's), with this module's MAX_CROWDED read at
         each call."""
         return drop_chunk(self.data, self.walls, self.stats if stats is None else stats, q, R,
-                          data, walls, certify, MAX_CROWDED)
+                          data, walls, certify, MAX_CROWDED, hint)
 
     #: The local certificate of a face around contacts (:func:`.faceset_regions.face_regions`):
     #: ``(d, qq, R, u, v, limit) -> (found, box, excess)``.

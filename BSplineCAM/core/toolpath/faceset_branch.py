@@ -18,6 +18,7 @@ from ..kernels import faceset_round_kernels as rk
 from ..typing import FloatArray
 from .faceset_bounds import sub_patch_bounds
 from .faceset_contacts import merge, polish
+from .faceset_hints import seed_hints
 from .faceset_params import (
     CERTIFY,
     MAX_CROWDED,
@@ -35,11 +36,13 @@ from .faceset_walls import _Walls
 
 def drop_chunk(all_data: list, walls: _Walls, stats: dict, q: FloatArray, R: float,
                data: list, use_walls: bool = True, certify: float = CERTIFY,
-               max_crowded: int = MAX_CROWDED) -> tuple:
+               max_crowded: int = MAX_CROWDED, hint: tuple | None = None) -> tuple:
     """Certified ball-centre heights of queries ``q`` (m, 2) over faces ``data`` (and the
     ``walls``' borders if ``use_walls``): (centre, face, u, v, gap).  ``all_data`` are all
     of the set's non-wall faces (the final polish), ``stats`` its counters (updated), and
-    ``max_crowded`` the levels a query crowded with open sub-patches is kept."""
+    ``max_crowded`` the levels a query crowded with open sub-patches is kept.  ``hint``
+    (face, u, v) (m,) each: a contact near each query's (a neighbour's; face -1 none) that
+    starts its face's best lower bound (:func:`.faceset_hints.seed_hints`)."""
     m = len(q)
     best = np.full(m, -np.inf)
     face = np.full(m, -1)
@@ -61,6 +64,9 @@ def drop_chunk(all_data: list, walls: _Walls, stats: dict, q: FloatArray, R: flo
     crowded_levels = np.zeros(m, int)
     fused = kernels.use_numba()
     touched = np.zeros(m, bool)  # scratch of the compiled _record_contacts
+    if hint is not None:
+        seed_hints(data, q, R, hint, fb, fu, fv)
+        merge(data, fb, fu, fv, best, face, bu, bv)
     level = 0
     while groups:
         level += 1
