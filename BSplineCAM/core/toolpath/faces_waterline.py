@@ -68,6 +68,7 @@ from .common import (
 )
 from .faces_raster import STAY_DOWN_LINK, FaceQuery
 from .faceset import FaceSet
+from .faceset_hints import ContactMemo
 from .links import stay_down_links
 from .order import order_contours, orient_climb
 from .waterline import (
@@ -103,15 +104,17 @@ class _MemoQuery(FaceQuery):
     each edge's last iterate (or a grid corner), every :func:`.waterline.push_out` iteration
     re-samples the chords its pushes left where they were, and the final contact check
     repeats push_out's last vertices.  :meth:`FaceSet.drop_ball` answers each point on its
-    own (the same bits whatever else shares its batch), so the remembered answer is the one a
-    new query would give; only points not seen before (by their exact coordinates) are
-    dropped, in one call."""
+    own (the same bits whatever else shares its batch), so the remembered answer is certified
+    as a new query's would be; only points not seen before (by their exact coordinates) are
+    dropped, in one call, each with the contact of a point answered near it as its hint
+    (:class:`.faceset_hints.ContactMemo`)."""
 
     def __init__(self, faceset: FaceSet, radius: float):
         super().__init__(faceset, radius)
         self._row: dict[bytes, int] = {}  # exact (x, y) bytes -> row of the arrays below
         self._tip, self._u, self._v = np.zeros(0), np.zeros(0), np.zeros(0)
         self._face, self._sel = np.zeros(0, int), np.zeros(0, bool)
+        self._near = ContactMemo.for_radius(radius)
 
     def heights(self, xy: FloatArray):
         q = np.ascontiguousarray(np.asarray(xy, dtype=float).reshape(-1, 2))
@@ -123,7 +126,9 @@ class _MemoQuery(FaceQuery):
                 new[k] = i
         if new:
             at = np.fromiter(new.values(), dtype=np.intp, count=len(new))
-            tip, face, u, v, sel = self.faceset.drop_ball(q[at], self.radius)
+            tip, face, u, v, sel = self.faceset.drop_ball(q[at], self.radius,
+                                                          hint=self._near.hints(q[at]))
+            self._near.add(q[at], face, u, v)
             base = len(self._tip)
             row.update(zip(new, range(base, base + len(at))))
             self._tip = np.concatenate([self._tip, tip])
