@@ -25,7 +25,7 @@ from typing import Any
 from ..app import runtime
 from ..core import BSplineCAMError, kernels
 from ..core.errors import ParameterError
-from ..core.toolpath.retracts import MARGIN_RANGE
+from ..core.toolpath.retracts import ALLOWANCE_RANGE, MARGIN_RANGE
 from ..core.validation import check_range
 
 EXIT_INPUT_ERROR = 2
@@ -109,10 +109,25 @@ def add_retract_options(p: argparse.ArgumentParser) -> None:
                         "(mm, default 1)")
 
 
+def add_start_stock_options(p: argparse.ArgumentParser) -> None:
+    """``--start-stock`` and ``--stock-allowance`` of a finishing program alone."""
+    p.add_argument("--start-stock", default="job", choices=["job", "model"],
+                   help="the stock a minimum retract clears: job (the raw block, default) or "
+                        "model (the model raised by --stock-allowance: a part already roughed "
+                        "or cast to within it)")
+    p.add_argument("--stock-allowance", type=float, default=1.0,
+                   help="with --start-stock model: how far above the model the stock "
+                        "reaches, measured vertically (mm, default 1)")
+
+
 def check_retract_options(args: argparse.Namespace) -> None:
-    """``--retract-margin`` within the core's range (mm)."""
+    """``--retract-margin`` (and ``--stock-allowance`` where the command has it) within the
+    core's ranges (mm)."""
     args.retract_margin = check_range(args.retract_margin, "--retract-margin", "mm",
                                       *MARGIN_RANGE)
+    if hasattr(args, "stock_allowance"):
+        args.stock_allowance = check_range(args.stock_allowance, "--stock-allowance", "mm",
+                                           *ALLOWANCE_RANGE)
 
 
 def check_output(out_dir: str | Path, option: str = "--out") -> None:
