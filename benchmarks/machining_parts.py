@@ -712,7 +712,7 @@ def main(argv: list[str] | None = None) -> None:
     bench = load_toolpath_benchmark()
     from BSplineCAM.app import compat
 
-    if not compat.opencamlib_available():
+    if args.freecad == "on" and not compat.opencamlib_available():
         raise SystemExit(f"this benchmark: {compat.opencamlib_missing_message()}")
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bsplinecam-parts-"))
     out.mkdir(parents=True, exist_ok=True)
