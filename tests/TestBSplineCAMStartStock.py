@@ -111,6 +111,11 @@ def test_entries_over_a_stock_map_land_above_its_columns(dome):
     # an entry is never raised above the safe height
     low = to_moves(tp, safe_height=3.0, hops=hops)
     assert low[1].z == pytest.approx(3.0)
+    # over the whole raw block the descent stops at the safe height, as CAM's ops do
+    block = StockMap(0.0, 0.0, 60.0, np.array([[20.0]]), whole_block=True)
+    hops = faces_hops(tp, dome, tp.clearance_height, MARGIN, block)
+    assert hops.entry is None
+    assert to_moves(tp, safe_height=35.0, hops=hops)[1].z == pytest.approx(35.0)
 
 
 def flat_faces():

@@ -62,7 +62,7 @@ def _block_map(stock) -> retracts.StockMap:
     if isinstance(stock, CylinderStock):
         size = max(size, 2.0 * stock.radius)
     return retracts.StockMap(0.5 * (x0 + x1) - 0.5 * size, 0.5 * (y0 + y1) - 0.5 * size,
-                             size, np.array([[z1]], dtype=float))
+                             size, np.array([[z1]], dtype=float), whole_block=True)
 
 
 def job_stock_map(job, op, radius: float, progress=None):

@@ -63,12 +63,14 @@ ALLOWANCE_RANGE = (0.0, 100.0)
 @dataclass(frozen=True)
 class StockMap:
     """The stock's top as a Z-map: cells of ``cell`` mm from (x0, y0), heights (ny, nx) mm at
-    the cell centres (rows along y), NaN or -inf where no stock is left."""
+    the cell centres (rows along y), NaN or -inf where no stock is left.  ``whole_block``:
+    the raw block, uncut (entries then stop at the safe height, which lies above it)."""
 
     x0: float
     y0: float
     cell: float
     height: FloatArray
+    whole_block: bool = False
 
     def top_near(self, a: FloatArray, b: FloatArray, reach: float) -> FloatArray:
         """Per row, the highest stock column whose centre lies within ``reach`` mm of the
@@ -180,9 +182,10 @@ def hop_heights(passes: list, links: list, drop: DropFn, radius: float, clearanc
 def _entries(passes: list, radius: float, margin: float,
              stock: StockMap | RaisedModel | None) -> FloatArray | None:
     """Per pass, ``margin`` above its start or above the stock around it (a hop's approach
-    height, :func:`hop_heights`); None without a stock.  Straight above a pass's start the
-    ball clears the model: the start is the drop-cutter's height there."""
-    if stock is None or not passes:
+    height, :func:`hop_heights`); None without a stock or on the whole raw block.  Straight
+    above a pass's start the ball clears the model: the start is the drop-cutter's height
+    there."""
+    if stock is None or not passes or getattr(stock, "whole_block", False):
         return None
     start = np.array([p[0] for p in passes], float)
     if isinstance(stock, RaisedModel):
