@@ -7,15 +7,18 @@ model``) and flags a rapid that cuts it."""
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
 
 import numpy as np
 import pytest
 from bsplinecam_helpers import plane, rectangle, revolved_face
+from conftest import ROOT, run_main
 
 from BSplineCAM.core.errors import ParameterError
 from BSplineCAM.core.geometry.faces import Face
-from BSplineCAM.core.program.gcode import read_gcode
+from BSplineCAM.core.program.gcode import MoveKind, read_gcode
 from BSplineCAM.core.simulation.simulate import Grid, Tool, linearise, simulate
 from BSplineCAM.core.simulation.verify import StockTop, verify_faces, verify_job
 from BSplineCAM.core.toolpath import to_moves
@@ -172,3 +175,41 @@ def test_a_whole_job_refuses_the_model_stock():
                    stock_top="model")
     with pytest.raises(ParameterError, match="'design', 'program' or 'model'"):
         StockTop.parse("raised")
+
+
+def test_cli_refuses_an_allowance_out_of_range_before_any_work(capsys, tmp_path):
+    out = tmp_path / "out"
+    status, _, err = run_main(capsys, "toolpath", str(ROOT / "examples" / "part.step"),
+                              "--tool-diameter", "6", "--scallop", "0.05", "--start-stock",
+                              "model", "--stock-allowance", "150", "--out", str(out))
+    assert status == 2
+    assert "--stock-allowance must lie in [0, 100] mm, got 150 mm" in err
+    assert "Traceback" not in err and not out.exists()
+
+
+@pytest.mark.venv_only
+def test_cli_part_from_the_model_raised_verified_from_it(tmp_path):
+    """``toolpath --start-stock model`` on examples/part.step, verified from the same stock:
+    no rapid cuts it, and no feed down to a pass is longer than the allowance and margin."""
+    part = ROOT / "examples" / "part.step"
+    out = tmp_path / "tp"
+    run = [str(ROOT / "bin" / "bsplinecam"), "toolpath", str(part), "--tool-diameter", "6",
+           "--scallop", "0.2", "--start-stock", "model", "--stock-allowance", "0.5",
+           "--out", str(out)]
+    proc = subprocess.run(run, capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    report = json.loads((out / "toolpath.json").read_text())
+    assert report["parameters"]["start_stock"] == "model"
+    text = (out / "part.ngc").read_text()
+    program = read_gcode(text)
+    d = program.end - program.start
+    down = (program.kind != MoveKind.RAPID) & (np.hypot(d[:, 0], d[:, 1]) < 1e-9) & (d[:, 2] < 0)
+    assert down.sum() > 1 and -d[down, 2].min() <= 0.5 + 1.0 + 1e-3
+    proc = subprocess.run(
+        [str(ROOT / "bin" / "bsplinecam"), "verify", str(part), str(out / "part.ngc"),
+         "--tool-diameter", "6", "--stock-top", "model", "--stock-margin", "0.5", "--cell",
+         "0.25", "--out", str(tmp_path / "v")], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    metrics = json.loads((tmp_path / "v" / "verify.json").read_text())
+    assert metrics["stock_top"] == "model" and metrics["rapid_collisions"] == []
+    assert metrics["gouge_normal_max_mm"] <= 1e-3

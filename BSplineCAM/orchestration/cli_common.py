@@ -98,26 +98,28 @@ def check_int(value: int, option: str, low: int, high: int) -> int:
     return value
 
 
-def add_retract_options(p: argparse.ArgumentParser) -> None:
-    """``--retract`` and ``--retract-margin`` of the finishing commands."""
-    p.add_argument("--retract", default="minimum", choices=["minimum", "full"],
-                   help="between finishing passes no stay-down feed joins: climb only as high "
-                        "as the model and the stock left need (minimum, default) or to the "
-                        "clearance height (full)")
-    p.add_argument("--retract-margin", type=float, default=1.0,
-                   help="how far a minimum retract's rapids clear the model and the stock "
-                        "(mm, default 1)")
-
-
-def add_start_stock_options(p: argparse.ArgumentParser) -> None:
-    """``--start-stock`` and ``--stock-allowance`` of a finishing program alone."""
-    p.add_argument("--start-stock", default="job", choices=["job", "model"],
-                   help="the stock a minimum retract clears: job (the raw block, default) or "
-                        "model (the model raised by --stock-allowance: a part already roughed "
-                        "or cast to within it)")
-    p.add_argument("--stock-allowance", type=float, default=1.0,
-                   help="with --start-stock model: how far above the model the stock "
-                        "reaches, measured vertically (mm, default 1)")
+def add_retract_options(p: argparse.ArgumentParser, start_stock: bool = False) -> None:
+    """``--retract`` and ``--retract-margin`` of the finishing commands, and with
+    ``start_stock`` (a finishing program alone) ``--start-stock`` and ``--stock-allowance``."""
+    options = [
+        ("--retract", dict(default="minimum", choices=["minimum", "full"], help=(
+            "between finishing passes no stay-down feed joins: climb only as high as the "
+            "model and the stock left need (minimum, default) or to the clearance height "
+            "(full)"))),
+        ("--retract-margin", dict(type=float, default=1.0, help=(
+            "how far a minimum retract's rapids clear the model and the stock (mm, "
+            "default 1)")))]
+    if start_stock:
+        options += [
+            ("--start-stock", dict(default="job", choices=["job", "model"], help=(
+                "the stock a minimum retract clears: job (the raw block, default) or model "
+                "(the model raised by --stock-allowance: a part already roughed or cast to "
+                "within it)"))),
+            ("--stock-allowance", dict(type=float, default=1.0, help=(
+                "with --start-stock model: how far above the model the stock reaches, "
+                "measured vertically (mm, default 1)")))]
+    for name, kwargs in options:
+        p.add_argument(name, **kwargs)
 
 
 def check_retract_options(args: argparse.Namespace) -> None:

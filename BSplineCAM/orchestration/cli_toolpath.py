@@ -29,7 +29,6 @@ from .cli_common import (
     EXIT_CHECK_FAILED,
     _safe_name,
     add_retract_options,
-    add_start_stock_options,
     check_output,
     check_retract_options,
     emit,
@@ -64,8 +63,7 @@ def register(sub) -> None:
     p.add_argument("--iso-direction", default="u", choices=[d.value for d in IsoDirection])
     p.add_argument("--arcs", default="on", choices=["on", "off"],
                    help="fit passes with one-sided G2/G3 arcs in their plane (default on)")
-    add_retract_options(p)
-    add_start_stock_options(p)
+    add_retract_options(p, start_stock=True)
     p.add_argument("--post", default="linuxcnc", help="FreeCAD post-processor (linuxcnc, grbl, fanuc, mach3_mach4, ...)")
     p.add_argument("--feed", type=float, default=1200.0, help="cutting feed (mm/min)")
     p.add_argument("--plunge-feed", type=float, default=400.0, help="vertical feed (mm/min)")
