@@ -40,6 +40,12 @@ FreeCAD's retuned op, at least ``--raster-saving`` (30 %) faster than issue 44's
 first of ``--baseline-angles`` (0, the command line's default), no gouge over
 ``--gouge-limit``, and an evenness of at least ``--evenness`` on the flat-and-fillet parts.
 
+Every program is simulated from the raw block (the design's top plus 1 mm), or, with
+``--start-stock-allowance A``, from the model raised by A mm (a part roughed to within A
+before the finish): our op then declares that stock (``StartStock`` model), so its hops and
+entries clear it rather than the block's top, and the simulation lists any rapid of any program
+that cuts it.  ``--freecad off`` leaves FreeCAD's op out (our rows and issue 44's raster).
+
 Run inside freecadcmd 0.20 with OpenCAMLib (as benchmarks/toolpath.py), one part per process
 when parts are slow, then print the table of all the JSON files with ``--tables``:
 
@@ -165,7 +171,11 @@ def measure_program(faces, text: str, path: Path, args: argparse.Namespace) -> d
     out["vertical_feed_mm"] = float(program.lengths()[vertical].sum())
     out["moves"] = len(program)
     started = time.perf_counter()
-    metrics = verify_faces(faces, program, Tool(args.diameter), cell=args.cell).metrics
+    if args.start_stock_allowance is None:
+        stock = {}
+    else:
+        stock = {"stock_top": "model", "stock_margin": args.start_stock_allowance}
+    metrics = verify_faces(faces, program, Tool(args.diameter), cell=args.cell, **stock).metrics
     out["verify_seconds"] = time.perf_counter() - started
     for key in ("gouge_cells", "scallop_max_mm", "scallop_p99_mm",
                 "scallop_mean_mm", "scallop_evenness", "scallop_mean_over_max", "coverage",
@@ -197,6 +207,8 @@ def run_part(name: str, bench, args: argparse.Namespace, out: Path) -> dict:
     try:
         faces, job, ours = bench.part_job(ns, params, doc)
         figures["faces"] = list(ours.Base[0][1])
+        if args.start_stock_allowance is not None:
+            ours.StartStock, ours.StockAllowance = "model", args.start_stock_allowance
         for strategy in args.strategies:
             ours.Strategy = strategy
             print(f"{name}: {strategy} ...", flush=True)
@@ -222,6 +234,8 @@ def run_part(name: str, bench, args: argparse.Namespace, out: Path) -> dict:
             figures["baseline"][label] = baseline_raster(bench, job, ours, doc, faces, args, out,
                                                          angle)
             print(f"{name}: {label}: {summary(figures['baseline'][label])}", flush=True)
+        if args.freecad == "off":
+            return figures
         # Our op leaves the job: posting FreeCAD's op alone toggles the others' Active, which
         # would recompute ours again with each of FreeCAD's timed recomputes.
         doc.removeObject(ours.Name)
@@ -519,6 +533,13 @@ def targets(figures: dict, settings: dict) -> list[str]:
         r = raster["machining_time_with_acceleration_s"]
         lines.append(f"against today's raster (partial passes, minimum retracts, {r:.0f} s): "
                      f"{change(1.0 - t / r)}")
+    hits = b.get("rapid_collisions")
+    if hits is not None:
+        allowance = settings.get("start_stock_allowance_mm")
+        stock = ("the raw block" if allowance is None
+                 else f"the model raised by {allowance:g} mm")
+        lines.append(f"no rapid into the stock ({stock}): "
+                     f"{'met' if hits == 0 else 'NOT met'}, {hits} rapid(s) cut it")
     gouge = b["gouge_max_mm"]
     verdict = "met" if gouge <= settings["gouge_limit_mm"] else "NOT met"
     lines.append(f"no gouge (<= {1000 * settings['gouge_limit_mm']:g} um): {verdict}, "
@@ -651,6 +672,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--baseline-angles", default="0,90",
                         help="angles (deg) of issue 44's raster (whole passes, full "
                         "retracts); the first one is the raster-saving target's")
+    parser.add_argument("--start-stock-allowance", type=float, default=None,
+                        help="the part comes roughed to within this of the model (mm): our "
+                        "op's StartStock model with this StockAllowance, and every program "
+                        "simulated from the model raised by it (verify's stock top 'model'); "
+                        "default: the raw block")
+    parser.add_argument("--freecad", default="on", choices=["on", "off"],
+                        help="off: our strategies and issue 44's raster only, no FreeCAD op")
     parser.add_argument("--source", default=None,
                         help="the source's version for the figures (default: git describe)")
     parser.add_argument("--gouge-limit", type=float, default=0.001,
@@ -684,7 +712,7 @@ def main(argv: list[str] | None = None) -> None:
     bench = load_toolpath_benchmark()
     from BSplineCAM.app import compat
 
-    if not compat.opencamlib_available():
+    if args.freecad == "on" and not compat.opencamlib_available():
         raise SystemExit(f"this benchmark: {compat.opencamlib_missing_message()}")
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bsplinecam-parts-"))
     out.mkdir(parents=True, exist_ok=True)
@@ -692,6 +720,7 @@ def main(argv: list[str] | None = None) -> None:
                 "tolerance_mm": args.tolerance, "cell_mm": args.cell,
                 "gouge_limit_mm": args.gouge_limit, "raster_saving": args.raster_saving,
                 "evenness": args.evenness,
+                "start_stock_allowance_mm": args.start_stock_allowance,
                 "freecad": ".".join(map(str, compat.freecad_version())),
                 "source": args.source or source_version(),
                 "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}

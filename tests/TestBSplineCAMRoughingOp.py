@@ -382,6 +382,43 @@ class TestRoughingBadInput(RoughingFixture):
             self.finish.RetractMargin = 1.0
             self.doc.recompute()
 
+    def test_start_stock_model_enters_and_hops_over_the_model_raised(self):
+        """StartStock model (a part roughed elsewhere to within StockAllowance): the finish
+        ignores the roughing's stock; every feed down to a pass, the first one included, is
+        at most StockAllowance + RetractMargin long, and every rapid descent ends at least
+        that far above the pass it enters.  StockAllowance over 100 mm is the op's error."""
+        self.assertEqual(self.finish.StartStock, "job")
+        allowance, margin = 0.5, float(self.finish.RetractMargin.Value)
+        self.finish.StartStock = "model"
+        self.finish.StockAllowance = allowance
+        try:
+            self.doc.recompute()
+            report = json.loads(self.finish.Report)
+            self.assertNotIn("error", report)
+            self.assertGreater(report["retract_hops"], 0)
+            z = x = y = None
+            descents = []
+            for c in self.finish.Path.Commands:
+                p = c.Parameters
+                nx, ny, nz = p.get("X", x), p.get("Y", y), p.get("Z", z)
+                if c.Name in ("G1", "G01") and z is not None and nx == x and ny == y \
+                        and nz < z:
+                    descents.append(z - nz)
+                x, y, z = nx, ny, nz
+            self.assertGreater(len(descents), report["retract_hops"])
+            self.assertLessEqual(max(descents), allowance + margin + 1e-6)
+            self.assertGreater(max(descents), allowance + margin - 1e-6)
+            self.finish.StockAllowance = 200.0
+            self.doc.recompute()
+            error = json.loads(self.finish.Report)["error"]
+            self.assertIn("StockAllowance", error)
+            self.assertIn("mm", error)
+        finally:
+            self.finish.StartStock = "job"
+            self.finish.StockAllowance = 1.0
+            self.doc.recompute()
+            self.programs.clear()
+
     def test_ramp_angle_out_of_range(self):
         for bad in (0.0, 45.0):
             self.assert_refused("RampAngle", bad, 3.0, "degrees")

@@ -16,9 +16,10 @@ models is a check surface, never cut (:func:`job_faces`).
 
 Linking: passes close together are joined by stay-down feeds; between the others the tool
 climbs to the clearance height (``Retract`` full) or only as high as the model and the stock
-the earlier ops left need (``Retract`` minimum, :mod:`BSplineCAM.app.retract`).  A rapid
-descends only to the safe height (above the stock) or the hop's approach height, the rest of
-the approach is a feed at the vertical feed rate.
+the earlier ops left need (``Retract`` minimum, :mod:`BSplineCAM.app.retract`; or the model
+raised by ``StockAllowance`` with ``StartStock`` model).  A rapid descends only to the safe
+height (above the stock) or, with minimum retracts, to the margin over the stock around the
+pass it enters; the rest of the approach is a feed at the vertical feed rate.
 """
 
 from __future__ import annotations

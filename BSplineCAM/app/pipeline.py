@@ -36,6 +36,8 @@ class FinishingParameters:
     rest_limit: float = 1.0  # after roughing: rest passes down to this above the part (mm)
     retract: str = "minimum"  # between passes: "minimum" (model and stock left) or "full"
     retract_margin: float = 1.0  # how far a minimum retract clears them (mm)
+    start_stock: str = "job"  # the stock retracts clear: "job" or "model" (raised by:)
+    stock_allowance: float = 1.0  # with "model": the stock's height above the model (mm)
 
 
 @dataclass(frozen=True)
@@ -84,6 +86,8 @@ def build_job(surface: Surface, params: FinishingParameters, cutting: cam.Cuttin
     op.RestLimit = params.rest_limit
     op.Retract = params.retract
     op.RetractMargin = params.retract_margin
+    op.StartStock = params.start_stock
+    op.StockAllowance = params.stock_allowance
     return model, job, op
 
 
@@ -212,7 +216,9 @@ def build_faces_job(model, params: FinishingParameters, cutting: cam.Cutting = c
                         ("Tolerance", params.tolerance), ("Angle", params.angle),
                         ("Direction", params.direction), ("IsoDirection", params.iso_direction),
                         ("Arcs", bool(params.arcs)), ("RestLimit", params.rest_limit),
-                        ("Retract", params.retract), ("RetractMargin", params.retract_margin)):
+                        ("Retract", params.retract), ("RetractMargin", params.retract_margin),
+                        ("StartStock", params.start_stock),
+                        ("StockAllowance", params.stock_allowance)):
         setattr(op, prop, value)
     return job, op
 

@@ -8,6 +8,12 @@ the job's stock block cut by every active op before this one, simulated from the
 commands (:func:`.stock_left.stock_after_ops`, the simulation Verify runs), or the whole
 block when no earlier op cuts.  A job without a stock, or "full", climbs to the clearance
 height as CAM's own ops do.
+
+``StartStock`` "model" declares the stock instead: the model raised by ``StockAllowance``
+(a part roughed by another program, or a near-net casting), whatever the job's stock block and
+earlier ops (:class:`~BSplineCAM.core.toolpath.retracts.RaisedModel`).  A finishing op alone in
+a job would otherwise take the raw block as its stock and feed every entry down from the
+block's top.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from ..core.validation import check_range
 from .stock_left import job_stock, stock_after_ops
 
 RETRACTS = ["minimum", "full"]
+START_STOCKS = ["job", "model"]
+DEFAULT_ALLOWANCE = 1.0
 
 #: (type, name, group, tooltip, flags, default) of the retract's properties.
 PROPERTIES = (
@@ -30,6 +38,13 @@ PROPERTIES = (
     ("App::PropertyLength", "RetractMargin", "Surface",
      "How far a minimum retract's rapids clear the model and the stock left", 0,
      retracts.DEFAULT_MARGIN),
+    ("App::PropertyEnumeration", "StartStock", "Surface",
+     "The stock a minimum retract clears: job (the job's stock block cut by the ops before "
+     "this one) or model (the model raised by StockAllowance: a part roughed elsewhere or "
+     "cast to within it)", 0, START_STOCKS),
+    ("App::PropertyLength", "StockAllowance", "Surface",
+     "With StartStock model: how far above the model the stock reaches, measured vertically",
+     0, DEFAULT_ALLOWANCE),
 )
 
 
@@ -47,7 +62,7 @@ def _block_map(stock) -> retracts.StockMap:
     if isinstance(stock, CylinderStock):
         size = max(size, 2.0 * stock.radius)
     return retracts.StockMap(0.5 * (x0 + x1) - 0.5 * size, 0.5 * (y0 + y1) - 0.5 * size,
-                             size, np.array([[z1]], dtype=float))
+                             size, np.array([[z1]], dtype=float), whole_block=True)
 
 
 def job_stock_map(job, op, radius: float, progress=None):
@@ -81,7 +96,13 @@ def op_hops(obj, job, toolpaths: list, hops_of, progress=None) -> list:
     first = next((t for t in toolpaths if t is not None and t.passes), None)
     if first is None:
         return none
-    stock = job_stock_map(job, obj, 0.5 * float(first.parameters["tool_diameter"]), progress)
+    if getattr(obj, "StartStock", "job") == "model":
+        stock = retracts.RaisedModel(check_range(
+            obj.StockAllowance.Value, f"{obj.Label}: StockAllowance", "mm",
+            *retracts.ALLOWANCE_RANGE))
+    else:
+        stock = job_stock_map(job, obj, 0.5 * float(first.parameters["tool_diameter"]),
+                              progress)
     if stock is None:
         return none
     clearance = float(obj.ClearanceHeight.Value)

@@ -25,7 +25,7 @@ from typing import Any
 from ..app import runtime
 from ..core import BSplineCAMError, kernels
 from ..core.errors import ParameterError
-from ..core.toolpath.retracts import MARGIN_RANGE
+from ..core.toolpath.retracts import ALLOWANCE_RANGE, MARGIN_RANGE
 from ..core.validation import check_range
 
 EXIT_INPUT_ERROR = 2
@@ -98,21 +98,38 @@ def check_int(value: int, option: str, low: int, high: int) -> int:
     return value
 
 
-def add_retract_options(p: argparse.ArgumentParser) -> None:
-    """``--retract`` and ``--retract-margin`` of the finishing commands."""
-    p.add_argument("--retract", default="minimum", choices=["minimum", "full"],
-                   help="between finishing passes no stay-down feed joins: climb only as high "
-                        "as the model and the stock left need (minimum, default) or to the "
-                        "clearance height (full)")
-    p.add_argument("--retract-margin", type=float, default=1.0,
-                   help="how far a minimum retract's rapids clear the model and the stock "
-                        "(mm, default 1)")
+def add_retract_options(p: argparse.ArgumentParser, start_stock: bool = False) -> None:
+    """``--retract`` and ``--retract-margin`` of the finishing commands, and with
+    ``start_stock`` (a finishing program alone) ``--start-stock`` and ``--stock-allowance``."""
+    options = [
+        ("--retract", dict(default="minimum", choices=["minimum", "full"], help=(
+            "between finishing passes no stay-down feed joins: climb only as high as the "
+            "model and the stock left need (minimum, default) or to the clearance height "
+            "(full)"))),
+        ("--retract-margin", dict(type=float, default=1.0, help=(
+            "how far a minimum retract's rapids clear the model and the stock (mm, "
+            "default 1)")))]
+    if start_stock:
+        options += [
+            ("--start-stock", dict(default="job", choices=["job", "model"], help=(
+                "the stock a minimum retract clears: job (the raw block, default) or model "
+                "(the model raised by --stock-allowance: a part already roughed or cast to "
+                "within it)"))),
+            ("--stock-allowance", dict(type=float, default=1.0, help=(
+                "with --start-stock model: how far above the model the stock reaches, "
+                "measured vertically (mm, default 1)")))]
+    for name, kwargs in options:
+        p.add_argument(name, **kwargs)
 
 
 def check_retract_options(args: argparse.Namespace) -> None:
-    """``--retract-margin`` within the core's range (mm)."""
+    """``--retract-margin`` (and ``--stock-allowance`` where the command has it) within the
+    core's ranges (mm)."""
     args.retract_margin = check_range(args.retract_margin, "--retract-margin", "mm",
                                       *MARGIN_RANGE)
+    if hasattr(args, "stock_allowance"):
+        args.stock_allowance = check_range(args.stock_allowance, "--stock-allowance", "mm",
+                                           *ALLOWANCE_RANGE)
 
 
 def check_output(out_dir: str | Path, option: str = "--out") -> None:

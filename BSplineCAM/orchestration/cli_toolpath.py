@@ -63,7 +63,7 @@ def register(sub) -> None:
     p.add_argument("--iso-direction", default="u", choices=[d.value for d in IsoDirection])
     p.add_argument("--arcs", default="on", choices=["on", "off"],
                    help="fit passes with one-sided G2/G3 arcs in their plane (default on)")
-    add_retract_options(p)
+    add_retract_options(p, start_stock=True)
     p.add_argument("--post", default="linuxcnc", help="FreeCAD post-processor (linuxcnc, grbl, fanuc, mach3_mach4, ...)")
     p.add_argument("--feed", type=float, default=1200.0, help="cutting feed (mm/min)")
     p.add_argument("--plunge-feed", type=float, default=400.0, help="vertical feed (mm/min)")
@@ -93,7 +93,8 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
         tool_diameter=tool.diameter, scallop=tool.scallop, tolerance=tool.tolerance,
         strategy=strategy.value, angle=angle, direction=args.direction,
         iso_direction=args.iso_direction, arcs=args.arcs == "on", retract=args.retract,
-        retract_margin=args.retract_margin)
+        retract_margin=args.retract_margin, start_stock=args.start_stock,
+        stock_allowance=args.stock_allowance)
     cutting = freecad_cutting(cutting_params)
     name = _safe_name(surface.name)
     with staged_output(Path(args.out)) as stage:
@@ -106,6 +107,7 @@ def cmd_toolpath(args: argparse.Namespace) -> int:
             "strategy": strategy.value, "angle_deg": angle, "direction": args.direction,
             "iso_direction": args.iso_direction, "arcs": args.arcs,
             "retract": args.retract, "retract_margin_mm": args.retract_margin,
+            "start_stock": args.start_stock, "stock_allowance_mm": args.stock_allowance,
             "tool_diameter_mm": tool.diameter,
             "scallop_mm": tool.scallop, "tolerance_mm": tool.tolerance}
         report["angle_deg"] = angle

@@ -103,10 +103,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "grid's extent, top from --stock-top)")
     p.add_argument("--cell", type=float, default=0.1, help="Z-map cell size (mm, default 0.1)")
     p.add_argument("--stock-top", choices=[s.value for s in StockTop], default="design",
-                   help="stock top: design maximum + --stock-margin (default), or the program's "
-                        "highest feed move")
+                   help="stock top: design maximum + --stock-margin (default), the program's "
+                        "highest feed move, or model: the design raised by --stock-margin "
+                        "cell by cell (a part roughed to within it; one finishing program)")
     p.add_argument("--stock-margin", type=float, default=DEFAULT_STOCK_MARGIN,
-                   help=f"stock above the design's top (mm, default {DEFAULT_STOCK_MARGIN:g})")
+                   help=f"stock above the design's top, or above the design cell by cell with "
+                        f"--stock-top model (mm, default {DEFAULT_STOCK_MARGIN:g})")
     p.add_argument("--rapid-rate", "--rapid", type=float, default=DEFAULT_RAPID_RATE,
                    help=f"rapid traverse rate for the time estimates, also each axis's "
                         f"velocity limit (mm/min, default {DEFAULT_RAPID_RATE:g})")

@@ -42,7 +42,7 @@ from ..core.program import rs274
 from ..core.simulation.measures import toolpath_lengths
 from ..core.toolpath import faces_program_moves, generate_faces, program_moves
 from ..core.toolpath.faceset import FaceSet
-from ..core.toolpath.retracts import faces_hops
+from ..core.toolpath.retracts import RaisedModel, faces_hops
 from .cli_common import (
     EXIT_CHECK_FAILED,
     _safe_name,
@@ -472,7 +472,9 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                 args.net, toolpath, tool.diameter, cutting, args.post, program,
                 stage / f"{name}-job.FCStd", arcs=getattr(args, "arcs", "off") == "on",
                 faceset=faceset, retract_margin=(args.retract_margin if getattr(
-                    args, "retract", "full") == "minimum" else None))
+                    args, "retract", "full") == "minimum" else None),
+                stock_allowance=(args.stock_allowance if getattr(
+                    args, "start_stock", "job") == "model" else None))
         check_interrupted()
         text = program.read_text()
         stats = toolpath.stats
@@ -494,6 +496,8 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
                            "arcs": getattr(args, "arcs", "off"),
                            "retract": getattr(args, "retract", "full"),
                            "retract_margin_mm": getattr(args, "retract_margin", None),
+                           "start_stock": getattr(args, "start_stock", "job"),
+                           "stock_allowance_mm": getattr(args, "stock_allowance", None),
                            "tool_diameter_mm": tool.diameter, "scallop_mm": tool.scallop,
                            "tolerance_mm": tool.tolerance}}
         lengths = toolpath_lengths(toolpath)
@@ -514,15 +518,18 @@ def machine_faces(args: argparse.Namespace, faces: Sequence[Face], tool: ToolPar
 def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: Any,
                   post: str, program: Path, document: Path | None = None,
                   arcs: bool = False, faceset: Any = None,
-                  retract_margin: float | None = None) -> int:
+                  retract_margin: float | None = None,
+                  stock_allowance: float | None = None) -> int:
     """In FreeCAD: a document with the part (Part::Feature), a job around it with a ball-end
     tool controller, the toolpath as a path operation of that controller; posted by ``post``
     to ``program`` (and saved to ``document``), with one-sided arcs if ``arcs`` (waterline
     contours in G17 only with ``faceset``, the core FaceSet whose drop-cutter tells their free
     side); with ``retract_margin`` (mm) and ``faceset`` the tool climbs between passes only
-    ``retract_margin`` over the model and the job's raw stock block
-    (:func:`~BSplineCAM.core.toolpath.retracts.faces_hops`), else to the clearance height.  Returns the number of path commands, the clearance and the safe height (mm)
-    of the program."""
+    ``retract_margin`` over the model and the job's raw stock block, or over the model
+    raised by ``stock_allowance`` (mm) when given
+    (:func:`~BSplineCAM.core.toolpath.retracts.faces_hops`), else to the clearance height.
+    Returns the number of path commands, the clearance and the safe height (mm) of the
+    program."""
     import FreeCAD
     import Path as FreeCADPath
 
@@ -559,8 +566,9 @@ def post_toolpath(path: str, toolpath: Toolpath, tool_diameter: float, cutting: 
             hops = None
             if retract_margin is not None:
                 from ..app.retract import job_stock_map
-                hops = faces_hops(toolpath, faceset, clearance, retract_margin,
-                                  job_stock_map(job, op, 0.5 * tool_diameter))
+                stock = (RaisedModel(stock_allowance) if stock_allowance is not None
+                         else job_stock_map(job, op, 0.5 * tool_diameter))
+                hops = faces_hops(toolpath, faceset, clearance, retract_margin, stock)
             moves = faces_program_moves(toolpath, faceset, clearance, safe, arcs=arcs,
                                         hops=hops)
         else:

@@ -78,17 +78,22 @@ def _thinned(height: np.ndarray, cell: float) -> tuple[np.ndarray, float]:
 
 def plot_simulated(result: Verification, path: str | os.PathLike) -> None:
     """The machined Z-map, hill-shaded (light from the north-west) and coloured by height
-    (a map of more than PLOT_CELLS cells per side from every k-th cell)."""
+    (a map of more than PLOT_CELLS cells per side from every k-th cell); cells without
+    stock (off the model when the stock was the model raised by a margin) in OFF_PART_COLOUR."""
     from matplotlib.colors import LightSource
 
     plt = _pyplot()
     sim = result.simulation
     height, cell = _thinned(sim.height, sim.grid.cell)
+    empty = ~np.isfinite(height)
+    lo = float(np.min(height[~empty])) if (~empty).any() else 0.0
+    hi = float(np.max(height[~empty])) if (~empty).any() else 1.0
+    height = np.where(empty, lo, height)
     light = LightSource(azdeg=315, altdeg=35)
     cmap = plt.get_cmap("copper")
-    lo, hi = float(np.min(height)), float(np.max(height))
     shaded = light.shade(height, cmap=cmap, vert_exag=3.0, dx=cell, dy=cell,
                          blend_mode="overlay", vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+    shaded[empty, :3] = OFF_PART_COLOUR
     fig, ax = plt.subplots(figsize=(7.5, 6.4), dpi=110)
     ax.imshow(shaded, origin="lower", extent=_extent(result), interpolation="nearest")
     mappable = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(lo, hi if hi > lo else lo + 1))

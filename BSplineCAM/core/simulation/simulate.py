@@ -199,10 +199,21 @@ class Simulation:
     height: FloatArray
     top: float
     collisions: tuple[Collision, ...]
+    #: The stock's heights before the first move (mm) when they differ from cell to cell
+    #: (-inf: no stock); None: a block with its top at ``top``.
+    start: FloatArray | None = None
+
+    def start_heights(self) -> FloatArray:
+        """The stock's heights before the first move (mm), per cell."""
+        if self.start is not None:
+            return self.start
+        return np.full(self.height.shape, self.top)
 
     def removed_volume(self) -> float:
-        """Volume cut from the stock block (mm^3), cell area times removed depth."""
-        return float(np.sum(self.top - self.height) * self.grid.cell ** 2)
+        """Volume cut from the stock (mm^3), cell area times removed depth."""
+        start = self.start_heights()
+        cut = np.isfinite(start)
+        return float(np.sum(start[cut] - self.height[cut]) * self.grid.cell ** 2)
 
 
 def simulate_program(program: Program, tool: Tool, grid: Grid, top: float,
@@ -212,16 +223,27 @@ def simulate_program(program: Program, tool: Tool, grid: Grid, top: float,
     return simulate(linearise(program, tol), tool, grid, top)
 
 
-def simulate(segments: Segments, tool: Tool, grid: Grid, top: float,
+def simulate(segments: Segments, tool: Tool, grid: Grid, top: float | FloatArray,
              collision_tolerance: float = COLLISION_TOLERANCE_MM) -> Simulation:
-    """Cut a block of stock with top at ``top`` (mm) along the segments, in program order.
+    """Cut a block of stock with top at ``top`` (mm) along the segments, in program order;
+    ``top`` may also be the stock's height per cell, (ny, nx) mm, -inf where there is none.
 
     Feed segments between two rapids commute (the Z-map keeps a minimum), so they are batched
     in any order; a rapid that can reach the stock is checked against the stock as the moves
     before it left it, and reported as a :class:`Collision` if it cuts deeper than
     ``collision_tolerance``.
     """
-    height = np.full((grid.ny, grid.nx), float(top), dtype=np.float32)
+    initial = None
+    if np.ndim(top) == 0:
+        height = np.full((grid.ny, grid.nx), float(top), dtype=np.float32)
+    else:
+        initial = np.asarray(top, dtype=float)
+        if initial.shape != (grid.ny, grid.nx) or np.isnan(initial).any() or \
+                not np.isfinite(initial).any():
+            raise ValueError(f"simulate: the stock's heights must be finite or -inf on the "
+                             f"{grid.ny} x {grid.nx} grid, got shape {initial.shape}")
+        height = initial.astype(np.float32)
+        top = float(initial[np.isfinite(initial)].max())
     start = np.asarray(segments.start, dtype=float)
     end = np.asarray(segments.end, dtype=float)
     low = np.minimum(start[:, 2], end[:, 2])
@@ -244,7 +266,7 @@ def simulate(segments: Segments, tool: Tool, grid: Grid, top: float,
         begin = r + 1
     out = height.astype(float)
     out += 0.0  # a zero height as +0 (the merge's minimum may keep either zero's sign)
-    return Simulation(grid, out, float(top), _merge(collisions))
+    return Simulation(grid, out, float(top), _merge(collisions), initial)
 
 
 def _merge(collisions: list[Collision]) -> tuple[Collision, ...]:

@@ -69,6 +69,9 @@ class StockTop(str, Enum):
 
     DESIGN = "design"  # the design surface's highest point plus a margin
     PROGRAM = "program"  # the highest end point of a feed move (G1/G2/G3)
+    #: the design raised by the margin cell by cell, no stock off it: a part already
+    #: roughed (or cast) to within the margin, which a finishing program starts from
+    MODEL = "model"
 
     @classmethod
     def parse(cls, value: str | StockTop) -> StockTop:
@@ -76,7 +79,7 @@ class StockTop(str, Enum):
             return cls(value)
         except ValueError:
             raise ParameterError(
-                f"stock top must be 'design' or 'program', got {value!r}") from None
+                f"stock top must be 'design', 'program' or 'model', got {value!r}") from None
 
 
 @dataclass(frozen=True)
@@ -131,7 +134,7 @@ def _verify_surface(surface: Surface, program: Program, tool: Tool, cell: float,
     design, inside = _design_heights(surface, grid)
     if not np.any(inside):
         raise ParameterError("no cell centre lies on the surface's footprint: cell too large")
-    top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
+    top = _stock_top(program, stock_top, design, inside, stock_margin)
     sim, segments, job = run(grid, top)
     inner = inside & ~_dilate(~inside, tool.diameter / cell)
     if not np.any(inner):
@@ -216,7 +219,7 @@ def _verify_faces(faces: Sequence[Face], program: Program, tool: Tool, cell: flo
         raise ParameterError(f"no cell centre of the {cell:g} mm grid lies on the selected "
                              f"faces ({names}) seen from above: nothing to measure")
     design = hm.z
-    top = _stock_top(program, stock_top, float(np.nanmax(design)) + stock_margin)
+    top = _stock_top(program, stock_top, design, model, stock_margin)
     sim, segments, job = run(grid, top)
     # the selection closed over gaps of a cell or two (cell centres on a seam between faces
     # that both fall outside their trim polylines), then shrunk by the tool radius
@@ -285,6 +288,9 @@ def verify_job(model: Surface | Sequence[Face], program: Program, tools: dict[in
     if len(program) == 0:
         raise ParameterError("the program has no moves")
     check_program_tools(program, tools)
+    if StockTop.parse(stock_top) is StockTop.MODEL:
+        raise ParameterError("stock top 'model' is for one finishing program: a program with "
+                             "tool changes is simulated from its stock block")
     block = None if stock is None else check_stock_form(stock)
     feeds = np.flatnonzero(program.kind != MoveKind.RAPID)
     last = int(program.tool[feeds[-1]]) if len(feeds) else min(tools, default=0)
@@ -365,13 +371,17 @@ def _check_arguments(cell: float, rapid_rate: float, coverage_tolerance: float,
         raise ParameterError("the program has no moves")
 
 
-def _stock_top(program: Program, stock_top: StockTop, design_top: float) -> float:
+def _stock_top(program: Program, stock_top: StockTop, design: FloatArray, model: np.ndarray,
+               margin: float) -> float | FloatArray:
+    """The stock's top (mm): one height for a block, per cell for ``model`` (-inf off it)."""
     if stock_top is StockTop.PROGRAM:
         feeds = program.kind != MoveKind.RAPID
         if not np.any(feeds):
             raise ParameterError("stock top 'program' needs feed moves (G1/G2/G3)")
         return float(program.end[feeds, 2].max())
-    return design_top
+    if stock_top is StockTop.MODEL:
+        return np.where(model, design + margin, -np.inf)
+    return float(np.nanmax(design)) + margin
 
 
 def _simulate(program: Program, tool: Tool, grid: Grid, top: float,
@@ -508,7 +518,8 @@ def _metrics(program: Program, sim: Simulation, design: FloatArray, inside: np.n
         "edge_gouge_max_mm": float(max(0.0, -edge_dev.min())) if edge_dev.size else 0.0,
         "coverage": float(np.mean(dev[coverage] <= coverage_tolerance)),
         "coverage_tolerance_mm": coverage_tolerance,
-        "uncut_fraction": float(np.mean(sim.height[coverage] >= sim.top - 1e-6)),
+        "uncut_fraction": float(np.mean(sim.height[coverage]
+                                        >= sim.start_heights()[coverage] - 1e-6)),
         "rapid_collisions": [c.to_dict() for c in sim.collisions],
         "cutting_length_mm": cutting,
         "rapid_length_mm": float(lengths[rapid].sum()),

@@ -491,7 +491,8 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
     toolpath has a stay-down link to the next pass, the tool feeds along it instead of
     retracting; where ``hops`` (:class:`.retracts.Hops`) gives a gap a travel height, the tool
     climbs only to it, crosses, comes down rapidly to the hop's approach height and feeds
-    from there.
+    from there.  Its ``entry`` heights, where given, lower the rapid descent from the
+    clearance plane (never raise it).
 
     ``clearance_height`` (absolute Z, mm; default the toolpath's) must clear every pass;
     ``safe_height`` (absolute Z, mm) is where the rapid descent stops and the plunge feed starts
@@ -515,11 +516,16 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
     links = [None if lk is None else np.array(lk, dtype=float) for lk in
              (toolpath.links or [None] * max(len(passes) - 1, 0))]
     join_links(passes, links[: max(len(passes) - 1, 0)])
-    travel = approach_at = None
+    travel = approach_at = entry = None
     if hops is not None:
         travel, approach_at = np.asarray(hops.travel, float), np.asarray(hops.approach, float)
         if len(travel) != max(len(passes) - 1, 0):
             raise ParameterError(f"hops: {len(travel)} gaps given for {len(passes)} passes")
+        if getattr(hops, "entry", None) is not None:
+            entry = np.asarray(hops.entry, float)
+            if len(entry) != len(passes):
+                raise ParameterError(f"hops: {len(entry)} entries given for {len(passes)} "
+                                     "passes")
     linked = False
     hop = math.nan
     for k, p in enumerate(passes):
@@ -531,6 +537,8 @@ def to_moves(toolpath: Toolpath, clearance_height: float | None = None,
                 approach = float(approach_at[k - 1])
             else:
                 approach = min(clear, z0 + 1.0) if safe_height is None else max(safe_height, z0)
+                if entry is not None and math.isfinite(entry[k]):
+                    approach = max(min(approach, float(entry[k])), z0)
             if approach < top:
                 moves.append(Move("rapid", x0, y0, approach))
             if approach > z0:

@@ -26,8 +26,15 @@ The stock is a Z-map (the job simulation of the operations before this one): a t
 z clears every column whose centre lies within the ball's radius of its path when z is above
 them.  The columns within R plus a whole cell's diagonal of the line are taken: the stock
 between two cell centres, which the map does not hold (a terrace's edge inside a cell whose
-centre was cut), lies next to a centre within that reach.  Without a stock the hop clears only the
-model: that is for programs run on a part already roughed to within ``margin`` of the model.
+centre was cut), lies next to a centre within that reach.
+
+The stock may instead be declared as the model raised by an allowance
+(:class:`RaisedModel`: a part roughed by another program, or a near-net casting, to within
+that much of the model): the model's bound and the pass start, raised by the allowance, stand
+for the stock's.  A ball's drop onto a surface moved up by a distance is its drop onto the
+surface moved up by that distance, so the bound stays a certificate.  Without a stock the hop
+clears only the model: that is for programs run on a part already roughed to within
+``margin`` of the model.
 """
 
 from __future__ import annotations
@@ -49,17 +56,21 @@ DropFn = Callable[[FloatArray, float], FloatArray]
 DEFAULT_MARGIN = 1.0
 #: Smallest and largest margin (mm).
 MARGIN_RANGE = (0.1, 100.0)
+#: Smallest and largest allowance of a :class:`RaisedModel` stock (mm).
+ALLOWANCE_RANGE = (0.0, 100.0)
 
 
 @dataclass(frozen=True)
 class StockMap:
     """The stock's top as a Z-map: cells of ``cell`` mm from (x0, y0), heights (ny, nx) mm at
-    the cell centres (rows along y), NaN or -inf where no stock is left."""
+    the cell centres (rows along y), NaN or -inf where no stock is left.  ``whole_block``:
+    the raw block, uncut (entries then stop at the safe height, which lies above it)."""
 
     x0: float
     y0: float
     cell: float
     height: FloatArray
+    whole_block: bool = False
 
     def top_near(self, a: FloatArray, b: FloatArray, reach: float) -> FloatArray:
         """Per row, the highest stock column whose centre lies within ``reach`` mm of the
@@ -90,13 +101,24 @@ class StockMap:
 
 
 @dataclass(frozen=True)
+class RaisedModel:
+    """The stock declared as the model raised by ``allowance`` mm, measured vertically: the
+    part was roughed (or cast) to within that of the model before this program."""
+
+    allowance: float
+
+
+@dataclass(frozen=True)
 class Hops:
     """Per gap between consecutive passes: the tip height (mm) of the rapid across and of the
     rapid descent's end, NaN where a stay-down link joins the passes or the tool retracts to
-    the clearance plane (a hop would reach it anyway)."""
+    the clearance plane (a hop would reach it anyway).  ``entry``, when the stock is known:
+    per pass, how low the rapid descent from the clearance plane may end above its start
+    (``margin`` over the stock there), NaN or None where it stops at the safe height."""
 
     travel: FloatArray
     approach: FloatArray
+    entry: FloatArray | None = None
 
 
 def model_bound(drop: DropFn, a: FloatArray, b: FloatArray, radius: float, reach: float,
@@ -122,27 +144,30 @@ def model_bound(drop: DropFn, a: FloatArray, b: FloatArray, radius: float, reach
 
 def hop_heights(passes: list, links: list, drop: DropFn, radius: float, clearance: float,
                 margin: float = DEFAULT_MARGIN, slack: float = 0.0,
-                stock: StockMap | None = None) -> Hops:
+                stock: StockMap | RaisedModel | None = None) -> Hops:
     """The :class:`Hops` of ``passes`` (tip positions (n, 3), in machining order) whose gaps
     have no stay-down link in ``links`` (None entries; an empty list: none).  ``drop`` is the
     drop-cutter over every face the tool may meet (check surfaces included), ``slack`` (mm) how
-    far its heights may lie below the true ones, ``stock`` the stock left, if known.  A hop
+    far its heights may lie below the true ones, ``stock`` the stock left (a Z-map, or the
+    model raised by an allowance), if known.  A hop
     whose travel height would not stay ``margin`` below ``clearance`` is left to the full
     retract (NaN)."""
     gaps = max(len(passes) - 1, 0)
     links = list(links) if links else [None] * gaps
     travel = np.full(gaps, np.nan)
     approach = np.full(gaps, np.nan)
+    entry = _entries(passes, radius, margin, stock)
     todo = [k for k in range(gaps) if links[k] is None]
     if not todo:
-        return Hops(travel, approach)
+        return Hops(travel, approach, entry)
     end = np.array([passes[k][-1] for k in todo], float)
     start = np.array([passes[k + 1][0] for k in todo], float)
-    top = np.maximum(end[:, 2], start[:, 2])
+    raised = float(stock.allowance) if isinstance(stock, RaisedModel) else 0.0
+    top = np.maximum(end[:, 2], start[:, 2]) + raised
     reach = min(0.25 * float(radius), 0.5 * float(margin))
-    top = np.fmax(top, model_bound(drop, end[:, :2], start[:, :2], radius, reach, slack))
-    land = start[:, 2].copy()
-    if stock is not None:
+    top = np.fmax(top, model_bound(drop, end[:, :2], start[:, :2], radius, reach, slack) + raised)
+    land = start[:, 2] + raised
+    if isinstance(stock, StockMap):
         reach = float(radius) + np.sqrt(2.0) * stock.cell
         top = np.fmax(top, stock.top_near(end[:, :2], start[:, :2], reach))
         land = np.fmax(land, stock.top_near(start[:, :2], start[:, :2], reach))
@@ -151,11 +176,26 @@ def hop_heights(passes: list, links: list, drop: DropFn, radius: float, clearanc
     idx = np.asarray(todo)[ok]
     travel[idx] = hop[ok]
     approach[idx] = np.minimum(land[ok] + margin, hop[ok])
-    return Hops(travel, approach)
+    return Hops(travel, approach, entry)
+
+
+def _entries(passes: list, radius: float, margin: float,
+             stock: StockMap | RaisedModel | None) -> FloatArray | None:
+    """Per pass, ``margin`` above its start or above the stock around it (a hop's approach
+    height, :func:`hop_heights`); None without a stock or on the whole raw block.  Straight
+    above a pass's start the ball clears the model: the start is the drop-cutter's height
+    there."""
+    if stock is None or not passes or getattr(stock, "whole_block", False):
+        return None
+    start = np.array([p[0] for p in passes], float)
+    if isinstance(stock, RaisedModel):
+        return start[:, 2] + float(stock.allowance) + margin
+    reach = float(radius) + np.sqrt(2.0) * stock.cell
+    return np.fmax(start[:, 2], stock.top_near(start[:, :2], start[:, :2], reach)) + margin
 
 
 def surface_hops(toolpath, surface, clearance: float, margin: float = DEFAULT_MARGIN,
-                 stock: StockMap | None = None) -> Hops:
+                 stock: StockMap | RaisedModel | None = None) -> Hops:
     """:func:`hop_heights` of a toolpath on a core Surface (a net), its model bound from the
     net's drop-cutter (:class:`.dropcutter.DropCutter`, whose heights are those of real
     surface points polished from a dense sample of seeds)."""
@@ -168,7 +208,7 @@ def surface_hops(toolpath, surface, clearance: float, margin: float = DEFAULT_MA
 
 
 def faces_hops(toolpath, faceset, clearance: float, margin: float = DEFAULT_MARGIN,
-               stock: StockMap | None = None) -> Hops:
+               stock: StockMap | RaisedModel | None = None) -> Hops:
     """:func:`hop_heights` of a toolpath on faces, its model bound from the certified
     drop-cutter over every face of ``faceset`` (selected and check faces), plus its
     certificate's tolerance."""
@@ -180,5 +220,5 @@ def faces_hops(toolpath, faceset, clearance: float, margin: float = DEFAULT_MARG
                        CERTIFY, stock)
 
 
-__all__ = ["DEFAULT_MARGIN", "Hops", "MARGIN_RANGE", "StockMap", "faces_hops", "hop_heights",
-           "model_bound", "surface_hops"]
+__all__ = ["ALLOWANCE_RANGE", "DEFAULT_MARGIN", "Hops", "MARGIN_RANGE", "RaisedModel",
+           "StockMap", "faces_hops", "hop_heights", "model_bound", "surface_hops"]
