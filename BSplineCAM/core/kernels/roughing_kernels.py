@@ -28,100 +28,140 @@ PRUNE_MM = 1e-6
 
 
 @helper
-def _column_envelope(f, out, top):
-    """out[q, c] = min(top, min over p of (q - p)^2 + f[p, c]) for every column c of ``f``
-    (ny, nx): the lower envelope of parabolas down each column (Felzenszwalb &
-    Huttenlocher), in time linear in the column's length."""
-    ny, nx = f.shape
-    v = np.zeros(ny, np.int64)
-    z = np.empty(ny + 1)
-    fq2 = np.empty(ny)
-    for c in range(nx):
-        for q in range(ny):
-            fq2[q] = f[q, c] + float(q * q)
-        k = 0
-        v[0] = 0
-        z[0] = -math.inf
-        z[1] = math.inf
-        for q in range(1, ny):
-            fq = fq2[q]
-            while True:
-                vk = v[k]
-                s = (fq - fq2[vk]) / (2.0 * (q - vk))
-                if s <= z[k] and k > 0:
-                    k -= 1
-                else:
-                    break
-            k += 1
-            v[k] = q
-            z[k] = s
-            z[k + 1] = math.inf
-        k = 0
-        for q in range(ny):
-            while z[k + 1] < q:
-                k += 1
-            vk = v[k]
-            d = float((q - vk) * (q - vk)) + f[vk, c]
-            out[q, c] = min(d, top)
+def _row_envelope(g, out, pos, val, v, z, far, reach, root):
+    """One row of the separable squared distance transform (Felzenszwalb & Huttenlocher):
+    ``g`` (nx) the distance of each cell down its column to the nearest set cell (an
+    integer, ``far`` or more for none within reach), ``out`` (nx) holding each cell's own
+    value (g, or g^2 with ``root`` False) and lowered where a parabola (q - p)^2 + g[p]^2 of
+    the lower envelope of the row's cells gives less, to its square root with ``root``.
+    Only cells nearer than ``far`` with a neighbour farther than themselves make the
+    envelope (a cell no farther than both of its neighbours has its parabola on or above
+    theirs but at itself, where its own value stands), and each parabola is evaluated over
+    its stretch of the envelope within ``reach`` columns of its cell.  The values are
+    integers held exactly in floats, and the breakpoints (ratios of integers with
+    denominators below 2 nx, correctly rounded) never round across the integer columns they
+    are compared with, so each value is the exact least square (the work arrays pos, val,
+    v of nx and z of nx + 1 are scratch)."""
+    nx = g.shape[0]
+    m = 0
+    for p in range(nx):
+        gp = g[p]
+        if gp >= far:
+            continue
+        if (p == 0 or g[p - 1] <= gp) and (p == nx - 1 or g[p + 1] <= gp):
+            continue
+        pos[m] = p
+        val[m] = gp * gp + float(p * p)
+        m += 1
+    if m == 0:
+        return
+    e = 0
+    v[0] = 0
+    z[0] = -math.inf
+    z[1] = math.inf
+    for r in range(1, m):
+        fr = val[r]
+        pr = pos[r]
+        while True:
+            vk = v[e]
+            s = (fr - val[vk]) / (2.0 * (pr - pos[vk]))
+            if s <= z[e] and e > 0:
+                e -= 1
+            else:
+                break
+        e += 1
+        v[e] = r
+        z[e] = s
+        z[e + 1] = math.inf
+    for h in range(e + 1):
+        # the parabola of stretch h is the lowest for the columns q in [z[h], z[h + 1]]
+        pv = pos[v[h]]
+        gv = g[int(pv)]
+        lo = max(pv - reach, 0.0)
+        if z[h] > lo:
+            lo = float(math.ceil(z[h]))
+        hi = min(pv + reach, nx - 1.0)
+        if z[h + 1] < hi:
+            hi = float(math.floor(z[h + 1]))
+        for q in range(int(lo), int(hi) + 1):
+            gq = g[q]
+            d = (q - pv) * (q - pv) + gv * gv
+            if d < gq * gq:
+                out[q] = math.sqrt(d) if root else d
+
+
+@helper
+def _column_distances(mask, out, cap):
+    """out[i, j] = the distance (cells) from (i, j) down or up its column to the nearest set
+    cell of ``mask``, at most ``cap`` (inf: none), by two sweeps over the rows."""
+    ny, nx = mask.shape
+    for j in range(nx):
+        out[0, j] = 0.0 if mask[0, j] else cap
+    for i in range(1, ny):
+        for j in range(nx):
+            if mask[i, j]:
+                out[i, j] = 0.0
+            else:
+                u = out[i - 1, j] + 1.0
+                out[i, j] = u if u < cap else cap
+    for i in range(ny - 2, -1, -1):
+        for j in range(nx):
+            u = out[i + 1, j] + 1.0
+            if u < out[i, j]:
+                out[i, j] = u
 
 
 def _squared_distance_loops(mask):
     """Squared Euclidean distance (cells^2) from each cell to the nearest set cell of the
-    boolean grid ``mask`` (ny, nx; not empty), at most (ny + nx + 2)^2: the row pass and the
-    lower envelope of parabolas down each column of
-    :func:`~BSplineCAM.core.geometry.distance.squared_distance` (Felzenszwalb &
-    Huttenlocher), column by column."""
+    boolean grid ``mask`` (ny, nx; not empty), at most (ny + nx + 2)^2: the exact squared
+    distance of :func:`~BSplineCAM.core.geometry.distance.squared_distance` (Felzenszwalb &
+    Huttenlocher), here down the columns first and then along the rows, which are
+    contiguous (:func:`_row_envelope`), in one grid."""
     ny, nx = mask.shape
     big = float((ny + nx + 2) ** 2)
-    f = np.empty((ny, nx))
-    for i in range(ny):
-        last = -math.inf
-        for j in range(nx):
-            if mask[i, j]:
-                last = float(j)
-            f[i, j] = j - last
-        nxt = math.inf
-        for j in range(nx - 1, -1, -1):
-            if mask[i, j]:
-                nxt = float(j)
-            g = min(f[i, j], nxt - j)
-            f[i, j] = g * g if g != math.inf else big
     out = np.empty((ny, nx))
-    _column_envelope(f, out, big)
+    _column_distances(mask, out, math.inf)
+    g = np.empty(nx)
+    pos = np.empty(nx)
+    val = np.empty(nx)
+    v = np.zeros(nx, np.int64)
+    z = np.empty(nx + 1)
+    for i in range(ny):
+        row = out[i]
+        for p in range(nx):
+            g[p] = row[p]
+            row[p] = g[p] * g[p]
+        _row_envelope(g, row, pos, val, v, z, math.inf, float(nx), False)
+        for p in range(nx):
+            if row[p] > big:
+                row[p] = big
     return out
 
 
 def _capped_distance_loops(mask, k, big):
-    """sqrt of min(big^2, min over |dy| <= k of dy^2 + g(y + dy)^2), g the distance along
-    the row to the nearest set cell capped at ``big`` = k + 1 (the integer passes of
-    :func:`~BSplineCAM.core.toolpath.roughing.gridops.capped_distance` over a whole grid).
-
-    The column pass is the lower envelope of parabolas of :func:`_squared_distance_loops`
-    over all dy, in time linear in the column's length whatever k: a term with |dy| > k is
-    at least (k + 1)^2 = big^2, so the minimum capped at big^2 is the same.  Its values are
-    integers held exactly in floats, and the envelope's breakpoints (ratios of integers
-    with denominators below 2 ny) never round across the integer rows they are compared
-    with, so the result is the numpy engine's to the bit."""
+    """sqrt of min(big^2, the squared distance from each cell to the nearest set cell of
+    ``mask``), ``big`` = k + 1: what the integer passes of
+    :func:`~BSplineCAM.core.toolpath.roughing.gridops.capped_distance` give over a whole
+    grid, min(big^2, min over |dy| <= k of dy^2 + g(y + dy)^2) with g the distance along the
+    row capped at ``big``: a term with |dy| > k or g = big is at least big^2, so both are
+    min(big^2, the exact squared distance).  Here the passes run down the columns first,
+    capped at ``big``, then along the rows, which are contiguous (:func:`_row_envelope`
+    with the cells nearer than ``big`` within k columns: beyond, a parabola gives at least
+    big^2), in one grid; the result is the numpy engine's to the bit."""
     ny, nx = mask.shape
-    far = 10 * (nx + big)
-    f = np.empty((ny, nx))
-    for i in range(ny):
-        left = -far
-        for j in range(nx):
-            if mask[i, j]:
-                left = j
-            f[i, j] = j - left
-        right = far
-        for j in range(nx - 1, -1, -1):
-            if mask[i, j]:
-                right = j
-            g = min(min(f[i, j], right - j), big)
-            f[i, j] = g * g
+    bigf = float(big)
     out = np.empty((ny, nx))
-    _column_envelope(f, out, float(big * big))
+    _column_distances(mask, out, bigf)
+    g = np.empty(nx)
+    pos = np.empty(nx)
+    val = np.empty(nx)
+    v = np.zeros(nx, np.int64)
+    z = np.empty(nx + 1)
     for i in range(ny):
-        for j in range(nx):
-            out[i, j] = math.sqrt(out[i, j])
+        row = out[i]
+        for p in range(nx):
+            g[p] = row[p]
+        _row_envelope(g, row, pos, val, v, z, bigf, float(k), True)
     return out
 
 
@@ -130,7 +170,8 @@ def _polyline_distance_loops(pts, path):
     smallest over its segments of the distance to the clipped foot of the point.  A segment
     whose box lies farther along x or y than the smallest distance so far (by more than
     PRUNE_MM, far above the rounding of a distance) cannot be nearer: it is skipped, and the
-    smallest distance is the same."""
+    smallest distance is the same.  The segment nearest to the point before is taken first,
+    so that its distance bounds the others from the start (the least of the same values)."""
     m = pts.shape[0]
     n = path.shape[0] - 1
     out = np.empty(m)
@@ -149,10 +190,17 @@ def _polyline_distance_loops(pts, path):
         xhi[s] = max(path[s, 0], path[s + 1, 0])
         ylo[s] = min(path[s, 1], path[s + 1, 1])
         yhi[s] = max(path[s, 1], path[s + 1, 1])
+    last = 0
     for p in range(m):
-        best = math.inf
         qx = pts[p, 0]
         qy = pts[p, 1]
+        # the segment nearest to the point before (points come in rows of cells) first:
+        # the bound it gives skips most of the others
+        rx = qx - path[last, 0]
+        ry = qy - path[last, 1]
+        t = (rx * abx[last] + ry * aby[last]) / L2[last]
+        t = min(max(t, 0.0), 1.0)
+        best = math.hypot(rx - t * abx[last], ry - t * aby[last])
         for s in range(n):
             gap = max(max(xlo[s] - qx, qx - xhi[s]), max(ylo[s] - qy, qy - yhi[s]))
             if gap > best + PRUNE_MM:
@@ -164,6 +212,7 @@ def _polyline_distance_loops(pts, path):
             d = math.hypot(rx - t * abx[s], ry - t * aby[s])
             if d < best:
                 best = d
+                last = s
         out[p] = best
     return out
 
@@ -196,7 +245,9 @@ def _engaged_flat_window_loops(A, length, d, uncut, work, i0, i1, j0, j1, x0, y0
     the window rows i0:i1, columns j0:j1 of the grids ``uncut`` and ``work`` that either
     holds, cell centres at x0 + (j + 0.5) cell, y0 + (i + 0.5) cell: a cell is swept when it
     lies ahead of the start within R of the feed's segment or of its end's disk; the width is
-    the extent across the feed of the swept ``uncut`` cells plus a cell (0 if none)."""
+    the extent across the feed of the swept ``uncut`` cells plus a cell (0 if none).  Each
+    feed visits the cells of its own box grown by R only (of a window round many feeds,
+    the cells beyond it cannot be swept)."""
     n = A.shape[0]
     out = np.zeros(n)
     counts = np.zeros(n, np.int64)
@@ -211,9 +262,17 @@ def _engaged_flat_window_loops(A, length, d, uncut, work, i0, i1, j0, j1, x0, y0
         lo = math.inf
         hit = False
         count = 0
-        for i in range(i0, i1):
+        # a swept cell's centre lies within R of the feed: the feed's box grown by R and a
+        # cell (far above the rounding of the tests below) within the window
+        bx = ax + d0 * L
+        by = ay + d1 * L
+        ka = max(i0, int(math.floor((min(ay, by) - R - y0) / cell - 0.5)) - 1)
+        kb = min(i1, int(math.ceil((max(ay, by) + R - y0) / cell - 0.5)) + 2)
+        la = max(j0, int(math.floor((min(ax, bx) - R - x0) / cell - 0.5)) - 1)
+        lb = min(j1, int(math.ceil((max(ax, bx) + R - x0) / cell - 0.5)) + 2)
+        for i in range(ka, kb):
             ry = (y0 + (i + 0.5) * cell) - ay
-            for j in range(j0, j1):
+            for j in range(la, lb):
                 u = uncut[i, j]
                 w = work[i, j]
                 if not (u or w):

@@ -25,7 +25,7 @@ from .constants import (
     ZIGZAG_MIN_DIAMETERS,
 )
 from .contours import marching_squares
-from .gridops import _densify, capped_distance, squared_distance
+from .gridops import _densify, capped_distance, same_point, squared_distance
 from .passes import _chord_angle
 from .rings import _Ring
 
@@ -170,7 +170,7 @@ class _Entries:
         pass itself at the ramp angle from the surface: along an open pass backwards to its
         start (:meth:`back_ramp`), round a closed one from its start."""
         w = self.writer
-        closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
+        closed = len(p) > 2 and same_point(p[0], p[-1])
         q = (float(p[0, 0]), float(p[0, 1]), z)
         route = p
         if w.pos is not None and abs(w.pos[2] - z) < 1e-9 and \
@@ -470,7 +470,7 @@ class _Entries:
         # of an allowed centre, which the tip map's growth covers
         F = np.where(mask[i0:i1, j0:j1], -0.5, 0.5)
         loops = [q for q in marching_squares(F)
-                 if len(q) > 3 and bool(np.allclose(q[0], q[-1]))]
+                 if len(q) > 3 and same_point(q[0], q[-1])]
         if not loops:
             return None
         q = max(loops, key=lambda q: float(np.hypot(*np.diff(q, axis=0).T).sum()))
@@ -520,7 +520,7 @@ def _segment_cells(shape: tuple, chord: tuple) -> np.ndarray:
 def _lead_route(p: FloatArray, k: int) -> FloatArray:
     """The route that cuts pass p (xy) from its vertex k, where a lead-in joins it: round a
     closed pass back to k, along an open one back to its start and then all along it."""
-    closed = len(p) > 2 and bool(np.allclose(p[0], p[-1]))
+    closed = len(p) > 2 and same_point(p[0], p[-1])
     return np.vstack([p[k:-1], p[:k + 1]]) if closed else np.vstack([p[k::-1], p[1:]])
 
 

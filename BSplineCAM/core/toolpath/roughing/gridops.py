@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Fields and polylines on the grid: bilinear sampling at fractional cell indices, capped
-distance transforms, distances to a polyline and polylines cut into short pieces."""
+distance transforms, distances to a polyline, polylines cut into short pieces and whether
+two of their points coincide."""
 
 from __future__ import annotations
 
@@ -172,3 +173,20 @@ def _pieces(seg: FloatArray, step: float) -> tuple[np.ndarray, FloatArray]:
     n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / step).astype(np.intp), 1)
     owner = np.repeat(np.arange(len(seg)), n)
     return owner, (np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + 1) / n[owner]
+
+
+def same_point(a, b) -> bool:
+    """``np.allclose(a, b)`` of two points (its tolerances: |a - b| <= 1e-8 + 1e-5 |b| in
+    each coordinate, the same float operations), without its array machinery (a polyline's
+    closure is asked thousands of times per run); points with a coordinate not finite go to
+    ``np.allclose`` itself."""
+    xs = np.asarray(a, dtype=float).ravel().tolist()
+    ys = np.asarray(b, dtype=float).ravel().tolist()
+    if len(xs) != len(ys):
+        return bool(np.allclose(a, b))
+    for x, y in zip(xs, ys):
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return bool(np.allclose(a, b))
+        if not abs(x - y) <= 1e-08 + 1e-05 * abs(y):
+            return False
+    return True

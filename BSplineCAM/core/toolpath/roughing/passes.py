@@ -13,7 +13,7 @@ from ...typing import FloatArray
 from ..common import simplify
 from .constants import RING_CHORD_MM, SMOOTH_ROUNDS, STAIR_CELLS, WALL_SLIVER
 from .contours import _stretches, marching_squares
-from .gridops import _bilinear, capped_distance
+from .gridops import _bilinear, capped_distance, same_point
 
 
 class _Passes:
@@ -52,7 +52,7 @@ class _Passes:
             cuts = dv < self.Rc - 1.25
             if not cuts.any():
                 continue
-            closed = len(line) > 2 and bool(np.allclose(line[0], line[-1]))
+            closed = len(line) > 2 and same_point(line[0], line[-1])
             free, clear = dv >= self.Rc - 1.25, dv >= self.Rc + 1.0
             if front is None:
                 for piece in _stretches(line, cuts, free, clear, closed, back):
@@ -72,7 +72,7 @@ class _Passes:
             new = _bilinear(reached, line[:, 0], line[:, 1]) > 1.5 * self.cell
             for piece in _stretches(line, cuts & ~is_front & new, free, clear, closed, back):
                 d = _bilinear(front, piece[:, 0], piece[:, 1])
-                closed_piece = len(piece) > 2 and bool(np.allclose(piece[0], piece[-1]))
+                closed_piece = len(piece) > 2 and same_point(piece[0], piece[-1])
                 walls.append(piece if closed_piece or d[0] >= d[-1] else piece[::-1])
         if circles and fronts:
             fronts, circles = self.on_circles(fronts, circles)
@@ -161,7 +161,7 @@ class _Passes:
             best, best_d, best_i = None, math.inf, 0
             for r in remaining:
                 p = paths[r]
-                if len(p) > 2 and np.allclose(p[0], p[-1]):
+                if len(p) > 2 and same_point(p[0], p[-1]):
                     dd = np.hypot(*(p - here).T)
                     i = int(np.argmin(dd))
                     d0 = float(dd[i])
@@ -171,7 +171,7 @@ class _Passes:
                     best, best_d, best_i = r, d0, i
             remaining.remove(best)
             p = paths[best]
-            if len(p) > 2 and np.allclose(p[0], p[-1]) and best_i:
+            if len(p) > 2 and same_point(p[0], p[-1]) and best_i:
                 p = np.concatenate([p[best_i:-1], p[:best_i + 1]])
             self.cut_path(p, z, z_above)
 
@@ -184,7 +184,7 @@ class _Passes:
         chords on a 17 mm ring: about 0.5 mm wider)."""
         if len(path) < 3:
             return path
-        closed = bool(np.allclose(path[0], path[-1]))
+        closed = same_point(path[0], path[-1])
         q = path[:-1] if closed else path
         for _ in range(SMOOTH_ROUNDS):
             nxt = np.roll(q, -1, axis=0)
@@ -210,7 +210,7 @@ class _Passes:
         n = len(path)
         if n < 3:
             return path
-        if not np.allclose(path[0], path[-1]) and n > 4:
+        if not same_point(path[0], path[-1]) and n > 4:
             # an open path keeps its first and last moves: where it ends at a wall the last
             # one is the head-on cut, which a long move running into it would only widen
             # (the job simulation measures the whole swath of a move)
