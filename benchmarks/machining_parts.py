@@ -171,10 +171,8 @@ def measure_program(faces, text: str, path: Path, args: argparse.Namespace) -> d
     out["vertical_feed_mm"] = float(program.lengths()[vertical].sum())
     out["moves"] = len(program)
     started = time.perf_counter()
-    if args.start_stock_allowance is None:
-        stock = {}
-    else:
-        stock = {"stock_top": "model", "stock_margin": args.start_stock_allowance}
+    allowance = getattr(args, "start_stock_allowance", None)  # benchmarks/strategies.py: none
+    stock = {} if allowance is None else {"stock_top": "model", "stock_margin": allowance}
     metrics = verify_faces(faces, program, Tool(args.diameter), cell=args.cell, **stock).metrics
     out["verify_seconds"] = time.perf_counter() - started
     for key in ("gouge_cells", "scallop_max_mm", "scallop_p99_mm",
