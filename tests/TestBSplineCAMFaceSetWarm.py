@@ -12,7 +12,15 @@ import importlib.util
 
 import numpy as np
 import pytest
-from bsplinecam_helpers import close, dome_faces, fillet_ring, plate_with_hole, rectangle, same
+from bsplinecam_helpers import (
+    close,
+    dome_faces,
+    fillet_ring,
+    plate_with_hole,
+    rectangle,
+    same,
+    same_drops,
+)
 
 from BSplineCAM.core import kernels
 from BSplineCAM.core.geometry.faces import Face
@@ -187,13 +195,7 @@ def test_engines_agree_with_hints(name):
             out.append((fs.drop_ball(q, R, hint=(face, u, v)), dict(fs.stats)))
         finally:
             ctx.__exit__(None, None, None)
-    (ra, sa), (rb, sb) = out
-    assert sa == sb
-    close(ra[0], rb[0])
-    same(ra[1], rb[1])
-    same(ra[4], rb[4])
-    close(ra[2], rb[2])
-    close(ra[3], rb[3])
+    same_drops(*out)
 
 
 # -- the memo of contacts ------------------------------------------------------------------------
