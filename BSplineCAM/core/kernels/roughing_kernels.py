@@ -111,6 +111,26 @@ def _column_distances(mask, out, cap):
                 out[i, j] = u
 
 
+@helper
+def _row_passes(out, far, reach, root):
+    """Every row of ``out`` (ny, nx: each cell's distance down its column) through
+    :func:`_row_envelope`, in place, with one set of scratch arrays; without ``root`` each
+    cell's own value is first squared."""
+    ny, nx = out.shape
+    g = np.empty(nx)
+    pos = np.empty(nx)
+    val = np.empty(nx)
+    v = np.zeros(nx, np.int64)
+    z = np.empty(nx + 1)
+    for i in range(ny):
+        row = out[i]
+        for p in range(nx):
+            g[p] = row[p]
+            if not root:
+                row[p] = g[p] * g[p]
+        _row_envelope(g, row, pos, val, v, z, far, reach, root)
+
+
 def _squared_distance_loops(mask):
     """Squared Euclidean distance (cells^2) from each cell to the nearest set cell of the
     boolean grid ``mask`` (ny, nx; not empty), at most (ny + nx + 2)^2: the exact squared
@@ -121,20 +141,11 @@ def _squared_distance_loops(mask):
     big = float((ny + nx + 2) ** 2)
     out = np.empty((ny, nx))
     _column_distances(mask, out, math.inf)
-    g = np.empty(nx)
-    pos = np.empty(nx)
-    val = np.empty(nx)
-    v = np.zeros(nx, np.int64)
-    z = np.empty(nx + 1)
+    _row_passes(out, math.inf, float(nx), False)
     for i in range(ny):
-        row = out[i]
         for p in range(nx):
-            g[p] = row[p]
-            row[p] = g[p] * g[p]
-        _row_envelope(g, row, pos, val, v, z, math.inf, float(nx), False)
-        for p in range(nx):
-            if row[p] > big:
-                row[p] = big
+            if out[i, p] > big:
+                out[i, p] = big
     return out
 
 
@@ -152,16 +163,7 @@ def _capped_distance_loops(mask, k, big):
     bigf = float(big)
     out = np.empty((ny, nx))
     _column_distances(mask, out, bigf)
-    g = np.empty(nx)
-    pos = np.empty(nx)
-    val = np.empty(nx)
-    v = np.zeros(nx, np.int64)
-    z = np.empty(nx + 1)
-    for i in range(ny):
-        row = out[i]
-        for p in range(nx):
-            g[p] = row[p]
-        _row_envelope(g, row, pos, val, v, z, bigf, float(k), True)
+    _row_passes(out, bigf, float(k), True)
     return out
 
 
